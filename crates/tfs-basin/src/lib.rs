@@ -1,0 +1,1 @@
+//! tfs-basin (skeleton; being written).

@@ -1,0 +1,1 @@
+//! tfs-criteria (skeleton; being written).

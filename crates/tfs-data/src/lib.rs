@@ -1,0 +1,1 @@
+//! tfs-data (skeleton; being written).

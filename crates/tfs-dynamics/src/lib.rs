@@ -1,0 +1,1 @@
+//! tfs-dynamics (skeleton; being written).

@@ -1,0 +1,1 @@
+//! tfs-library (skeleton; being written).

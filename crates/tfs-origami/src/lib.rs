@@ -1,0 +1,1 @@
+//! tfs-origami (skeleton; being written).

@@ -1,0 +1,1 @@
+//! tfs-plot (skeleton; being written).

@@ -1,0 +1,1 @@
+//! tfs-regress (skeleton; being written).

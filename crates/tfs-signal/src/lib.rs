@@ -1,0 +1,1 @@
+//! tfs-signal (skeleton; being written).

@@ -1,0 +1,1 @@
+//! tfs (skeleton; being written).
