@@ -1,0 +1,194 @@
+//! The common result type [`Fit`], the [`Regressor`] trait, least squares and ridge.
+
+use crate::compress::Compressed;
+use crate::error::{Result, check_param};
+use faer::linalg::triangular_solve::solve_upper_triangular_in_place;
+use faer::{Mat, MatRef, Par};
+
+/// Result of one regression.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fit {
+    /// Coefficients in the original units of the columns of `A` (zero outside the support).
+    pub coef: Vec<f64>,
+    /// `support[j]` is true when column `j` is in the model.
+    pub support: Vec<bool>,
+    /// Training residual sum of squares `‖Aξ − b‖²`.
+    pub rss: f64,
+    /// Columns that were in the candidate set but were found numerically dependent on
+    /// earlier (pivoted) columns, or identically zero; their coefficient is 0.
+    pub dependent: Vec<usize>,
+    /// Iterations used (1 for direct solvers).
+    pub iterations: usize,
+    /// False when an iterative method stopped at its `max_iter` before converging.
+    pub converged: bool,
+}
+
+impl Fit {
+    /// Number of non-zero terms.
+    pub fn n_terms(&self) -> usize {
+        self.support.iter().filter(|&&s| s).count()
+    }
+
+    pub(crate) fn from_coef(
+        p: &Compressed,
+        coef: Vec<f64>,
+        dependent: Vec<usize>,
+        iterations: usize,
+        converged: bool,
+    ) -> Result<Self> {
+        let support = coef.iter().map(|&v| v != 0.0).collect();
+        let rss = p.rss(&coef)?;
+        Ok(Self {
+            coef,
+            support,
+            rss,
+            dependent,
+            iterations,
+            converged,
+        })
+    }
+}
+
+/// A sparse or dense linear regressor. One required method works on a [`Compressed`]
+/// problem; [`Regressor::fit`] compresses raw rows first.
+///
+/// Convention: `A` is a faer `MatRef<f64>` (rows = samples, columns = library terms) and
+/// `b` a slice with one entry per row.
+pub trait Regressor {
+    /// Fit on a compressed problem.
+    fn fit_compressed(&self, p: &Compressed) -> Result<Fit>;
+
+    /// Fit on raw rows `(A, b)`: compresses once, then calls [`Regressor::fit_compressed`].
+    fn fit(&self, a: MatRef<'_, f64>, b: &[f64]) -> Result<Fit> {
+        self.fit_compressed(&Compressed::from_rows(a, b)?)
+    }
+}
+
+/// Relative rank tolerance for the small pivoted QR: `|r_kk| ≤ max(rows, cols)·ε·|r_00|`
+/// marks column `k` (in pivot order) as dependent.
+fn rank_tol(rows: usize, cols: usize) -> f64 {
+    rows.max(cols) as f64 * f64::EPSILON
+}
+
+/// Least squares on a small dense system `min ‖M x − y‖` by column-pivoted QR.
+/// Returns `x` (zero for dependent columns) and the dependent column indices.
+pub(crate) fn small_lstsq(mmat: MatRef<'_, f64>, y: &[f64]) -> (Vec<f64>, Vec<usize>) {
+    let (k, p) = mmat.shape();
+    if p == 0 {
+        return (Vec::new(), Vec::new());
+    }
+    let qr = mmat.col_piv_qr();
+    let r = qr.thin_R();
+    let q = qr.compute_thin_Q();
+    let size = k.min(p);
+    let (fwd, _) = qr.P().arrays();
+    let r00 = if size > 0 { r[(0, 0)].abs() } else { 0.0 };
+    let tol = rank_tol(k, p) * r00;
+    let rank = (0..size)
+        .take_while(|&i| r00 > 0.0 && r[(i, i)].abs() > tol)
+        .count();
+    let mut rhs = Mat::<f64>::zeros(rank, 1);
+    for i in 0..rank {
+        rhs[(i, 0)] = (0..k).map(|t| q[(t, i)] * y[t]).sum();
+    }
+    solve_upper_triangular_in_place(r.get(..rank, ..rank), rhs.as_mut(), Par::Seq);
+    let mut x = vec![0.0; p];
+    for i in 0..rank {
+        x[fwd[i]] = rhs[(i, 0)];
+    }
+    let mut dependent: Vec<usize> = fwd[rank..].to_vec();
+    dependent.sort_unstable();
+    (x, dependent)
+}
+
+/// Ridge (λ ≥ 0) least squares on the columns `cols` of a compressed problem whose columns
+/// are multiplied by `scale[j]` and right-hand side by `bscale`:
+/// `min ‖R D x − c·bscale‖² + λ‖x‖²` with `D = diag(scale)` restricted to `cols`.
+/// Returns the full-length `x` in the scaled units and dependent column indices (global).
+pub(crate) fn subset_solve(
+    p: &Compressed,
+    cols: &[usize],
+    scale: &[f64],
+    bscale: f64,
+    lambda: f64,
+) -> (Vec<f64>, Vec<usize>) {
+    let n = p.ncols();
+    let s = cols.len();
+    let extra = if lambda > 0.0 { s } else { 0 };
+    let mut m = Mat::<f64>::zeros(n + extra, s);
+    let r = p.r();
+    for (jj, &j) in cols.iter().enumerate() {
+        for i in 0..=j {
+            m[(i, jj)] = r[(i, j)] * scale[j];
+        }
+        if lambda > 0.0 {
+            m[(n + jj, jj)] = lambda.sqrt();
+        }
+    }
+    let mut y: Vec<f64> = p.c().iter().map(|v| v * bscale).collect();
+    y.resize(n + extra, 0.0);
+    let (xs, dep) = small_lstsq(m.as_ref(), &y);
+    let mut x = vec![0.0; n];
+    for (jj, &j) in cols.iter().enumerate() {
+        x[j] = xs[jj];
+    }
+    (x, dep.into_iter().map(|jj| cols[jj]).collect())
+}
+
+/// Ordinary least squares on all columns (column-pivoted QR of the small factor).
+///
+/// Rank deficiency is not an error: numerically dependent columns get coefficient 0 and are
+/// listed in [`Fit::dependent`] (a basic solution).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct LeastSquares;
+
+impl Regressor for LeastSquares {
+    fn fit_compressed(&self, p: &Compressed) -> Result<Fit> {
+        let n = p.ncols();
+        let cols: Vec<usize> = (0..n).collect();
+        let (x, dep) = subset_solve(p, &cols, &vec![1.0; n], 1.0, 0.0);
+        Fit::from_coef(p, x, dep, 1, true)
+    }
+}
+
+/// Least squares on raw rows: `LeastSquares.fit(a, b)`.
+pub fn lstsq(a: MatRef<'_, f64>, b: &[f64]) -> Result<Fit> {
+    LeastSquares.fit(a, b)
+}
+
+/// Least squares restricted to a support (columns outside get 0), on a compressed problem.
+pub fn lstsq_support(p: &Compressed, support: &[bool]) -> Result<Fit> {
+    if support.len() != p.ncols() {
+        return Err(crate::RegressError::DimensionMismatch {
+            what: "length of support vs columns of the compressed problem".into(),
+            expected: p.ncols(),
+            found: support.len(),
+        });
+    }
+    let cols: Vec<usize> = (0..p.ncols()).filter(|&j| support[j]).collect();
+    let (x, dep) = subset_solve(p, &cols, &vec![1.0; p.ncols()], 1.0, 0.0);
+    Fit::from_coef(p, x, dep, 1, true)
+}
+
+/// Ridge regression `min ‖Aξ − b‖² + λ‖ξ‖²` in the raw column units (no scaling, no intercept),
+/// solved as least squares on the stacked small system `[R; √λ I] ξ ≈ [c; 0]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ridge {
+    /// Penalty λ ≥ 0 (λ = 0 is least squares).
+    pub lambda: f64,
+}
+
+impl Regressor for Ridge {
+    fn fit_compressed(&self, p: &Compressed) -> Result<Fit> {
+        check_param(
+            "Ridge.lambda",
+            self.lambda,
+            self.lambda >= 0.0,
+            "must be finite and >= 0",
+        )?;
+        let n = p.ncols();
+        let cols: Vec<usize> = (0..n).collect();
+        let (x, dep) = subset_solve(p, &cols, &vec![1.0; n], 1.0, self.lambda);
+        Fit::from_coef(p, x, dep, 1, true)
+    }
+}

@@ -1,0 +1,200 @@
+//! A threshold (λ) path for STLSQ with model selection on held-out rows.
+
+use crate::compress::Compressed;
+use crate::error::{RegressError, Result, check_param};
+use crate::fit::{Regressor, lstsq_support};
+use crate::stlsq::Stlsq;
+use std::collections::HashMap;
+
+/// How to score a model on held-out rows. With `m_val` validation rows, `k` non-zero terms
+/// and `RSS_val` the validation residual sum of squares, the information criteria are
+/// `m_val·ln(RSS_val/m_val) + penalty(k)`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum InfoCriterion {
+    /// penalty `2k`.
+    Aic,
+    /// penalty `2k + 2k(k+1)/(m_val − k − 1)` (+∞ when `m_val ≤ k + 1`).
+    #[default]
+    Aicc,
+    /// penalty `k·ln(m_val)`.
+    Bic,
+    /// Plain validation RSS (no penalty).
+    ValidationRss,
+}
+
+impl InfoCriterion {
+    /// The criterion value. `rss_val` is floored at the smallest positive normal `f64` so an
+    /// exact fit gives a large negative finite value rather than −∞.
+    pub fn score(self, rss_val: f64, m_val: usize, k: usize) -> f64 {
+        let m = m_val as f64;
+        let kf = k as f64;
+        let fit = || m * (rss_val.max(f64::MIN_POSITIVE) / m).ln();
+        match self {
+            Self::Aic => fit() + 2.0 * kf,
+            Self::Bic => fit() + kf * m.ln(),
+            Self::Aicc => {
+                if m_val <= k + 1 {
+                    f64::INFINITY
+                } else {
+                    fit() + 2.0 * kf + 2.0 * kf * (kf + 1.0) / (m - kf - 1.0)
+                }
+            }
+            Self::ValidationRss => rss_val,
+        }
+    }
+}
+
+/// Options of [`lambda_path`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PathOptions {
+    /// STLSQ settings; its `threshold` is replaced by each grid value and its refit is
+    /// always unbiased on the path.
+    pub stlsq: Stlsq,
+    /// Number of thresholds in the geometric grid (≥ 1).
+    pub n_thresholds: usize,
+    /// Smallest threshold as a fraction of the largest, in (0, 1].
+    pub min_ratio: f64,
+    /// Selection rule.
+    pub criterion: InfoCriterion,
+}
+
+impl Default for PathOptions {
+    /// Default STLSQ, 40 thresholds down to 1e-4 of the largest, AICc.
+    fn default() -> Self {
+        Self {
+            stlsq: Stlsq::default(),
+            n_thresholds: 40,
+            min_ratio: 1e-4,
+            criterion: InfoCriterion::Aicc,
+        }
+    }
+}
+
+/// One point of the path.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PathPoint {
+    /// Threshold used (scaled units when `stlsq.scale_columns`).
+    pub threshold: f64,
+    /// Support found by STLSQ at this threshold.
+    pub support: Vec<bool>,
+    /// Unbiased least-squares coefficients on that support, original units.
+    pub coef: Vec<f64>,
+    /// Number of terms.
+    pub n_terms: usize,
+    /// Training RSS.
+    pub rss_train: f64,
+    /// Validation RSS.
+    pub rss_val: f64,
+    /// Criterion value on the validation rows.
+    pub criterion: f64,
+}
+
+/// The whole path and the chosen point.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LambdaPath {
+    /// Points from the largest threshold down.
+    pub points: Vec<PathPoint>,
+    /// Index into `points` of the selected model (lowest criterion; ties go to fewer terms,
+    /// then to the larger threshold).
+    pub selected: usize,
+    /// The criterion used.
+    pub criterion: InfoCriterion,
+    /// Rows in the validation set.
+    pub m_val: usize,
+}
+
+impl LambdaPath {
+    /// The selected point.
+    pub fn best(&self) -> &PathPoint {
+        &self.points[self.selected]
+    }
+}
+
+/// Run STLSQ over a geometric grid of thresholds from the largest |scaled coefficient| of the
+/// initial fit down to `min_ratio` times it; refit each distinct support by least squares on
+/// `train` and score it on the held-out `val` rows (also compressed). Returns every point.
+pub fn lambda_path(train: &Compressed, val: &Compressed, opts: &PathOptions) -> Result<LambdaPath> {
+    if opts.n_thresholds == 0 {
+        return Err(RegressError::InvalidParameter {
+            name: "PathOptions.n_thresholds",
+            value: "0".into(),
+            reason: "must be at least 1",
+        });
+    }
+    check_param(
+        "PathOptions.min_ratio",
+        opts.min_ratio,
+        opts.min_ratio > 0.0 && opts.min_ratio <= 1.0,
+        "must be in (0, 1]",
+    )?;
+    if val.ncols() != train.ncols() {
+        return Err(RegressError::DimensionMismatch {
+            what: "columns of validation set vs training set".into(),
+            expected: train.ncols(),
+            found: val.ncols(),
+        });
+    }
+    if val.nrows() == 0 {
+        return Err(RegressError::Empty {
+            what: "validation set has no rows; hold out some rows (e.g. a record or window)",
+        });
+    }
+    let base = Stlsq {
+        unbiased_refit: true,
+        ..opts.stlsq
+    };
+    let init = base.initial_scaled_coef(train);
+    let top = init.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+    if top == 0.0 {
+        return Err(RegressError::Empty {
+            what: "initial fit is identically zero (b = 0 or A = 0); nothing to select",
+        });
+    }
+    let nt = opts.n_thresholds;
+    let mut seen: HashMap<Vec<bool>, (Vec<f64>, f64, f64)> = HashMap::new();
+    let mut points = Vec::with_capacity(nt);
+    for i in 0..nt {
+        let frac = if nt == 1 {
+            0.0
+        } else {
+            i as f64 / (nt - 1) as f64
+        };
+        let threshold = top * opts.min_ratio.powf(frac);
+        let fit = Stlsq { threshold, ..base }.fit_compressed(train)?;
+        let support = fit.support.clone();
+        let (coef, rss_train, rss_val) = match seen.get(&support) {
+            Some(v) => v.clone(),
+            None => {
+                let refit = lstsq_support(train, &support)?;
+                let rv = val.rss(&refit.coef)?;
+                let v = (refit.coef, refit.rss, rv);
+                seen.insert(support.clone(), v.clone());
+                v
+            }
+        };
+        let n_terms = support.iter().filter(|&&s| s).count();
+        let criterion = opts.criterion.score(rss_val, val.nrows(), n_terms);
+        points.push(PathPoint {
+            threshold,
+            support,
+            coef,
+            n_terms,
+            rss_train,
+            rss_val,
+            criterion,
+        });
+    }
+    let mut selected = 0;
+    for (i, p) in points.iter().enumerate() {
+        let b = &points[selected];
+        if p.criterion < b.criterion || (p.criterion == b.criterion && p.n_terms < b.n_terms) {
+            selected = i;
+        }
+    }
+    Ok(LambdaPath {
+        points,
+        selected,
+        criterion: opts.criterion,
+        m_val: val.nrows(),
+    })
+}
