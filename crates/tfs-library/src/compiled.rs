@@ -1,0 +1,212 @@
+//! A compiled model: index-resolved terms for fast, allocation-free acceleration evaluation.
+
+use crate::model::Model;
+use crate::term::{Coord, Factor, Var, pow_u, sign0};
+use crate::{LibraryError, Result};
+
+#[derive(Debug, Clone, Copy)]
+enum Base {
+    X(usize),
+    U(usize),
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Src {
+    X(usize),
+    V(usize),
+    U(usize),
+    RelX(usize, Base),
+    RelV(usize, Base),
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Kind {
+    Pow(u32),
+    Abs,
+    Sign,
+    Tanh(f64),
+}
+
+#[derive(Debug, Clone, Copy)]
+struct CFactor {
+    src: Src,
+    kind: Kind,
+}
+
+/// A model with every name resolved to an index: `accel` does no allocation and no lookups.
+///
+/// Build with [`Model::compile`]. States `x`, `v` are in the model's DOF order, inputs `u` in
+/// [`CompiledModel::input_names`] order (`xb`, `xb_vel` for relative coordinates to the base
+/// are inputs too).
+#[derive(Debug, Clone)]
+pub struct CompiledModel {
+    dof_names: Vec<String>,
+    input_names: Vec<String>,
+    factors: Vec<CFactor>,
+    /// Per term: (coefficient, first factor, end factor).
+    terms: Vec<(f64, usize, usize)>,
+    /// Per equation: range into `terms`.
+    equations: Vec<(usize, usize)>,
+}
+
+impl Model {
+    /// Compiles the model for fast evaluation (validates it first).
+    pub fn compile(&self) -> Result<CompiledModel> {
+        self.validate()?;
+        let dof = |n: &str| self.dofs.iter().position(|d| d == n);
+        let input = |n: &str| {
+            self.inputs
+                .iter()
+                .position(|d| d == n)
+                .ok_or_else(|| LibraryError::Invalid {
+                    field: "inputs".into(),
+                    message: format!("input '{n}' is needed but not listed"),
+                })
+        };
+        let base_x = |c: &Coord| -> Result<Base> {
+            match c {
+                Coord::Dof(n) => dof(n).map(Base::X).ok_or_else(|| unknown(n)),
+                Coord::Input(n) => input(n).map(Base::U),
+            }
+        };
+        let base_v = |c: &Coord| -> Result<Base> {
+            match c {
+                Coord::Dof(n) => dof(n).map(Base::X).ok_or_else(|| unknown(n)),
+                Coord::Input(_) => input(&c.velocity_column()).map(Base::U),
+            }
+        };
+        let mut factors = Vec::new();
+        let mut terms = Vec::new();
+        let mut equations = Vec::new();
+        for d in &self.dofs {
+            let eq = self.equation(d)?;
+            let t0 = terms.len();
+            for mt in &eq.terms {
+                let f0 = factors.len();
+                for f in mt.term.factors() {
+                    let src = match f.var() {
+                        Var::Disp(n) => Src::X(dof(n).ok_or_else(|| unknown(n))?),
+                        Var::Vel(n) => Src::V(dof(n).ok_or_else(|| unknown(n))?),
+                        Var::Input(n) => Src::U(input(n)?),
+                        Var::RelDisp(a, b) => {
+                            Src::RelX(dof(a).ok_or_else(|| unknown(a))?, base_x(b)?)
+                        }
+                        Var::RelVel(a, b) => {
+                            Src::RelV(dof(a).ok_or_else(|| unknown(a))?, base_v(b)?)
+                        }
+                    };
+                    let kind = match f {
+                        Factor::Pow(_, k) => Kind::Pow(*k),
+                        Factor::Abs(_) => Kind::Abs,
+                        Factor::Sign(_) => Kind::Sign,
+                        Factor::Tanh(_, eps) => Kind::Tanh(1.0 / eps),
+                    };
+                    factors.push(CFactor { src, kind });
+                }
+                terms.push((mt.coef, f0, factors.len()));
+            }
+            equations.push((t0, terms.len()));
+        }
+        Ok(CompiledModel {
+            dof_names: self.dofs.clone(),
+            input_names: self.inputs.clone(),
+            factors,
+            terms,
+            equations,
+        })
+    }
+}
+
+fn unknown(n: &str) -> LibraryError {
+    LibraryError::Invalid {
+        field: "dofs".into(),
+        message: format!("term uses DOF '{n}' that the model does not declare"),
+    }
+}
+
+impl CompiledModel {
+    /// Number of DOFs.
+    pub fn dofs(&self) -> usize {
+        self.dof_names.len()
+    }
+
+    /// Number of inputs.
+    pub fn inputs(&self) -> usize {
+        self.input_names.len()
+    }
+
+    /// DOF names in state order.
+    pub fn dof_names(&self) -> &[String] {
+        &self.dof_names
+    }
+
+    /// Input names in `u` order.
+    pub fn input_names(&self) -> &[String] {
+        &self.input_names
+    }
+
+    /// Index of an input in `u`, if the model uses it.
+    pub fn input_index(&self, name: &str) -> Option<usize> {
+        self.input_names.iter().position(|n| n == name)
+    }
+
+    #[inline(always)]
+    fn value(src: Src, x: &[f64], v: &[f64], u: &[f64]) -> f64 {
+        match src {
+            Src::X(i) => x[i],
+            Src::V(i) => v[i],
+            Src::U(k) => u[k],
+            Src::RelX(i, Base::X(j)) => x[i] - x[j],
+            Src::RelX(i, Base::U(k)) => x[i] - u[k],
+            Src::RelV(i, Base::X(j)) => v[i] - v[j],
+            Src::RelV(i, Base::U(k)) => v[i] - u[k],
+        }
+    }
+
+    /// Accelerations `out[i] = x_i''` for displacements `x`, velocities `v` (DOF order) and inputs
+    /// `u` (input order).
+    ///
+    /// # Panics
+    /// If `x`, `v` or `out` are shorter than [`CompiledModel::dofs`] or `u` shorter than
+    /// [`CompiledModel::inputs`] (a programming error; see [`CompiledModel::try_accel`]).
+    #[inline]
+    pub fn accel(&self, x: &[f64], v: &[f64], u: &[f64], out: &mut [f64]) {
+        for (o, &(t0, t1)) in out.iter_mut().zip(&self.equations) {
+            let mut acc = 0.0;
+            for &(coef, f0, f1) in &self.terms[t0..t1] {
+                let mut p = coef;
+                for f in &self.factors[f0..f1] {
+                    let s = Self::value(f.src, x, v, u);
+                    p *= match f.kind {
+                        Kind::Pow(k) => pow_u(s, k),
+                        Kind::Abs => s.abs(),
+                        Kind::Sign => sign0(s),
+                        Kind::Tanh(inv) => (s * inv).tanh(),
+                    };
+                }
+                acc += p;
+            }
+            *o = acc;
+        }
+    }
+
+    /// Checked form of [`CompiledModel::accel`]: errors on wrong slice lengths.
+    pub fn try_accel(&self, x: &[f64], v: &[f64], u: &[f64], out: &mut [f64]) -> Result<()> {
+        let n = self.dofs();
+        for (name, len, want) in [
+            ("x", x.len(), n),
+            ("v", v.len(), n),
+            ("out", out.len(), n),
+            ("u", u.len(), self.inputs()),
+        ] {
+            if len != want {
+                return Err(LibraryError::Invalid {
+                    field: name.into(),
+                    message: format!("has length {len}, expected {want}"),
+                });
+            }
+        }
+        self.accel(x, v, u, out);
+        Ok(())
+    }
+}

@@ -1,0 +1,287 @@
+//! Libraries of candidate terms and their evaluation on data into one faer matrix.
+
+use std::borrow::Cow;
+
+use faer::Mat;
+use tfs_data::Columns;
+
+use crate::term::{Factor, Term, Var};
+use crate::{LibraryError, Result};
+
+/// An ordered set of distinct candidate terms over named DOFs.
+///
+/// Built from a spec with [`Library::parse`]. Duplicate terms (after range expansion and
+/// canonicalisation, so `x*x` equals `x^2`) are removed silently, keeping the first occurrence:
+/// `poly(x, x'; 0..3), x'` is the same library as `poly(x, x'; 0..3)`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Library {
+    dofs: Vec<String>,
+    terms: Vec<Term>,
+}
+
+impl Library {
+    /// Parses a comma-separated spec; identifiers listed in `dofs` are DOFs, all others inputs.
+    ///
+    /// ```
+    /// use tfs_library::Library;
+    /// let lib = Library::parse("x^1..3, x', xb_acc", &["x"]).unwrap();
+    /// assert_eq!(lib.names(), ["x", "x^2", "x^3", "x'", "xb_acc"]);
+    /// assert_eq!(Library::parse("poly(x, x'; 0..7)", &["x"]).unwrap().len(), 36);
+    /// ```
+    pub fn parse<S: AsRef<str>>(spec: &str, dofs: &[S]) -> Result<Self> {
+        let dof_refs: Vec<&str> = dofs.iter().map(|s| s.as_ref()).collect();
+        check_dofs(&dof_refs)?;
+        let terms = crate::parse::parse_spec(spec, &dof_refs)?;
+        Self::new(dofs, terms)
+    }
+
+    /// Builds a library from terms, removing duplicates (first occurrence kept).
+    /// Every DOF a term mentions must be in `dofs`.
+    pub fn new<S: AsRef<str>>(dofs: &[S], terms: Vec<Term>) -> Result<Self> {
+        let dofs: Vec<String> = dofs.iter().map(|s| s.as_ref().to_string()).collect();
+        let refs: Vec<&str> = dofs.iter().map(String::as_str).collect();
+        check_dofs(&refs)?;
+        let mut out: Vec<Term> = Vec::with_capacity(terms.len());
+        for t in terms {
+            for d in t.dofs() {
+                if !dofs.contains(&d) {
+                    return Err(LibraryError::Invalid {
+                        field: "terms".into(),
+                        message: format!(
+                            "term '{t}' uses DOF '{d}', which is not among the DOFs {dofs:?}; declare it as a DOF"
+                        ),
+                    });
+                }
+            }
+            if !out.contains(&t) {
+                out.push(t);
+            }
+        }
+        Ok(Self { dofs, terms: out })
+    }
+
+    /// The DOF names.
+    pub fn dofs(&self) -> &[String] {
+        &self.dofs
+    }
+
+    /// The terms, in spec order.
+    pub fn terms(&self) -> &[Term] {
+        &self.terms
+    }
+
+    /// Number of terms (matrix columns).
+    pub fn len(&self) -> usize {
+        self.terms.len()
+    }
+
+    /// True if the library has no terms.
+    pub fn is_empty(&self) -> bool {
+        self.terms.is_empty()
+    }
+
+    /// Canonical term names, one per column.
+    pub fn names(&self) -> Vec<String> {
+        self.terms.iter().map(Term::to_string).collect()
+    }
+
+    /// The canonical spec: names joined by `", "` (parses back to the same library).
+    pub fn spec(&self) -> String {
+        self.names().join(", ")
+    }
+
+    /// Columns that must be supplied to [`Library::evaluate`] (`x`, `x'`, `xb`, `xb_vel`, …), in
+    /// first-use order.
+    pub fn required_columns(&self) -> Vec<String> {
+        let mut out: Vec<String> = Vec::new();
+        for t in &self.terms {
+            for c in t.required_columns() {
+                if !out.contains(&c) {
+                    out.push(c);
+                }
+            }
+        }
+        out
+    }
+
+    /// Input names (non-DOF columns) the library needs, in first-use order.
+    pub fn inputs(&self) -> Vec<String> {
+        let mut out: Vec<String> = Vec::new();
+        for t in &self.terms {
+            for c in t.required_inputs() {
+                if !out.contains(&c) {
+                    out.push(c);
+                }
+            }
+        }
+        out
+    }
+
+    /// Position of a term (by value) in the library.
+    pub fn index_of(&self, term: &Term) -> Option<usize> {
+        self.terms.iter().position(|t| t == term)
+    }
+
+    /// Returns a library with `term` appended (unchanged if already present).
+    pub fn with_term(&self, term: Term) -> Result<Self> {
+        let mut terms = self.terms.clone();
+        terms.push(term);
+        Self::new(&self.dofs, terms)
+    }
+
+    /// Evaluates every term on every row: an `rows × len` matrix, column `j` = term `j`.
+    /// Velocity columns are looked up as `"x'"`, input velocities as `"xb_vel"`.
+    /// Missing or short columns and non-finite results are errors naming the column and term.
+    pub fn evaluate(&self, cols: &dyn Columns) -> Result<Mat<f64>> {
+        let columns: Vec<Vec<f64>> = self
+            .terms
+            .iter()
+            .map(|t| evaluate_term(t, cols))
+            .collect::<Result<_>>()?;
+        Ok(Mat::from_fn(cols.rows(), self.terms.len(), |i, j| {
+            columns[j][i]
+        }))
+    }
+}
+
+fn check_dofs(dofs: &[&str]) -> Result<()> {
+    if dofs.is_empty() {
+        return Err(LibraryError::Invalid {
+            field: "dofs".into(),
+            message: "no DOF names given; pass at least one, e.g. [\"x\"]".into(),
+        });
+    }
+    for (i, d) in dofs.iter().enumerate() {
+        let ok = d
+            .chars()
+            .next()
+            .is_some_and(|c| c.is_alphabetic() || c == '_')
+            && d.chars().all(|c| c.is_alphanumeric() || c == '_');
+        if !ok {
+            return Err(LibraryError::Invalid {
+                field: format!("dofs[{i}]"),
+                message: format!(
+                    "'{d}' is not a valid DOF name; use letters, digits and '_' starting with a letter"
+                ),
+            });
+        }
+        if dofs[..i].contains(d) {
+            return Err(LibraryError::Invalid {
+                field: format!("dofs[{i}]"),
+                message: format!("DOF '{d}' is listed twice"),
+            });
+        }
+    }
+    Ok(())
+}
+
+fn fetch<'c>(cols: &'c dyn Columns, name: &str, term: &Term) -> Result<&'c [f64]> {
+    let c = cols
+        .column(name)
+        .ok_or_else(|| LibraryError::MissingColumn {
+            column: name.to_string(),
+            term: term.to_string(),
+        })?;
+    if c.len() != cols.rows() {
+        return Err(LibraryError::ColumnLength {
+            column: name.to_string(),
+            len: c.len(),
+            rows: cols.rows(),
+        });
+    }
+    Ok(c)
+}
+
+/// Values of a variable on every row (borrowed for plain columns, computed for relative ones).
+fn var_values<'c>(v: &Var, cols: &'c dyn Columns, term: &Term) -> Result<Cow<'c, [f64]>> {
+    let names = v.required_columns();
+    match v {
+        Var::RelDisp(..) | Var::RelVel(..) => {
+            let a = fetch(cols, &names[0], term)?;
+            let b = fetch(cols, &names[1], term)?;
+            Ok(Cow::Owned(a.iter().zip(b).map(|(a, b)| a - b).collect()))
+        }
+        _ => Ok(Cow::Borrowed(fetch(cols, &names[0], term)?)),
+    }
+}
+
+/// Evaluates one term on every row of `cols`.
+pub fn evaluate_term(term: &Term, cols: &dyn Columns) -> Result<Vec<f64>> {
+    let mut out = vec![1.0; cols.rows()];
+    for f in term.factors() {
+        let vals = var_values(f.var(), cols, term)?;
+        match f {
+            Factor::Pow(_, k) => {
+                for (o, v) in out.iter_mut().zip(vals.iter()) {
+                    *o *= crate::term::pow_u(*v, *k);
+                }
+            }
+            _ => {
+                for (o, v) in out.iter_mut().zip(vals.iter()) {
+                    *o *= f.apply(*v);
+                }
+            }
+        }
+    }
+    if let Some(row) = out.iter().position(|v| !v.is_finite()) {
+        return Err(LibraryError::NonFinite {
+            term: term.to_string(),
+            row,
+        });
+    }
+    Ok(out)
+}
+
+/// A [`Columns`] view that adds named columns (derived velocities, filtered signals, …) on top of
+/// a base record; added columns shadow base columns of the same name.
+pub struct ColumnSet<'a> {
+    base: &'a dyn Columns,
+    extra: Vec<(String, Vec<f64>)>,
+}
+
+impl<'a> ColumnSet<'a> {
+    /// Wraps a base record (or any other [`Columns`]).
+    pub fn new(base: &'a dyn Columns) -> Self {
+        Self {
+            base,
+            extra: Vec::new(),
+        }
+    }
+
+    /// Adds or replaces a column; its length must equal the base's row count.
+    pub fn insert(&mut self, name: impl Into<String>, values: Vec<f64>) -> Result<()> {
+        let name = name.into();
+        if values.len() != self.base.rows() {
+            return Err(LibraryError::ColumnLength {
+                column: name,
+                len: values.len(),
+                rows: self.base.rows(),
+            });
+        }
+        match self.extra.iter_mut().find(|(n, _)| *n == name) {
+            Some(slot) => slot.1 = values,
+            None => self.extra.push((name, values)),
+        }
+        Ok(())
+    }
+
+    /// Builder form of [`ColumnSet::insert`].
+    pub fn with(mut self, name: impl Into<String>, values: Vec<f64>) -> Result<Self> {
+        self.insert(name, values)?;
+        Ok(self)
+    }
+}
+
+impl Columns for ColumnSet<'_> {
+    fn column(&self, name: &str) -> Option<&[f64]> {
+        self.extra
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.as_slice())
+            .or_else(|| self.base.column(name))
+    }
+
+    fn rows(&self) -> usize {
+        self.base.rows()
+    }
+}

@@ -1,0 +1,223 @@
+//! Grammar tests: print/parse round trips, range expansion, error messages.
+
+use proptest::prelude::*;
+use tfs_library::{Coord, Factor, Library, LibraryError, Term, Var};
+
+const DOFS: [&str; 3] = ["x", "x1", "x2"];
+
+fn var_strategy() -> impl Strategy<Value = Var> {
+    let dof = prop::sample::select(vec!["x", "x1", "x2"]).prop_map(String::from);
+    let input = prop::sample::select(vec!["xb_acc", "u", "force", "xb"]).prop_map(String::from);
+    prop_oneof![
+        dof.clone().prop_map(Var::Disp),
+        dof.clone().prop_map(Var::Vel),
+        input.prop_map(Var::Input),
+        (0usize..3, 0usize..4)
+            .prop_filter_map("distinct", |(a, b)| {
+                let names = ["x", "x1", "x2", "xb"];
+                (a != b).then(|| {
+                    let base = if b < 3 {
+                        Coord::Dof(names[b].into())
+                    } else {
+                        Coord::Input("xb".into())
+                    };
+                    (names[a].to_string(), base)
+                })
+            })
+            .prop_flat_map(|(a, b)| prop_oneof![
+                Just(Var::RelDisp(a.clone(), b.clone())),
+                Just(Var::RelVel(a, b))
+            ]),
+    ]
+}
+
+fn factor_strategy() -> impl Strategy<Value = Factor> {
+    prop_oneof![
+        (var_strategy(), 1u32..9).prop_map(|(v, k)| Factor::Pow(v, k)),
+        var_strategy().prop_map(Factor::Abs),
+        var_strategy().prop_map(Factor::Sign),
+        (var_strategy(), 1e-6f64..10.0).prop_map(|(v, e)| Factor::Tanh(v, e)),
+    ]
+}
+
+fn term_strategy() -> impl Strategy<Value = Term> {
+    prop::collection::vec(factor_strategy(), 0..4).prop_map(Term::new)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    #[test]
+    fn term_print_parse_round_trip(t in term_strategy()) {
+        let s = t.to_string();
+        let back = Term::parse(&s, &DOFS).unwrap();
+        prop_assert_eq!(&back, &t);
+        prop_assert_eq!(back.to_string(), s);
+    }
+
+    #[test]
+    fn spec_round_trip_with_whitespace(terms in prop::collection::vec(term_strategy(), 1..6)) {
+        // Insert spaces around every token boundary we can: after commas and around '*'.
+        let spec = terms.iter().map(|t| t.to_string().replace('*', " * ")).collect::<Vec<_>>().join(" ,  ");
+        let lib = Library::parse(&spec, &DOFS).unwrap();
+        let mut distinct: Vec<Term> = Vec::new();
+        for t in terms {
+            if !distinct.contains(&t) { distinct.push(t); }
+        }
+        prop_assert_eq!(lib.terms(), &distinct[..]);
+        let again = Library::parse(&lib.spec(), &DOFS).unwrap();
+        prop_assert_eq!(again, lib);
+    }
+
+    #[test]
+    fn factor_order_does_not_matter(fs in prop::collection::vec(factor_strategy(), 0..4)) {
+        let mut rev = fs.clone();
+        rev.reverse();
+        prop_assert_eq!(Term::new(fs), Term::new(rev));
+    }
+}
+
+#[test]
+fn canonical_names() {
+    let p = |s: &str| Term::parse(s, &["x"]).unwrap().to_string();
+    assert_eq!(p("x'*x^2"), "x^2*x'");
+    assert_eq!(p("x*x*x'"), "x^2*x'");
+    assert_eq!(p("abs(x')*x'"), "x'*abs(x')");
+    assert_eq!(p(" tanh( x' / 0.01 ) "), "tanh(x'/0.01)");
+    assert_eq!(p("tanh(x'/1e-3)"), "tanh(x'/0.001)");
+    assert_eq!(p("1"), "1");
+    assert_eq!(p("1*x"), "x");
+    assert_eq!(p("xb_acc"), "xb_acc");
+    let q = |s: &str| Term::parse(s, &["x1", "x2"]).unwrap().to_string();
+    assert_eq!(q("( x2 - x1 )^3"), "(x2-x1)^3");
+    assert_eq!(q("(x1-xb)'"), "(x1-xb)'");
+}
+
+#[test]
+fn variable_kinds() {
+    let t = Term::parse("(x2-x1)^2*(x1-xb)'*u", &["x1", "x2"]).unwrap();
+    assert_eq!(
+        t.factors(),
+        &[
+            Factor::Pow(Var::RelDisp("x2".into(), Coord::Dof("x1".into())), 2),
+            Factor::Pow(Var::RelVel("x1".into(), Coord::Input("xb".into())), 1),
+            Factor::Pow(Var::Input("u".into()), 1),
+        ]
+    );
+    assert_eq!(t.required_columns(), ["x2", "x1", "x1'", "xb_vel", "u"]);
+    assert_eq!(t.required_inputs(), ["xb_vel", "u"]);
+}
+
+#[test]
+fn range_expansion_counts() {
+    let lib = Library::parse("poly(x, x'; 0..7)", &["x"]).unwrap();
+    assert_eq!(lib.len(), 36);
+    // Every monomial x^i x'^j with i + j <= 7 exactly once.
+    for i in 0..=7u32 {
+        for j in 0..=(7 - i) {
+            let mut f = vec![];
+            if i > 0 {
+                f.push(Factor::Pow(Var::Disp("x".into()), i));
+            }
+            if j > 0 {
+                f.push(Factor::Pow(Var::Vel("x".into()), j));
+            }
+            assert!(
+                lib.index_of(&Term::new(f)).is_some(),
+                "missing x^{i} x'^{j}"
+            );
+        }
+    }
+    assert_eq!(lib.names()[0], "1");
+    let lib = Library::parse("x^1..7, x', xb_acc", &["x"]).unwrap();
+    assert_eq!(
+        lib.names(),
+        [
+            "x", "x^2", "x^3", "x^4", "x^5", "x^6", "x^7", "x'", "xb_acc"
+        ]
+    );
+    let lib = Library::parse("(x2-x1)^1..7", &["x1", "x2"]).unwrap();
+    assert_eq!(lib.len(), 7);
+    assert_eq!(lib.names()[6], "(x2-x1)^7");
+    // Ranges in products expand to the Cartesian product; duplicates vanish.
+    let lib = Library::parse("x^1..2*x'^1..3, x*x', x'*x", &["x"]).unwrap();
+    assert_eq!(lib.len(), 6);
+    // Degree-3 monomials in three variables: C(5,2) = 10.
+    let lib = Library::parse("poly(x1, x2, x1'; 3..3)", &["x1", "x2"]).unwrap();
+    assert_eq!(lib.len(), 10);
+    assert!(lib.terms().iter().all(|t| t.degree() == Some(3)));
+}
+
+fn parse_err(spec: &str, dofs: &[&str]) -> (usize, String, String) {
+    match Library::parse(spec, dofs) {
+        Err(LibraryError::Parse {
+            position,
+            found,
+            expected,
+            ..
+        }) => (position, found, expected),
+        other => panic!("expected a parse error for {spec:?}, got {other:?}"),
+    }
+}
+
+#[test]
+fn bad_specs_name_the_token() {
+    let (pos, found, _) = parse_err("x^1..7, x', $", &["x"]);
+    assert_eq!((pos, found.as_str()), (12, "'$'"));
+    let (pos, found, exp) = parse_err("x^", &["x"]);
+    assert_eq!((pos, found.as_str()), (2, "end of input"));
+    assert!(exp.contains("power"));
+    let (_, found, exp) = parse_err("xb'", &["x"]);
+    assert!(found.contains("xb"));
+    assert!(exp.contains("xb_vel"), "{exp}");
+    let (_, found, _) = parse_err("x^7..3", &["x"]);
+    assert_eq!(found, "'3'");
+    let (_, _, exp) = parse_err("tanh(x')", &["x"]);
+    assert!(exp.contains("eps"));
+    let (_, found, _) = parse_err("tanh(x'/0)", &["x"]);
+    assert_eq!(found, "'0'");
+    let (_, found, _) = parse_err("(xb-x)", &["x"]);
+    assert_eq!(found, "'xb'");
+    let (pos, found, _) = parse_err("x x'", &["x"]);
+    assert_eq!((pos, found.as_str()), (2, "'x'"));
+    parse_err("", &["x"]);
+    parse_err("x,", &["x"]);
+    parse_err("x^0", &["x"]);
+    parse_err("poly(x; 0..)", &["x"]);
+    let msg = Library::parse("x, y$", &["x"]).unwrap_err().to_string();
+    assert!(msg.contains("position 4") && msg.contains("'$'"), "{msg}");
+    // Single terms reject ranges.
+    assert!(Term::parse("x^1..3", &["x"]).is_err());
+    assert!(Term::parse("poly(x; 1..2)", &["x"]).is_err());
+    // Bad DOF declarations.
+    assert!(Library::parse("x", &["x", "x"]).is_err());
+    assert!(Library::parse("x", &["x'"]).is_err());
+}
+
+#[test]
+fn term_properties() {
+    let d = ["x", "x1", "x2"];
+    let t = |s: &str| Term::parse(s, &d).unwrap();
+    assert!(t("x^5").is_position_only("x"));
+    assert!(t("1").is_position_only("x"));
+    assert!(!t("x^2*x'").is_position_only("x"));
+    assert!(!t("x1").is_position_only("x"));
+    assert!(t("x^2*x'").is_linear_in_velocity());
+    assert!(t("x1*x2'").is_linear_in_velocity());
+    assert!(!t("x'^3").is_linear_in_velocity());
+    assert!(!t("x'*abs(x')").is_linear_in_velocity());
+    assert!(!t("tanh(x'/0.01)").is_linear_in_velocity());
+    assert!(!t("xb_acc*x'").is_linear_in_velocity());
+    assert!(!t("x^2").is_linear_in_velocity());
+
+    let e = t("x^3*x'").exact_derivative().unwrap();
+    assert_eq!(e.antiderivative(), t("x^4"));
+    assert_eq!(e.scale, 0.25);
+    let e = t("x'").exact_derivative().unwrap();
+    assert_eq!((e.antiderivative(), e.scale), (t("x"), 1.0));
+    let e = t("(x2-x1)^2*(x2-x1)'").exact_derivative().unwrap();
+    assert_eq!(e.antiderivative(), t("(x2-x1)^3"));
+    assert!(t("x1*x2'").exact_derivative().is_none());
+    assert!(t("x^2").exact_derivative().is_none());
+    assert!(t("x'^2").exact_derivative().is_none());
+}

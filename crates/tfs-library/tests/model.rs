@@ -1,0 +1,294 @@
+//! Evaluation, model JSON, compiled model and potential tests.
+
+use proptest::prelude::*;
+use tfs_data::Record;
+use tfs_library::{
+    ColumnSet, Equation, HistoryEntry, Library, LibraryError, Model, ModelTerm, RecordScore, Term,
+};
+
+fn record() -> Record {
+    Record::new(
+        "small",
+        vec![0.0, 0.1, 0.2],
+        vec![
+            ("x1".into(), vec![1.0, -2.0, 0.5]),
+            ("x2".into(), vec![3.0, 1.0, 0.0]),
+            ("xb".into(), vec![0.5, 0.5, -1.0]),
+            ("xb_acc".into(), vec![2.0, 0.0, -3.0]),
+        ],
+    )
+    .unwrap()
+}
+
+#[test]
+fn evaluation_matches_hand_values() {
+    let rec = record();
+    let cols = ColumnSet::new(&rec)
+        .with("x1'", vec![0.5, -1.0, 2.0])
+        .unwrap()
+        .with("x2'", vec![1.0, 1.0, -1.0])
+        .unwrap()
+        .with("xb_vel", vec![0.0, 2.0, 1.0])
+        .unwrap();
+    let lib = Library::parse(
+        "1, x1^2, (x2-x1)^3, (x1-xb)', x1'*abs(x1'), tanh(x2'/0.5), sign(x1), x1*x2'*xb_acc",
+        &["x1", "x2"],
+    )
+    .unwrap();
+    let m = lib.evaluate(&cols).unwrap();
+    assert_eq!((m.nrows(), m.ncols()), (3, 8));
+    let expected: [[f64; 8]; 3] = [
+        [1.0, 1.0, 8.0, 0.5, 0.25, (2.0f64).tanh(), 1.0, 2.0],
+        [1.0, 4.0, 27.0, -3.0, -1.0, (2.0f64).tanh(), -1.0, 0.0],
+        [1.0, 0.25, -0.125, 1.0, 4.0, (-2.0f64).tanh(), 1.0, 1.5],
+    ];
+    for i in 0..3 {
+        for j in 0..8 {
+            assert!(
+                (m[(i, j)] - expected[i][j]).abs() < 1e-14,
+                "({i},{j}) {} vs {}",
+                m[(i, j)],
+                expected[i][j]
+            );
+        }
+    }
+    assert_eq!(
+        lib.required_columns(),
+        ["x1", "x2", "x1'", "xb_vel", "x2'", "xb_acc"]
+    );
+}
+
+#[test]
+fn missing_column_names_column_and_term() {
+    let rec = record();
+    let lib = Library::parse("x1, x1^2*x1'", &["x1"]).unwrap();
+    match lib.evaluate(&rec) {
+        Err(LibraryError::MissingColumn { column, term }) => {
+            assert_eq!(column, "x1'");
+            assert_eq!(term, "x1^2*x1'");
+        }
+        other => panic!("expected missing column, got {other:?}"),
+    }
+    let mut cs = ColumnSet::new(&rec);
+    assert!(cs.insert("x1'", vec![1.0]).is_err());
+    let cs = ColumnSet::new(&rec)
+        .with("x1'", vec![f64::NAN, 0.0, 0.0])
+        .unwrap();
+    assert!(matches!(
+        lib.evaluate(&cs),
+        Err(LibraryError::NonFinite { row: 0, .. })
+    ));
+}
+
+fn sample_model() -> Model {
+    let lib = Library::parse("x', x^5, x^6, x^7, xb_acc", &["x"]).unwrap();
+    let mut m =
+        Model::from_coefficients(&lib, &[vec![-1.99, -12.12, 18.03, -6.56, -1.0]], "tfs").unwrap();
+    m.equations[0].terms[0].interval = Some([-2.0, -1.98]);
+    m.equations[0].terms[0].inclusion = Some(0.9);
+    m.trace = serde_json::json!({"kappa": [1.0, 2.5]});
+    m.history.push(HistoryEntry {
+        step: "identify".into(),
+        added: vec![],
+        r_mse: vec![RecordScore {
+            record: "a.csv".into(),
+            r_mse: 0.01,
+        }],
+        details: serde_json::Value::Null,
+    });
+    m
+}
+
+#[test]
+fn equation_string_is_readable() {
+    let m = sample_model();
+    assert_eq!(
+        m.equation_string(),
+        "x'' = -(1.990 ± 0.01000)·x' - 12.12·x^5 + 18.03·x^6 - 6.560·x^7 - 1.000·xb_acc"
+    );
+    assert_eq!(tfs_library::sig4(9.99996), "10.00");
+    assert_eq!(tfs_library::sig4(223.46), "223.5");
+}
+
+#[test]
+fn json_round_trip_and_validation() {
+    let m = sample_model();
+    let s = m.to_json_string().unwrap();
+    let v: serde_json::Value = serde_json::from_str(&s).unwrap();
+    assert_eq!(v["format"], "tfs-model/1");
+    assert_eq!(v["equations"][0]["terms"][1]["term"], "x^5");
+    assert_eq!(v["inputs"][0], "xb_acc");
+    let back = Model::from_json_str(&s).unwrap();
+    assert_eq!(back, m);
+
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("m.json");
+    m.write_path(&p).unwrap();
+    assert_eq!(Model::from_path(&p).unwrap(), m);
+
+    let bad = s.replace("tfs-model/1", "tfs-model/9");
+    let e = Model::from_json_str(&bad).unwrap_err().to_string();
+    assert!(e.starts_with("format:"), "{e}");
+    let bad = s.replace("\"dof\": \"x\"", "\"dof\": \"y\"");
+    let e = Model::from_json_str(&bad).unwrap_err().to_string();
+    assert!(e.contains("equations[0].dof") && e.contains("'y'"), "{e}");
+    let bad = s.replace("\"x^6\"", "\"x^^6\"");
+    let e = Model::from_json_str(&bad).unwrap_err().to_string();
+    assert!(e.contains("equations[0].terms[2].term"), "{e}");
+    let bad = s.replace("\"xb_acc\"\n", "\"u\"\n");
+    let e = Model::from_json_str(&bad).unwrap_err().to_string();
+    assert!(e.contains("inputs") && e.contains("xb_acc"), "{e}");
+    let e = Model::from_json_str("{\"format\": \"tfs-model/1\", \"dofs\": [\"x\"]}").unwrap_err();
+    assert!(e.to_string().contains("equations"), "{e}");
+    // Inputs may be omitted: they are derived.
+    let minimal = r#"{"format":"tfs-model/1","dofs":["x"],"equations":[{"dof":"x","terms":[{"term":"u*x","coef":2}]}]}"#;
+    assert_eq!(Model::from_json_str(minimal).unwrap().inputs, ["u"]);
+}
+
+fn random_model(seed: &[f64], dofs: &[&str]) -> Model {
+    let spec = "1, x1, x2^3, (x2-x1)^2, (x1-xb)', x1'*abs(x2'), tanh(x2'/0.3), sign(x1), x1*u, (x2-x1)'*x2";
+    let lib = Library::parse(spec, dofs).unwrap();
+    let coefs: Vec<Vec<f64>> = (0..dofs.len())
+        .map(|d| {
+            (0..lib.len())
+                .map(|j| seed[(d * lib.len() + j) % seed.len()])
+                .collect()
+        })
+        .collect();
+    Model::from_coefficients(&lib, &coefs, "random").unwrap()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    #[test]
+    fn compiled_equals_slow_evaluation(
+        seed in prop::collection::vec(-3.0f64..3.0, 20),
+        state in prop::collection::vec(-2.0f64..2.0, 7),
+    ) {
+        let m = random_model(&seed, &["x1", "x2"]);
+        let c = m.compile().unwrap();
+        // Slow path: build one-row columns and evaluate each equation's terms.
+        let names = ["x1", "x2", "x1'", "x2'"];
+        let mut cols: Vec<(String, Vec<f64>)> = names.iter().zip(&state).map(|(n, v)| (n.to_string(), vec![*v])).collect();
+        let mut u = vec![0.0; c.inputs()];
+        for (k, name) in c.input_names().iter().enumerate() {
+            let val = match name.as_str() { "xb" => state[4], "xb_vel" => state[5], "u" => state[6], other => panic!("{other}") };
+            u[k] = val;
+            cols.push((name.clone(), vec![val]));
+        }
+        let rec = Record::new("one", vec![0.0], cols).unwrap();
+        let mut out = [0.0; 2];
+        c.try_accel(&state[0..2], &state[2..4], &u, &mut out).unwrap();
+        for (i, eq) in m.equations.iter().enumerate() {
+            let slow: f64 = eq.terms.iter().map(|t| t.coef * tfs_library::evaluate_term(&t.term, &rec).unwrap()[0]).sum();
+            prop_assert!((slow - out[i]).abs() <= 1e-12 * (1.0 + slow.abs()), "{} vs {}", slow, out[i]);
+        }
+    }
+
+    #[test]
+    fn json_round_trip_random(seed in prop::collection::vec(-1e6f64..1e6, 20)) {
+        let m = random_model(&seed, &["x1", "x2"]);
+        let back = Model::from_json_str(&m.to_json_string().unwrap()).unwrap();
+        prop_assert_eq!(back, m);
+    }
+
+    #[test]
+    fn potential_derivative_is_force(
+        c in prop::collection::vec(-2.0f64..2.0, 6),
+        x in -1.5f64..1.5,
+    ) {
+        let spec = "1, x, x^3, x^6, x', x^2*x'";
+        let lib = Library::parse(spec, &["x"]).unwrap();
+        let m = Model::from_coefficients(&lib, std::slice::from_ref(&c), "p").unwrap();
+        let r = m.restoring("x").unwrap();
+        prop_assert!(r.polynomial().is_some());
+        prop_assert_eq!(r.potential(0.0), 0.0);
+        // F = -(c0 + c1 x + c2 x^3 + c3 x^6) (velocity terms vanish at rest).
+        let f = -(c[0] + c[1] * x + c[2] * x.powi(3) + c[3] * x.powi(6));
+        prop_assert!((r.force(x) - f).abs() < 1e-12);
+        let h = 1e-5;
+        let fd = (r.potential(x + h) - r.potential(x - h)) / (2.0 * h);
+        prop_assert!((fd - r.force(x)).abs() < 1e-7 * (1.0 + f.abs()));
+        let kd = (r.force(x + h) - r.force(x - h)) / (2.0 * h);
+        prop_assert!((kd - r.stiffness(x)).abs() < 1e-6 * (1.0 + kd.abs()));
+    }
+
+    #[test]
+    fn nonpolynomial_potential_derivative_is_force(
+        c in prop::collection::vec(-2.0f64..2.0, 4),
+        x in prop_oneof![-1.5f64..-0.05, 0.05f64..1.5],
+    ) {
+        let lib = Library::parse("x, abs(x), x*sign(x)*x, tanh(x/0.2)*x", &["x"]).unwrap();
+        let m = Model::from_coefficients(&lib, &[c], "p").unwrap();
+        let r = m.restoring("x").unwrap();
+        prop_assert!(r.polynomial().is_none());
+        prop_assert_eq!(r.potential(0.0), 0.0);
+        let h = 1e-4;
+        let fd = (r.potential(x + h) - r.potential(x - h)) / (2.0 * h);
+        prop_assert!((fd - r.force(x)).abs() < 1e-6, "{} vs {}", fd, r.force(x));
+        let kd = (r.force(x + h) - r.force(x - h)) / (2.0 * h);
+        prop_assert!((kd - r.stiffness(x)).abs() < 1e-5 * (1.0 + kd.abs()));
+    }
+}
+
+#[test]
+fn potential_closed_forms() {
+    // Paper Eq. (16) convention: coefficient of x^5 is -alpha, so F = alpha x^5, V = alpha x^6 / 6.
+    let lib = Library::parse("x^5, x'", &["x"]).unwrap();
+    let m = Model::from_coefficients(&lib, &[vec![-3.0, -2.0]], "p").unwrap();
+    assert!((m.restoring_force("x", 1.5).unwrap() - 3.0 * 1.5f64.powi(5)).abs() < 1e-12);
+    assert!((m.potential("x", 1.5).unwrap() - 0.5 * 1.5f64.powi(6)).abs() < 1e-12);
+    assert!((m.stiffness("x", 1.5).unwrap() - 15.0 * 1.5f64.powi(4)).abs() < 1e-12);
+    // Dry-friction-like position terms: V for F = -c tanh(x/eps) is -c eps ln cosh(x/eps);
+    // F = -c |x| gives V = -c x|x|/2; F = -c sign(x) gives V = -c |x|.
+    let lib = Library::parse("tanh(x/0.01), abs(x), sign(x)", &["x"]).unwrap();
+    for (j, closed) in [
+        (
+            0,
+            Box::new(|x: f64| -0.01 * (x / 0.01f64).cosh().ln()) as Box<dyn Fn(f64) -> f64>,
+        ),
+        (1, Box::new(|x: f64| -x * x.abs() / 2.0)),
+        (2, Box::new(|x: f64| -x.abs())),
+    ] {
+        let mut c = vec![0.0; 3];
+        c[j] = 1.0;
+        let m = Model::from_coefficients(&lib, &[c], "p").unwrap();
+        for x in [-1.3, -0.004, 0.02, 0.7] {
+            let v = m.potential("x", x).unwrap();
+            assert!(
+                (v - closed(x)).abs() < 1e-9,
+                "term {j} x {x}: {v} vs {}",
+                closed(x)
+            );
+        }
+    }
+    // Chain slice: x1'' = -k (x1-xb) - k2 (x1-x2)^3 ⇒ F(x1) = k x1 + k2 x1^3 with x2 = xb = 0.
+    let lib = Library::parse("(x1-xb), (x2-x1)^3, x1'", &["x1", "x2"]).unwrap();
+    let m = Model::from_coefficients(&lib, &[vec![-2.0, 5.0, -1.0], vec![0.0, -5.0, 0.0]], "p")
+        .unwrap();
+    assert!((m.restoring_force("x1", 0.5).unwrap() - (2.0 * 0.5 + 5.0 * 0.125)).abs() < 1e-12);
+    assert!((m.restoring_force("x2", 0.5).unwrap() - 5.0 * 0.125).abs() < 1e-12);
+    assert!(m.potential("x3", 0.5).is_err());
+}
+
+#[test]
+fn model_new_orders_equations_and_checks_dofs() {
+    let d = ["x1", "x2"];
+    let t = |s: &str| Term::parse(s, &d).unwrap();
+    let eqs = vec![
+        Equation {
+            dof: "x2".into(),
+            terms: vec![ModelTerm::new(t("x2"), 1.0)],
+        },
+        Equation {
+            dof: "x1".into(),
+            terms: vec![ModelTerm::new(t("(x1-xb)'"), 1.0)],
+        },
+    ];
+    let m = Model::new(vec!["x1".into(), "x2".into()], eqs.clone(), "t").unwrap();
+    assert_eq!(m.equations[0].dof, "x1");
+    assert_eq!(m.inputs, ["xb_vel"]);
+    assert!(Model::new(vec!["x1".into()], eqs.clone(), "t").is_err());
+    assert!(Model::new(vec!["x1".into(), "x2".into(), "x3".into()], eqs, "t").is_err());
+}
