@@ -1,0 +1,1 @@
+//! tfs-diagnose (being written).
