@@ -1,0 +1,86 @@
+//! The crate's error type and `Result` alias.
+
+/// Formats a state vector compactly for error messages.
+fn fmt_vec(v: &[f64]) -> String {
+    let parts: Vec<String> = v.iter().map(|x| format!("{x:.6e}")).collect();
+    format!("[{}]", parts.join(", "))
+}
+
+/// Errors raised by integrators, inputs, equilibria and error metrics.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DynError {
+    /// The state became non-finite or left the allowed range.
+    #[error(
+        "simulation blew up at t = {t:.6} s (x = {}, v = {}); the model is unstable for this input",
+        fmt_vec(.x),
+        fmt_vec(.v)
+    )]
+    BlowUp {
+        /// Time of the last finite state at or beyond the limit (s).
+        t: f64,
+        /// Displacements at that time.
+        x: Vec<f64>,
+        /// Velocities at that time.
+        v: Vec<f64>,
+    },
+    /// The adaptive step size fell below what floating point can resolve.
+    #[error(
+        "step size underflow at t = {t:.6} s (h = {h:.3e} s); the system is stiff or singular here: check the model, or loosen rtol/atol"
+    )]
+    StepSizeUnderflow {
+        /// Time where the integrator stalled (s).
+        t: f64,
+        /// The step size that was too small (s).
+        h: f64,
+    },
+    /// The step budget ran out before the final output time.
+    #[error(
+        "too many steps: {max_steps} steps taken and stopped at t = {t:.6} s before reaching t = {t_target:.6} s; raise max_steps or loosen rtol/atol"
+    )]
+    TooManySteps {
+        /// Time reached (s).
+        t: f64,
+        /// Output time that was being approached (s).
+        t_target: f64,
+        /// The budget.
+        max_steps: usize,
+    },
+    /// A parameter has an invalid value.
+    #[error("invalid parameter `{name}`: {reason}")]
+    InvalidParameter {
+        /// The parameter name.
+        name: &'static str,
+        /// What is wrong and what to do.
+        reason: String,
+    },
+    /// A vector has the wrong length.
+    #[error("`{name}` has length {got} but {expected} is needed; {hint}")]
+    Dimension {
+        /// The argument name.
+        name: &'static str,
+        /// The length needed.
+        expected: usize,
+        /// The length given.
+        got: usize,
+        /// What to do.
+        hint: &'static str,
+    },
+    /// A column needed by a model is missing from a record.
+    #[error(
+        "{record}: column '{column}' needed by the model is missing; the record has [{available}]; rename the column or refit the model with the record's names"
+    )]
+    MissingColumn {
+        /// The record's source.
+        record: String,
+        /// The missing column.
+        column: String,
+        /// Comma-separated available columns.
+        available: String,
+    },
+    /// An error from the model library (compiling a model).
+    #[error("model: {0}")]
+    Model(String),
+}
+
+/// Result alias for this crate.
+pub type Result<T> = std::result::Result<T, DynError>;
