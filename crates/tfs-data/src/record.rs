@@ -49,7 +49,12 @@ impl Record {
             names.push(name);
             data.push(col);
         }
-        Ok(Self { source, t, names, data })
+        Ok(Self {
+            source,
+            t,
+            names,
+            data,
+        })
     }
 
     /// Where the record came from (file path or a generated name).
@@ -130,5 +135,117 @@ impl Record {
     /// The column called `name`, if present (`"t"` gives the time axis).
     pub fn column(&self, name: &str) -> Option<&[f64]> {
         Columns::column(self, name)
+    }
+}
+
+impl Record {
+    fn missing(&self, name: &str) -> DataError {
+        crate::validate::missing_column(
+            &self.source,
+            1,
+            name,
+            "column",
+            &self.names,
+            "; use one of the existing names",
+        )
+    }
+
+    /// The listed columns as an `n × names.len()` array (one row per sample). `"t"` selects the
+    /// time axis. A missing name is an error that lists the columns that exist.
+    pub fn to_ndarray<S: AsRef<str>>(&self, names: &[S]) -> Result<ndarray::Array2<f64>> {
+        let cols = names
+            .iter()
+            .map(|n| {
+                self.column(n.as_ref())
+                    .ok_or_else(|| self.missing(n.as_ref()))
+            })
+            .collect::<Result<Vec<&[f64]>>>()?;
+        Ok(ndarray::Array2::from_shape_fn(
+            (self.len(), cols.len()),
+            |(i, j)| cols[j][i],
+        ))
+    }
+
+    /// Builds a record from a time axis and an `n × names.len()` array whose columns are named by
+    /// `names`; the shapes must agree.
+    pub fn from_ndarray<S: AsRef<str>>(
+        source: impl Into<String>,
+        t: Vec<f64>,
+        names: &[S],
+        data: &ndarray::Array2<f64>,
+    ) -> Result<Self> {
+        let source = source.into();
+        if data.ncols() != names.len() || data.nrows() != t.len() {
+            return Err(DataError::Invalid {
+                message: format!(
+                    "array is {}x{} but {} time samples and {} names were given; pass one row per sample and one name per column",
+                    data.nrows(),
+                    data.ncols(),
+                    t.len(),
+                    names.len()
+                ),
+                source_name: source,
+            });
+        }
+        let columns = names
+            .iter()
+            .zip(data.columns())
+            .map(|(n, c)| (n.as_ref().to_string(), c.to_vec()))
+            .collect();
+        Self::new(source, t, columns)
+    }
+
+    /// The samples with indices in `range` (time values are kept, not shifted).
+    pub fn slice(&self, range: std::ops::Range<usize>) -> Result<Self> {
+        if range.start > range.end || range.end > self.len() {
+            return Err(DataError::Invalid {
+                source_name: self.source.clone(),
+                message: format!(
+                    "slice {}..{} is outside the record's {} samples; choose a range within 0..{}",
+                    range.start,
+                    range.end,
+                    self.len(),
+                    self.len()
+                ),
+            });
+        }
+        Ok(Self {
+            source: self.source.clone(),
+            t: self.t[range.clone()].to_vec(),
+            names: self.names.clone(),
+            data: self
+                .data
+                .iter()
+                .map(|c| c[range.clone()].to_vec())
+                .collect(),
+        })
+    }
+
+    /// Subtracts the mean of each listed column in place and returns the offsets removed, in the
+    /// order given. The time axis cannot be offset this way.
+    pub fn remove_offsets<S: AsRef<str>>(&mut self, names: &[S]) -> Result<Vec<(String, f64)>> {
+        let mut idx = Vec::with_capacity(names.len());
+        for n in names {
+            let n = n.as_ref();
+            match self.names.iter().position(|c| c == n) {
+                Some(i) => idx.push(i),
+                None => return Err(self.missing(n)),
+            }
+        }
+        if self.is_empty() {
+            return Err(DataError::Invalid {
+                source_name: self.source.clone(),
+                message: "cannot remove offsets from an empty record; load some samples first"
+                    .into(),
+            });
+        }
+        let mut out = Vec::with_capacity(idx.len());
+        for i in idx {
+            let col = &mut self.data[i];
+            let mean = col.iter().sum::<f64>() / col.len() as f64;
+            col.iter_mut().for_each(|v| *v -= mean);
+            out.push((self.names[i].clone(), mean));
+        }
+        Ok(out)
     }
 }

@@ -1,0 +1,273 @@
+//! CSV reading (with validation) and writing of records, and cross-record consistency checks.
+
+use std::io::Read;
+use std::path::Path;
+
+use crate::validate::{Table, check_table, missing_column};
+use crate::{CsvOptions, DataError, Record, Result};
+
+/// Reads and validates a CSV file with default options (time column `t`, no required columns).
+pub fn read_csv(path: impl AsRef<Path>) -> Result<Record> {
+    read_csv_with(path, &CsvOptions::default())
+}
+
+/// Reads and validates a CSV file; warnings (e.g. clipped channels under
+/// [`crate::Saturation::Warn`]) are dropped — use [`read_csv_checked`] to see them.
+pub fn read_csv_with(path: impl AsRef<Path>, opts: &CsvOptions) -> Result<Record> {
+    read_csv_checked(path, opts).map(|(r, _)| r)
+}
+
+/// Reads and validates a CSV file, returning the record and the warnings raised.
+pub fn read_csv_checked(
+    path: impl AsRef<Path>,
+    opts: &CsvOptions,
+) -> Result<(Record, Vec<DataError>)> {
+    let path = path.as_ref();
+    let name = path.display().to_string();
+    let file = std::fs::File::open(path).map_err(|source| DataError::Io {
+        file: name.clone(),
+        action: "read",
+        source,
+    })?;
+    parse(&name, std::io::BufReader::new(file), opts)
+}
+
+/// Reads and validates CSV text from any reader; `source` names it in messages.
+pub fn from_reader<R: Read>(source: &str, reader: R, opts: &CsvOptions) -> Result<Record> {
+    parse(source, reader, opts).map(|(r, _)| r)
+}
+
+fn csv_error(file: &str, e: &csv::Error) -> DataError {
+    if let csv::ErrorKind::Io(io) = e.kind() {
+        return DataError::Io {
+            file: file.to_string(),
+            action: "read",
+            source: std::io::Error::new(io.kind(), io.to_string()),
+        };
+    }
+    DataError::Csv {
+        file: file.to_string(),
+        row: e.position().map_or(0, |p| p.line()),
+        message: e.to_string().replace('\n', " "),
+    }
+}
+
+fn parse<R: Read>(file: &str, reader: R, opts: &CsvOptions) -> Result<(Record, Vec<DataError>)> {
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_reader(reader);
+    let mut records = rdr.records();
+    let header = match records.next() {
+        None => {
+            return Err(DataError::NoHeader {
+                file: file.to_string(),
+                message: "row 1: the file is empty; write a header line (e.g. 't,x,xb_acc') followed by data rows".into(),
+            });
+        }
+        Some(r) => r.map_err(|e| csv_error(file, &e))?,
+    };
+    let header_line = header.position().map_or(1, |p| p.line());
+    let names: Vec<String> = header.iter().map(str::to_string).collect();
+    if names.iter().all(|c| c.parse::<f64>().is_ok()) {
+        return Err(DataError::NoHeader {
+            file: file.to_string(),
+            message: format!(
+                "row {header_line}: the first line is numbers, not column names; add a header line such as 't,x,xb_acc'"
+            ),
+        });
+    }
+    if let Some(i) = names.iter().position(String::is_empty) {
+        return Err(DataError::NoHeader {
+            file: file.to_string(),
+            message: format!(
+                "row {header_line}: header cell {} is empty; give every column a name",
+                i + 1
+            ),
+        });
+    }
+    for (j, name) in names.iter().enumerate() {
+        if let Some(i) = names[..j].iter().position(|n| n == name) {
+            return Err(DataError::DuplicateColumn {
+                file: file.to_string(),
+                row: header_line,
+                column: name.clone(),
+                first: i + 1,
+                second: j + 1,
+            });
+        }
+    }
+    let tcol = &opts.time_column;
+    let ti = names.iter().position(|n| n == tcol).ok_or_else(|| {
+        missing_column(
+            file,
+            header_line,
+            tcol,
+            "time column",
+            &names,
+            "; name the time column 't' or choose it with the time-column option",
+        )
+    })?;
+    for req in &opts.required {
+        if !names.contains(req) {
+            return Err(missing_column(
+                file,
+                header_line,
+                req,
+                "required column",
+                &names,
+                "; add the column or choose another with the matching option",
+            ));
+        }
+    }
+
+    let ncol = names.len();
+    let mut cols: Vec<Vec<f64>> = vec![Vec::new(); ncol];
+    let mut lines = Vec::new();
+    for rec in records {
+        let rec = rec.map_err(|e| csv_error(file, &e))?;
+        let line = rec.position().map_or(0, |p| p.line());
+        if rec.len() != ncol {
+            return Err(DataError::Ragged {
+                file: file.to_string(),
+                row: line,
+                expected: ncol,
+                found: rec.len(),
+            });
+        }
+        for (j, cell) in rec.iter().enumerate() {
+            let v: f64 = cell.parse().map_err(|_| DataError::NonNumeric {
+                file: file.to_string(),
+                row: line,
+                column: names[j].clone(),
+                cell: cell.to_string(),
+            })?;
+            if !v.is_finite() {
+                return Err(DataError::NonFinite {
+                    file: file.to_string(),
+                    row: line,
+                    column: names[j].clone(),
+                    cell: cell.to_string(),
+                });
+            }
+            cols[j].push(v);
+        }
+        lines.push(line);
+    }
+    let t = cols.remove(ti);
+    let mut data_names = names.clone();
+    data_names.remove(ti);
+    let warnings = check_table(
+        &Table {
+            file,
+            t: &t,
+            names: &data_names,
+            data: &cols,
+            lines: &lines,
+        },
+        opts,
+    )?;
+    let record = Record::new(file, t, data_names.into_iter().zip(cols).collect())?;
+    Ok((record, warnings))
+}
+
+/// Formats a finite float so that parsing it gives back the same bits.
+fn fmt_f64(v: f64) -> String {
+    let a = v.abs();
+    if v == 0.0 || (1e-4..1e15).contains(&a) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
+/// Writes a record as CSV: header `t,<names…>`, one row per sample, values written so that
+/// reading them back gives the same `f64` bits. Non-finite values are rejected (row and column named).
+pub fn write_csv(path: impl AsRef<Path>, record: &Record) -> Result<()> {
+    let path = path.as_ref();
+    let name = path.display().to_string();
+    let io_err = |source: std::io::Error| DataError::Io {
+        file: name.clone(),
+        action: "write",
+        source,
+    };
+    let mut cols: Vec<(&str, &[f64])> = vec![("t", record.t())];
+    for n in record.names() {
+        cols.push((n.as_str(), record.column(n).unwrap_or(&[])));
+    }
+    for (c, x) in &cols {
+        if let Some(i) = x.iter().position(|v| !v.is_finite()) {
+            return Err(DataError::NonFinite {
+                file: name,
+                row: i as u64 + 2,
+                column: c.to_string(),
+                cell: x[i].to_string(),
+            });
+        }
+    }
+    let file = std::fs::File::create(path).map_err(io_err)?;
+    let mut w = csv::Writer::from_writer(std::io::BufWriter::new(file));
+    let to_err = |e: csv::Error| match e.into_kind() {
+        csv::ErrorKind::Io(source) => io_err(source),
+        other => io_err(std::io::Error::other(format!("{other:?}"))),
+    };
+    w.write_record(cols.iter().map(|(c, _)| *c))
+        .map_err(to_err)?;
+    let mut row: Vec<String> = Vec::with_capacity(cols.len());
+    for i in 0..record.len() {
+        row.clear();
+        row.extend(cols.iter().map(|(_, x)| fmt_f64(x[i])));
+        w.write_record(&row).map_err(to_err)?;
+    }
+    w.flush().map_err(io_err)?;
+    Ok(())
+}
+
+/// Checks that records can be used together: the same set of column names and sampling
+/// intervals equal within 1e-6 relative. The error names both records' sources.
+pub fn check_consistent(records: &[Record]) -> Result<()> {
+    let Some(first) = records.first() else {
+        return Ok(());
+    };
+    for r in &records[1..] {
+        let only_a: Vec<&str> = first
+            .names()
+            .iter()
+            .filter(|n| !r.names().contains(n))
+            .map(String::as_str)
+            .collect();
+        let only_b: Vec<&str> = r
+            .names()
+            .iter()
+            .filter(|n| !first.names().contains(n))
+            .map(String::as_str)
+            .collect();
+        if !only_a.is_empty() || !only_b.is_empty() {
+            return Err(DataError::Inconsistent {
+                file_a: first.source().to_string(),
+                file_b: r.source().to_string(),
+                message: format!(
+                    "columns differ (only in {}: [{}]; only in {}: [{}]); give every file the same columns",
+                    first.source(),
+                    only_a.join(", "),
+                    r.source(),
+                    only_b.join(", ")
+                ),
+            });
+        }
+        let (da, db) = (first.dt(), r.dt());
+        let rel = (da - db).abs() / da.abs().max(db.abs());
+        if rel.is_nan() || rel > 1e-6 {
+            return Err(DataError::Inconsistent {
+                file_a: first.source().to_string(),
+                file_b: r.source().to_string(),
+                message: format!(
+                    "sampling intervals differ ({da:e} s vs {db:e} s, relative {rel:.2e} > 1e-6); resample to a common interval"
+                ),
+            });
+        }
+    }
+    Ok(())
+}
