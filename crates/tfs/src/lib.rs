@@ -1,1 +1,29 @@
-//! tfs (skeleton; being written).
+//! tfs: sparse, interpretable equations of motion for nonlinear, multi-stable structures, identified
+//! from noisy vibration measurements with T-F-S SINDy (and classical SINDy as the baseline).
+//!
+//! This facade re-exports every layer so that a downstream crate needs one dependency; the `tfs`
+//! binary (the CLI) is built on it. See `docs/ARCHITECTURE.md` for what each layer owns.
+//!
+//! ```
+//! use tfs::library::{Library, Model};
+//! // The paper's Table 1 model as a tfs-model/1 file, read back and simulated free of input.
+//! let json = r#"{"format":"tfs-model/1","dofs":["x"],"inputs":[],
+//!   "equations":[{"dof":"x","terms":[{"term":"x'","coef":-1.99},{"term":"x^5","coef":-12.12},
+//!   {"term":"x^6","coef":18.03},{"term":"x^7","coef":-6.56}]}],"method":"paper"}"#;
+//! let model = Model::from_json_str(json).unwrap();
+//! let lib = Library::parse("x^5..7, x'", &["x"]).unwrap();
+//! assert_eq!(lib.len(), 4);
+//! // The restoring force vanishes at the folded state h = 0.
+//! assert_eq!(model.restoring_force("x", 0.0).unwrap(), 0.0);
+//! ```
+
+pub use tfs_basin as basin;
+pub use tfs_criteria as criteria;
+pub use tfs_data as data;
+pub use tfs_diagnose as diagnose;
+pub use tfs_dynamics as dynamics;
+pub use tfs_library as library;
+pub use tfs_origami as origami;
+pub use tfs_plot as plot;
+pub use tfs_regress as regress;
+pub use tfs_signal as signal;

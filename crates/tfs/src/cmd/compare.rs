@@ -1,0 +1,110 @@
+//! `tfs compare`: simulate a model under each record's measured input and score it (R-MSE of the
+//! paper's Appendix B, and the RMS error in the record's own units).
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use serde_json::json;
+use tfs::dynamics::{rms_error, rmse_ratio};
+use tfs::plot::{Figure, LineChart, Series};
+
+use super::{print_json, read_model, read_records};
+
+/// Arguments of `tfs compare`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The model (tfs-model/1 JSON).
+    #[arg(long)]
+    pub model: PathBuf,
+    /// Held-out CSV records with the model's displacement and input columns.
+    #[arg(required = true)]
+    pub data: Vec<PathBuf>,
+    /// Write measured-vs-model time histories (SVG and PNG) into this directory.
+    #[arg(long)]
+    pub plots: Option<PathBuf>,
+    /// Print the scores as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs `tfs compare`.
+pub fn run(args: Args) -> Result<()> {
+    let model = read_model(&args.model)?;
+    let mut required = model.dofs.clone();
+    required.extend(model.inputs.iter().cloned());
+    let records = read_records(&args.data, &required)?;
+    if let Some(dir) = &args.plots {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("--plots {}: cannot create the directory", dir.display()))?;
+    }
+    let mut files = Vec::new();
+    for (path, rec) in args.data.iter().zip(&records) {
+        let traj = tfs::dynamics::simulate_model_on_record(&model, rec, &Default::default())
+            .with_context(|| format!("{}: simulating the model", path.display()))?;
+        let mut dofs = Vec::new();
+        let mut sum = 0.0;
+        for (i, dof) in model.dofs.iter().enumerate() {
+            let measured = rec.column(dof).context("column vanished")?;
+            let r = rmse_ratio(measured, &traj.x[i])
+                .with_context(|| format!("{}: column '{dof}'", path.display()))?;
+            let rms = rms_error(measured, &traj.x[i])?;
+            sum += r;
+            dofs.push(json!({"dof": dof, "r_mse": r, "rms_error": rms}));
+            if let Some(dir) = &args.plots {
+                let stem = dir.join(format!(
+                    "{}-{dof}",
+                    path.file_stem()
+                        .and_then(|s| s.to_str())
+                        .unwrap_or("record")
+                ));
+                let chart = LineChart {
+                    title: format!("{}: measured vs model ({dof})", path.display()),
+                    x_label: "t (s)".into(),
+                    y_label: format!("{dof} (record units)"),
+                    series: vec![
+                        Series::line(
+                            "measured",
+                            rec.t()
+                                .iter()
+                                .copied()
+                                .zip(measured.iter().copied())
+                                .collect(),
+                        ),
+                        Series::dashed(
+                            "model",
+                            traj.t
+                                .iter()
+                                .copied()
+                                .zip(traj.x[i].iter().copied())
+                                .collect(),
+                        ),
+                    ],
+                    ..LineChart::default()
+                };
+                Figure::from(chart).save(&stem)?;
+            }
+        }
+        if model.dofs.is_empty() {
+            bail!("{}: the model has no DOFs", args.model.display());
+        }
+        let r_mse = sum / model.dofs.len() as f64;
+        files.push(json!({"path": path.display().to_string(), "r_mse": r_mse, "dofs": dofs}));
+    }
+    if args.json {
+        print_json(&json!({"model": args.model.display().to_string(), "files": files}))?;
+    } else {
+        println!("{:<40} {:>12} {:>14}", "file", "R-MSE", "RMS error");
+        for f in &files {
+            for d in f["dofs"].as_array().into_iter().flatten() {
+                println!(
+                    "{:<40} {:>12.4e} {:>14.4e}  ({})",
+                    f["path"].as_str().unwrap_or(""),
+                    d["r_mse"].as_f64().unwrap_or(f64::NAN),
+                    d["rms_error"].as_f64().unwrap_or(f64::NAN),
+                    d["dof"].as_str().unwrap_or("")
+                );
+            }
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,195 @@
+//! `tfs identify`: records in, a sparse model (tfs-model/1 JSON) and the criteria trace out.
+
+use std::path::PathBuf;
+
+use anyhow::{Result, bail};
+use clap::ValueEnum;
+use tfs::criteria::{IdentifySpec, identify_sindy, identify_tfs};
+
+use super::{guess_dofs, guess_inputs, peek_columns, print_json, read_records};
+
+/// Identification method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Method {
+    /// T-F-S SINDy: criteria 1–4 with frequency-domain (weak-form) regression (default).
+    Tfs,
+    /// Classical SINDy: numerical derivatives and time-domain STLSQ (the baseline).
+    Sindy,
+}
+
+/// Arguments of `tfs identify`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// CSV records (header `t`, displacement columns, input columns); several are stacked.
+    #[arg(required = true)]
+    pub data: Vec<PathBuf>,
+    /// Library spec, e.g. "x^1..7, x', xb_acc" (default: degree-7 restoring terms, linear
+    /// damping and every input column; relative coordinates for chains).
+    #[arg(long)]
+    pub library: Option<String>,
+    /// Identification method.
+    #[arg(long, value_enum, default_value_t = Method::Tfs)]
+    pub method: Method,
+    /// Displacement columns (DOFs), comma-separated (default: `x` or `x1`, `x2`, … found in the file).
+    #[arg(long, value_delimiter = ',')]
+    pub dofs: Vec<String>,
+    /// Fixed sparsity threshold (default: chosen on held-out data).
+    #[arg(long)]
+    pub threshold: Option<f64>,
+    /// Where to write the model (tfs-model/1 JSON).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Print the model and trace as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The default library for the given DOFs and inputs: per DOF, the cell's own relative coordinate
+/// (and the next cell's, in a chain) to powers 1..7, their relative velocities, and the inputs.
+pub fn default_libraries(dofs: &[String], inputs: &[String]) -> Vec<String> {
+    let rel = |i: usize| -> String {
+        if i == 0 {
+            dofs[0].clone()
+        } else {
+            format!("({}-{})", dofs[i], dofs[i - 1])
+        }
+    };
+    (0..dofs.len())
+        .map(|i| {
+            let mut parts = vec![format!("{}^1..7", rel(i)), format!("{}'", rel(i))];
+            if i + 1 < dofs.len() {
+                parts.push(format!("{}^1..7", rel(i + 1)));
+                parts.push(format!("{}'", rel(i + 1)));
+            }
+            parts.extend(inputs.iter().cloned());
+            parts.join(", ")
+        })
+        .collect()
+}
+
+/// Runs `tfs identify`.
+pub fn run(args: Args) -> Result<()> {
+    let columns = peek_columns(&args.data[0])?;
+    let dofs = if args.dofs.is_empty() {
+        let d = guess_dofs(&columns);
+        if d.is_empty() {
+            bail!(
+                "{}: no displacement column found (expected 'x' or 'x1', 'x2', …; the header has [{}]); name them with --dofs",
+                args.data[0].display(),
+                columns.join(", ")
+            );
+        }
+        d
+    } else {
+        args.dofs.clone()
+    };
+    let inputs = guess_inputs(&columns);
+    let mut spec = IdentifySpec::new(&dofs.iter().map(String::as_str).collect::<Vec<_>>(), "");
+    match &args.library {
+        Some(lib) => spec.library = lib.clone(),
+        None => {
+            let libs = default_libraries(&dofs, &inputs);
+            spec.library = libs[0].clone();
+            if dofs.len() > 1 {
+                spec.dof_libraries = libs;
+            }
+        }
+    }
+    if let Some(th) = args.threshold {
+        if !(th.is_finite() && th >= 0.0) {
+            bail!("--threshold {th}: must be a finite number ≥ 0");
+        }
+        spec.tfs.threshold = Some(th);
+        spec.sindy.threshold = Some(th);
+    }
+    // Every column the libraries name must be present in every file.
+    let mut required: Vec<String> = dofs.clone();
+    for lib in spec_libraries(&spec)? {
+        for c in lib.required_columns() {
+            if !c.ends_with('\'') && !required.contains(&c) {
+                required.push(c);
+            }
+        }
+    }
+    let records = read_records(&args.data, &required)?;
+    let identified = match args.method {
+        Method::Tfs => identify_tfs(&records, &spec)?,
+        Method::Sindy => identify_sindy(&records, &spec)?,
+    };
+    if let Some(out) = &args.out {
+        identified.model.write_path(out)?;
+    }
+    if args.json {
+        print_json(&serde_json::json!({
+            "model": identified.model.to_json_value()?,
+            "trace": serde_json::to_value(&identified.trace)?,
+        }))?;
+    } else {
+        println!("{}", identified.model.equation_string());
+        print_trace(&identified.trace);
+        if let Some(out) = &args.out {
+            println!("model written to {}", out.display());
+        }
+    }
+    Ok(())
+}
+
+fn spec_libraries(spec: &IdentifySpec) -> Result<Vec<tfs::library::Library>> {
+    let specs: Vec<&String> = if spec.dof_libraries.is_empty() {
+        vec![&spec.library]
+    } else {
+        spec.dof_libraries.iter().collect()
+    };
+    specs
+        .into_iter()
+        .map(|s| Ok(tfs::library::Library::parse(s, &spec.dofs)?))
+        .collect()
+}
+
+/// Prints the criteria trace in a few readable lines.
+pub fn print_trace(trace: &tfs::criteria::Trace) {
+    let v = serde_json::to_value(trace).unwrap_or_default();
+    println!("method: {}", trace.method);
+    for d in &trace.dofs {
+        let dv = serde_json::to_value(d).unwrap_or_default();
+        println!("dof {}:", d.dof);
+        if let Some(c1) = dv.get("criterion1") {
+            println!("  criterion 1: {}", compact(c1));
+        }
+        if let Some(c2) = dv.get("pruning") {
+            println!("  criterion 2: {}", compact(c2));
+        }
+        for b in &d.bins {
+            println!(
+                "  criterion 3: {}: {} bins kept, band {:.3}–{:.3} Hz",
+                b.record, b.kept_bins, b.band_hz[0], b.band_hz[1]
+            );
+        }
+        println!(
+            "  settings: delta = {}, windows = {}, threshold = {:.3e}",
+            d.settings.delta, d.settings.windows, d.settings.threshold
+        );
+        for why in &d.settings.why {
+            println!("    {why}");
+        }
+        for s in &d.assembly {
+            println!(
+                "  criterion 4: after {:?}: mu = {:.3e}, sigma = {:.3e} ({} terms)",
+                s.records, s.mu, s.sigma, s.n_terms
+            );
+        }
+        println!("  assembly: {}", d.assembly_verdict);
+    }
+    if let Some(t) = v.get("timing_ms") {
+        println!("timing (ms): {}", compact(t));
+    }
+}
+
+fn compact(v: &serde_json::Value) -> String {
+    let s = v.to_string();
+    if s.chars().count() > 300 {
+        format!("{}…", s.chars().take(300).collect::<String>())
+    } else {
+        s
+    }
+}

@@ -1,0 +1,99 @@
+//! `tfs med`: minimum-energy deployment of a bistable 1-DOF model, beside the quasi-static barrier.
+
+use std::path::PathBuf;
+
+use anyhow::{Result, bail};
+use serde_json::json;
+use tfs::basin::{BasinConfig, med_sdof};
+
+use super::basin::run_map;
+use super::systems::model_sdof;
+use super::{parse_grid, parse_range, print_json, read_model};
+
+/// Arguments of `tfs med`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The model (tfs-model/1 JSON, 1 DOF, at least two stable states).
+    #[arg(long)]
+    pub model: PathBuf,
+    /// Grid NxM of the basin map the search starts from.
+    #[arg(long, default_value = "200x200")]
+    pub grid: String,
+    /// Initial-displacement range A:B of the search.
+    #[arg(long, default_value = "0:2", allow_hyphen_values = true)]
+    pub x: String,
+    /// Initial-velocity range A:B of the search.
+    #[arg(long, default_value = "-3:3", allow_hyphen_values = true)]
+    pub v: String,
+    /// Index (1-based) of the starting stable state S1.
+    #[arg(long, default_value_t = 1)]
+    pub from: usize,
+    /// Index (1-based) of the target stable state S2.
+    #[arg(long, default_value_t = 2)]
+    pub to: usize,
+    /// Print the result as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs `tfs med`.
+pub fn run(args: Args) -> Result<()> {
+    let (nx, ny) = parse_grid(&args.grid)?;
+    let x_range = parse_range(&args.x, "--x")?;
+    let v_range = parse_range(&args.v, "--v")?;
+    let w = x_range.1 - x_range.0;
+    let search = (x_range.0 - 0.5 * w, x_range.1 + 0.5 * w);
+    let model = read_model(&args.model)?;
+    let sdof = model_sdof(&args.model, &model, search)?;
+    let n = sdof.wells.stable().len();
+    if n < 2 {
+        bail!(
+            "{}: the model has {} stable state(s) on {search:?}; MED needs a bistable model",
+            args.model.display(),
+            n
+        );
+    }
+    if args.from == 0 || args.to == 0 || args.from > n || args.to > n || args.from == args.to {
+        bail!(
+            "--from {} --to {}: give two different states between 1 and {n}",
+            args.from,
+            args.to
+        );
+    }
+    let cfg = BasinConfig::new(nx, ny, x_range, v_range);
+    let map = run_map(&sdof, &cfg, "basin")?;
+    let med = med_sdof(
+        &*sdof.system,
+        &sdof.wells,
+        &map,
+        &cfg,
+        args.from - 1,
+        args.to - 1,
+    )?;
+    if args.json {
+        print_json(&json!({
+            "model": args.model.display().to_string(),
+            "from": sdof.wells.stable()[args.from - 1],
+            "to": sdof.wells.stable()[args.to - 1],
+            "x0": med.x0, "v0": med.v0, "energy": med.energy,
+            "kinetic": med.kinetic, "potential": med.potential,
+            "quasi_static_barrier": med.quasi_static_barrier,
+        }))?;
+    } else {
+        println!(
+            "MED from S{} (x = {:.4}) to S{} (x = {:.4}): E_in = {:.5} at x0 = {:.4}, v0 = {:.4}",
+            args.from,
+            sdof.wells.stable()[args.from - 1],
+            args.to,
+            sdof.wells.stable()[args.to - 1],
+            med.energy,
+            med.x0,
+            med.v0
+        );
+        println!(
+            "  kinetic {:.5} + potential {:.5}; quasi-static barrier {:.5}",
+            med.kinetic, med.potential, med.quasi_static_barrier
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,60 @@
+//! Figures the CLI writes (SVG and PNG through tfs-plot).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Result;
+use tfs::basin::BasinMap;
+use tfs::plot::{BasinMap as BasinFigure, Figure};
+
+use super::basin::label_index;
+
+/// Draws a basin map (stable states marked, disagreeing cells darkened when given) to
+/// `<out without extension>.svg` and `.png`; returns the files written.
+pub fn basin_figure(
+    map: &BasinMap,
+    title: &str,
+    disagree: Option<&[bool]>,
+    out: &Path,
+) -> Result<Vec<String>> {
+    let n = map.states.len();
+    let mut class_names: Vec<String> = map
+        .states
+        .iter()
+        .enumerate()
+        .map(|(k, s)| format!("S{} (x = {:.3})", k + 1, s[0]))
+        .collect();
+    if map.unsettled_count > 0 {
+        class_names.push("unsettled".into());
+    }
+    if map.diverged_count > 0 {
+        while class_names.len() < n + 1 {
+            class_names.push("unsettled".into());
+        }
+        class_names.push("diverged".into());
+    }
+    let labels = map.labels.iter().map(|&l| label_index(l, n)).collect();
+    let points = map
+        .states
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s[0] >= map.x_range.0 && s[0] <= map.x_range.1)
+        .map(|(k, s)| (s[0], 0.0, format!("S{}", k + 1)))
+        .collect();
+    let fig = BasinFigure {
+        title: title.to_string(),
+        x_label: "initial displacement x0".into(),
+        y_label: "initial velocity v0".into(),
+        x_range: map.x_range,
+        y_range: map.y_range,
+        nx: map.nx,
+        ny: map.ny,
+        labels,
+        class_names,
+        highlight: disagree.map(<[bool]>::to_vec),
+        highlight_name: "differs from truth".into(),
+        points,
+    };
+    let stem: PathBuf = out.with_extension("");
+    let files = Figure::from(fig).save(&stem)?;
+    Ok(files.iter().map(|p| p.display().to_string()).collect())
+}
