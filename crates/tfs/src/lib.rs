@@ -25,5 +25,6 @@ pub use tfs_dynamics as dynamics;
 pub use tfs_library as library;
 pub use tfs_origami as origami;
 pub use tfs_plot as plot;
+pub use tfs_refine as refine;
 pub use tfs_regress as regress;
 pub use tfs_signal as signal;

@@ -1,0 +1,1 @@
+//! tfs-refine (being written).
