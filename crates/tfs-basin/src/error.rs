@@ -1,0 +1,73 @@
+//! The crate's error type and `Result` alias.
+
+/// Errors raised while validating basin inputs, comparing maps or searching for the MED.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BasinError {
+    /// A parameter is out of range or inconsistent with the others.
+    #[error("invalid parameter `{name}`: {reason}")]
+    InvalidParameter {
+        /// Name of the offending parameter.
+        name: &'static str,
+        /// What is wrong and what to do about it.
+        reason: String,
+    },
+    /// The restoring force has no stable equilibrium in the search range.
+    #[error(
+        "no stable equilibrium found in the search range [{lo}, {hi}]; widen the range or check the model's restoring force"
+    )]
+    NoStableEquilibrium {
+        /// Lower end of the search range.
+        lo: f64,
+        /// Upper end of the search range.
+        hi: f64,
+    },
+    /// The energy `E = ½mv² + V(x)` of the system grows somewhere, so the early-exit proof fails.
+    #[error(
+        "the system is not dissipative for the given potential: dE/dt = {rate:.3e} > 0 at x = {x:.6}, v = {v:.6}; \
+         check that the force/potential match the model (mass {mass}) and damping is non-negative, or set early_exit = false"
+    )]
+    NotDissipative {
+        /// Displacement where energy grows.
+        x: f64,
+        /// Velocity where energy grows.
+        v: f64,
+        /// The positive energy rate found.
+        rate: f64,
+        /// Mass used in the kinetic energy.
+        mass: f64,
+    },
+    /// Two basin maps cover different grids and cannot be compared cell by cell.
+    #[error("basin maps differ in {what}: {a} vs {b}; compute both maps on the same grid")]
+    MapMismatch {
+        /// Which property differs.
+        what: &'static str,
+        /// Value in the first map.
+        a: String,
+        /// Value in the second map.
+        b: String,
+    },
+    /// An error from tfs-dynamics (e.g. the equilibrium search).
+    #[error(transparent)]
+    Dynamics(#[from] tfs_dynamics::DynError),
+    /// No pair of neighbouring cells separates the two basins, so no MED can be found.
+    #[error(
+        "no basin boundary between state {from} and state {to} on this grid; widen the grid ranges (the boundary must lie inside them) or refine the grid"
+    )]
+    NoBoundary {
+        /// Index of the starting stable state.
+        from: usize,
+        /// Index of the target stable state.
+        to: usize,
+    },
+}
+
+/// `Result` with [`BasinError`].
+pub type Result<T> = std::result::Result<T, BasinError>;
+
+/// Shorthand for an [`BasinError::InvalidParameter`].
+pub(crate) fn invalid(name: &'static str, reason: impl Into<String>) -> BasinError {
+    BasinError::InvalidParameter {
+        name,
+        reason: reason.into(),
+    }
+}
