@@ -1,0 +1,317 @@
+//! Criterion 1: the noise level index κ of `B = [Θ | x'']` and the calibration of its threshold κ0.
+//!
+//! κ = log10(λ_max / λ_min) with λ the eigenvalues of the covariance of the mean-centred columns
+//! (σ_i²/(m−1)). It is computed from one thin QR of the centred m×p matrix followed by the SVD of
+//! the small p×p factor R — never an m×m matrix.
+
+use faer::{Mat, MatRef};
+use serde::{Deserialize, Serialize};
+
+use crate::error::{CriteriaError, Result, invalid};
+
+/// Largest κ reported: λ_min is floored at λ_max·1e-30 so an exactly collinear matrix gives 30.
+pub const KAPPA_CAP: f64 = 30.0;
+
+/// κ of a matrix in both variants.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Kappa {
+    /// κ of the centred columns as they are.
+    pub raw: f64,
+    /// κ after scaling every centred column to unit standard deviation.
+    pub standardised: f64,
+}
+
+/// The centred copy of `b` and its column standard deviations; errors on non-finite values or a
+/// constant column (which has no variance and makes κ meaningless).
+pub(crate) fn centre(b: MatRef<'_, f64>, names: Option<&[String]>) -> Result<(Mat<f64>, Vec<f64>)> {
+    let (m, p) = (b.nrows(), b.ncols());
+    if m < p + 1 || p < 2 {
+        return invalid(format!(
+            "noise level index: the matrix has {m} rows and {p} columns; it needs at least 2 columns and more rows than columns"
+        ));
+    }
+    let mut c = Mat::<f64>::zeros(m, p);
+    let mut sd = vec![0.0; p];
+    for j in 0..p {
+        let col = b.col(j);
+        let mut mean = 0.0;
+        for i in 0..m {
+            let v = col[i];
+            if !v.is_finite() {
+                return Err(CriteriaError::Numerics(format!(
+                    "column {j} row {i} of the diagnostic matrix is {v}"
+                )));
+            }
+            mean += v;
+        }
+        mean /= m as f64;
+        let mut ss = 0.0;
+        for i in 0..m {
+            let d = col[i] - mean;
+            c[(i, j)] = d;
+            ss += d * d;
+        }
+        sd[j] = (ss / (m as f64 - 1.0)).sqrt();
+        let scale = col.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        if sd[j] <= 1e-14 * scale.max(f64::MIN_POSITIVE) {
+            let what = names
+                .and_then(|n| n.get(j).cloned())
+                .unwrap_or_else(|| format!("column {j}"));
+            return invalid(format!(
+                "noise level index: '{what}' is constant, so it has no variance after centring; drop it from the library"
+            ));
+        }
+    }
+    Ok((c, sd))
+}
+
+/// The p×p triangular factor of the thin QR of a (centred) m×p matrix.
+pub(crate) fn small_factor(c: MatRef<'_, f64>) -> Mat<f64> {
+    let qr = c.qr();
+    let r = qr.thin_R();
+    let mut out = Mat::<f64>::zeros(r.nrows(), r.ncols());
+    for j in 0..r.ncols() {
+        for i in 0..=j.min(r.nrows() - 1) {
+            out[(i, j)] = r[(i, j)];
+        }
+    }
+    out
+}
+
+/// κ from singular values (any common scale cancels).
+pub(crate) fn kappa_from_singular(s: &[f64]) -> f64 {
+    let max = s.iter().fold(0.0f64, |a, &v| a.max(v));
+    if max <= 0.0 {
+        return 0.0;
+    }
+    let min = s.iter().fold(f64::INFINITY, |a, &v| a.min(v));
+    let ratio = (max * max) / (min * min).max(max * max * 10f64.powf(-KAPPA_CAP));
+    ratio.log10()
+}
+
+/// κ of the columns `cols` of a small factor `r` (optionally scaled by `scale[j]`).
+pub(crate) fn kappa_of_columns(
+    r: MatRef<'_, f64>,
+    cols: &[usize],
+    scale: Option<&[f64]>,
+) -> Result<f64> {
+    let mut sub = Mat::<f64>::zeros(r.nrows(), cols.len());
+    for (k, &j) in cols.iter().enumerate() {
+        let f = scale.map_or(1.0, |s| 1.0 / s[j]);
+        for i in 0..r.nrows() {
+            sub[(i, k)] = r[(i, j)] * f;
+        }
+    }
+    let s = sub
+        .singular_values()
+        .map_err(|e| CriteriaError::Numerics(format!("SVD of the small factor failed: {e:?}")))?;
+    Ok(kappa_from_singular(&s))
+}
+
+/// Criterion 1: κ (raw and standardised) of `b` (m×p, the last column the target `x''`).
+///
+/// ```
+/// use faer::Mat;
+/// // Two nearly collinear columns give a large κ, two unrelated ones a small κ.
+/// let m = 200;
+/// let b = Mat::<f64>::from_fn(m, 2, |i, j| {
+///     let t = i as f64 / m as f64;
+///     if j == 0 { t } else { 2.0 * t + 1e-4 * (37.0 * t).sin() }
+/// });
+/// let k = tfs_criteria::noise_level_index(b.as_ref()).unwrap();
+/// assert!(k.raw > 6.0);
+/// ```
+pub fn noise_level_index(b: MatRef<'_, f64>) -> Result<Kappa> {
+    let (c, sd) = centre(b, None)?;
+    let r = small_factor(c.as_ref());
+    let all: Vec<usize> = (0..b.ncols()).collect();
+    Ok(Kappa {
+        raw: kappa_of_columns(r.as_ref(), &all, None)?,
+        standardised: kappa_of_columns(r.as_ref(), &all, Some(&sd))?,
+    })
+}
+
+/// Criterion 1 from the small factor `r` of the centred matrix (`B̄ = QR`): κ raw and
+/// standardised (column spreads taken from the column norms of `r`).
+pub fn noise_level_index_factor(r: MatRef<'_, f64>) -> Result<Kappa> {
+    let sd = column_norms(r);
+    if let Some(j) = sd.iter().position(|&v| v.is_nan() || v <= 0.0) {
+        return invalid(format!(
+            "noise level index: column {j} has no variance after centring; drop it from the library"
+        ));
+    }
+    let all: Vec<usize> = (0..r.ncols()).collect();
+    Ok(Kappa {
+        raw: kappa_of_columns(r, &all, None)?,
+        standardised: kappa_of_columns(r, &all, Some(&sd))?,
+    })
+}
+
+/// Euclidean norms of the columns of `r`.
+pub(crate) fn column_norms(r: MatRef<'_, f64>) -> Vec<f64> {
+    (0..r.ncols())
+        .map(|j| {
+            (0..r.nrows())
+                .map(|i| r[(i, j)] * r[(i, j)])
+                .sum::<f64>()
+                .sqrt()
+        })
+        .collect()
+}
+
+/// Which κ variant drives the criteria.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+pub enum KappaVariant {
+    /// κ of the centred columns as they are (the paper's definition).
+    Raw,
+    /// κ of unit-variance columns (insensitive to the units of each term).
+    #[default]
+    Standardised,
+}
+
+impl Kappa {
+    /// The value of the chosen variant.
+    pub fn get(&self, v: KappaVariant) -> f64 {
+        match v {
+            KappaVariant::Raw => self.raw,
+            KappaVariant::Standardised => self.standardised,
+        }
+    }
+}
+
+/// One point of the κ-versus-added-noise calibration curve (paper Fig. 3c).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CalibrationPoint {
+    /// SNR (dB, mean-square power) of the noise added to the user's data; `None` for the data as given.
+    pub added_snr_db: Option<f64>,
+    /// κ of the data with that noise added.
+    pub kappa: Kappa,
+}
+
+/// The outcome of Criterion 1.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Criterion1 {
+    /// κ of the data as given.
+    pub kappa: Kappa,
+    /// The variant compared with κ0.
+    pub variant: KappaVariant,
+    /// The threshold.
+    pub kappa0: f64,
+    /// How κ0 was obtained.
+    pub kappa0_source: String,
+    /// True if κ ≥ κ0 (high SNR: time-domain library selection is allowed).
+    pub high_snr: bool,
+    /// The calibration curve, if κ0 was calibrated.
+    pub curve: Vec<CalibrationPoint>,
+    /// The added-noise SNR at the knee of the curve, if calibrated.
+    pub knee_snr_db: Option<f64>,
+}
+
+/// The knee of a κ-versus-added-SNR curve: `snr` strictly decreasing, `kappa` the matching κ, and
+/// `kappa_top` the κ of the data as given. The curve is normalised to the unit square (x: how much
+/// noise was added, y: how far κ has fallen) and the knee is the point furthest below the diagonal
+/// (the "Kneedle" rule): the last point of the plateau before κ drops. Returns its index, or `None`
+/// when κ never falls (a flat curve has no knee).
+pub fn knee_index(snr: &[f64], kappa: &[f64], kappa_top: f64) -> Option<usize> {
+    let n = snr.len();
+    if n < 3 || kappa.len() != n {
+        return None;
+    }
+    let kmin = kappa.iter().fold(f64::INFINITY, |a, &v| a.min(v));
+    let range = kappa_top - kmin;
+    if range.is_nan() || range <= 0.0 {
+        return None;
+    }
+    let (s0, s1) = (snr[0], snr[n - 1]);
+    let mut best = (None, 0.0);
+    for i in 0..n {
+        let x = (s0 - snr[i]) / (s0 - s1);
+        let y = (kappa_top - kappa[i]) / range;
+        let d = x - y;
+        if d > best.1 {
+            best = (Some(i), d);
+        }
+    }
+    best.0
+}
+
+/// κ0 from a calibration curve (see [`knee_index`]); `None` if the curve has no knee.
+pub fn kappa0_from_curve(curve: &[CalibrationPoint], variant: KappaVariant) -> Option<(f64, f64)> {
+    let top = curve
+        .iter()
+        .find(|p| p.added_snr_db.is_none())?
+        .kappa
+        .get(variant);
+    let pts: Vec<(f64, f64)> = curve
+        .iter()
+        .filter_map(|p| p.added_snr_db.map(|s| (s, p.kappa.get(variant))))
+        .collect();
+    let snr: Vec<f64> = pts.iter().map(|p| p.0).collect();
+    let kap: Vec<f64> = pts.iter().map(|p| p.1).collect();
+    let i = knee_index(&snr, &kap, top)?;
+    Some((kap[i], snr[i]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lcg(seed: &mut u64) -> f64 {
+        *seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((*seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+    }
+
+    /// κ from the small factor equals κ from the eigenvalues of the explicit covariance.
+    #[test]
+    fn kappa_matches_covariance_eigenvalues() {
+        let mut s = 7u64;
+        let (m, p) = (300, 5);
+        let mut b = Mat::<f64>::from_fn(m, p, |_, _| lcg(&mut s));
+        for i in 0..m {
+            b[(i, 4)] = 3.0 * b[(i, 0)] - b[(i, 2)] + 0.01 * lcg(&mut s) + 5.0;
+            b[(i, 1)] *= 100.0;
+        }
+        let k = noise_level_index(b.as_ref()).unwrap();
+        let (c, sd) = centre(b.as_ref(), None).unwrap();
+        let cov = c.transpose() * &c * (1.0 / (m as f64 - 1.0));
+        let ev = cov.self_adjoint_eigenvalues(faer::Side::Lower).unwrap();
+        let want = (ev[p - 1] / ev[0]).log10();
+        assert!((k.raw - want).abs() < 1e-8, "{} vs {want}", k.raw);
+        let d = Mat::<f64>::from_fn(p, p, |i, j| if i == j { 1.0 / sd[i] } else { 0.0 });
+        let corr = &d * &cov * &d;
+        let ev = corr.self_adjoint_eigenvalues(faer::Side::Lower).unwrap();
+        let want = (ev[p - 1] / ev[0]).log10();
+        assert!((k.standardised - want).abs() < 1e-8);
+    }
+
+    #[test]
+    fn constant_column_is_an_error_naming_it() {
+        let b = Mat::<f64>::from_fn(
+            10,
+            3,
+            |i, j| if j == 1 { 2.0 } else { (i * (j + 1)) as f64 },
+        );
+        let e = noise_level_index(b.as_ref()).unwrap_err().to_string();
+        assert!(e.contains("column 1") && e.contains("constant"), "{e}");
+    }
+
+    #[test]
+    fn knee_is_the_end_of_the_plateau() {
+        // Flat at 8 down to 40 dB, then a steep fall.
+        let snr: Vec<f64> = (0..11).map(|i| 100.0 - 10.0 * i as f64).collect();
+        let kap: Vec<f64> = snr
+            .iter()
+            .map(|&s| {
+                if s >= 40.0 {
+                    8.0 - 0.01 * (100.0 - s) / 10.0
+                } else {
+                    8.0 - (40.0 - s) / 8.0
+                }
+            })
+            .collect();
+        assert_eq!(knee_index(&snr, &kap, 8.0), Some(6));
+        assert_eq!(knee_index(&snr, &[1.0; 11], 1.0), None);
+    }
+}

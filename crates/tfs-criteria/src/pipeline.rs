@@ -1,0 +1,1032 @@
+//! The T-F-S SINDy pipeline (criteria 1–4 with data assembly) and the classical SINDy baseline.
+
+use std::time::Instant;
+
+use faer::{Mat, MatRef};
+use realfft::RealFftPlanner;
+use serde::{Deserialize, Serialize};
+use tfs_data::Record;
+use tfs_library::{Equation, Library, Model, ModelTerm};
+use tfs_regress::{
+    BagOptions, Compressed, Fit, InfoCriterion, PathOptions, Regressor, Stlsq, bagging,
+    lambda_path, lstsq_support,
+};
+
+use crate::error::{CriteriaError, Result, invalid};
+use crate::kappa::{
+    CalibrationPoint, Criterion1, KappaVariant, kappa0_from_curve, noise_level_index_factor,
+};
+use crate::prepare::{
+    Prepared, TransformForm, check_record, decimation, prepare, raw_columns_sg, record_series,
+    rows_for, time_domain, window_transforms,
+};
+use crate::prune::{Criterion2, prune_factor};
+
+/// How κ0 (the Criterion 1 threshold) is obtained.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum Kappa0Choice {
+    /// Add known white noise to the user's own data and take κ at the knee of κ(SNR).
+    Calibrate,
+    /// A fixed threshold.
+    Fixed(f64),
+}
+
+/// Options of the T-F-S pipeline (defaults via [`TfsOptions::default`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TfsOptions {
+    /// Criterion 3 variant.
+    pub form: TransformForm,
+    /// κ variant used by criteria 1 and 2.
+    pub kappa_variant: KappaVariant,
+    /// κ0 source.
+    pub kappa0: Kappa0Choice,
+    /// Added-noise SNRs (dB, decreasing) of the κ0 calibration.
+    pub calibration_snrs_db: Vec<f64>,
+    /// Apply Criterion 2 (library pruning) when Criterion 1 says the SNR is high.
+    pub prune: bool,
+    /// Fixed κ1 for Criterion 2 (`None`: the value before the abrupt drop).
+    pub kappa1: Option<f64>,
+    /// Smallest κ decrease (decades) that counts as the abrupt drop.
+    pub min_abrupt_drop: f64,
+    /// Candidate δ of Criterion 3 (chosen by held-out error).
+    pub deltas: Vec<f64>,
+    /// Candidate numbers of overlapping windows per record.
+    pub window_counts: Vec<usize>,
+    /// Fixed reconstruction cut-off (Hz); `None` chooses it per record and DOF from the spectrum.
+    pub cutoff_hz: Option<f64>,
+    /// Fixed STLSQ threshold (scaled units); `None` selects it on a λ path by held-out error.
+    pub threshold: Option<f64>,
+    /// Points of the λ path.
+    pub n_thresholds: usize,
+    /// Criterion 4: bound on |μ| (relative to the spread of x''); `None` = automatic.
+    pub mu0: Option<f64>,
+    /// Criterion 4: bound on σ (relative to the spread of x''); `None` = automatic (σ converged).
+    pub sigma0: Option<f64>,
+    /// Bootstrap draws for coefficient intervals (0 = off).
+    pub bagging: usize,
+    /// Savitzky–Golay (half window, order) for the `PlainSavitzkyGolay` form.
+    pub savitzky_golay: (usize, usize),
+    /// Evaluate single powers `x^k` as noise-debiased Hermite polynomials of the reconstruction,
+    /// using its estimated in-band noise variance.
+    pub debias: bool,
+}
+
+impl Default for TfsOptions {
+    fn default() -> Self {
+        Self {
+            form: TransformForm::Weak,
+            kappa_variant: KappaVariant::Standardised,
+            kappa0: Kappa0Choice::Calibrate,
+            calibration_snrs_db: vec![80.0, 70.0, 60.0, 50.0, 40.0, 30.0, 20.0, 10.0],
+            prune: false,
+            kappa1: None,
+            min_abrupt_drop: 1.0,
+            deltas: vec![0.01, 0.03, 0.1, 0.3],
+            window_counts: vec![1, 3, 7],
+            cutoff_hz: None,
+            threshold: None,
+            n_thresholds: 40,
+            mu0: None,
+            sigma0: None,
+            bagging: 0,
+            savitzky_golay: (12, 3),
+            debias: true,
+        }
+    }
+}
+
+/// Options of the classical SINDy baseline.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SindyOptions {
+    /// Savitzky–Golay (half window, polynomial order) for x' and x''; `None` = central differences.
+    pub savitzky_golay: Option<(usize, usize)>,
+    /// Fixed STLSQ threshold (scaled units); `None` selects it on a λ path with the last record held out.
+    pub threshold: Option<f64>,
+    /// Points of the λ path.
+    pub n_thresholds: usize,
+}
+
+impl Default for SindyOptions {
+    fn default() -> Self {
+        Self {
+            savitzky_golay: Some((12, 3)),
+            threshold: None,
+            n_thresholds: 40,
+        }
+    }
+}
+
+/// What to identify and how.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct IdentifySpec {
+    /// DOF names (displacement columns).
+    pub dofs: Vec<String>,
+    /// Library spec used for every DOF (tfs-library grammar).
+    pub library: String,
+    /// Per-DOF library specs (same order as `dofs`); empty = `library` for all.
+    pub dof_libraries: Vec<String>,
+    /// T-F-S options.
+    pub tfs: TfsOptions,
+    /// Classical SINDy options.
+    pub sindy: SindyOptions,
+}
+
+impl IdentifySpec {
+    /// A spec with default options.
+    pub fn new(dofs: &[&str], library: &str) -> Self {
+        Self {
+            dofs: dofs.iter().map(|s| s.to_string()).collect(),
+            library: library.to_string(),
+            dof_libraries: Vec::new(),
+            tfs: TfsOptions::default(),
+            sindy: SindyOptions::default(),
+        }
+    }
+
+    fn libraries(&self) -> Result<Vec<Library>> {
+        if self.dofs.is_empty() {
+            return invalid("spec.dofs is empty; name at least one displacement column");
+        }
+        if !self.dof_libraries.is_empty() && self.dof_libraries.len() != self.dofs.len() {
+            return invalid(format!(
+                "spec.dof_libraries has {} entries for {} DOFs; give one per DOF or none",
+                self.dof_libraries.len(),
+                self.dofs.len()
+            ));
+        }
+        (0..self.dofs.len())
+            .map(|i| {
+                let s = self.dof_libraries.get(i).unwrap_or(&self.library);
+                Ok(Library::parse(s, &self.dofs)?)
+            })
+            .collect()
+    }
+}
+
+/// Bins kept by Criterion 3 for one record.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RecordBins {
+    /// Record name.
+    pub record: String,
+    /// Reconstruction cut-off (Hz) of this DOF in this record.
+    pub cutoff_hz: f64,
+    /// Estimated in-band noise share of the displacement power.
+    pub in_band_noise_share: f64,
+    /// Bins kept (over all windows).
+    pub kept_bins: usize,
+    /// Lowest and highest kept frequency (Hz).
+    pub band_hz: [f64; 2],
+    /// Decimation factor of the windowed transforms (exact for the kept bins; see the docs).
+    pub decimation: usize,
+}
+
+/// Held-out score of one (δ, windows) setting.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SettingScore {
+    /// δ.
+    pub delta: f64,
+    /// Windows per record.
+    pub windows: usize,
+    /// Mean over folds of the held-out relative residual energy.
+    pub held_out_error: f64,
+}
+
+/// Settings chosen from the training data, and why.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ChosenSettings {
+    /// Criterion 3 variant.
+    pub form: TransformForm,
+    /// δ.
+    pub delta: f64,
+    /// Windows per record.
+    pub windows: usize,
+    /// Scaled STLSQ threshold of the final model.
+    pub threshold: f64,
+    /// Every candidate setting with its score.
+    pub candidates: Vec<SettingScore>,
+    /// Plain-language reasons.
+    pub why: Vec<String>,
+}
+
+/// One data-assembly step (Criterion 4).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AssemblyStep {
+    /// Records used in the fit.
+    pub records: Vec<String>,
+    /// Frequency-domain rows in the fit.
+    pub rows: usize,
+    /// Terms in the model.
+    pub n_terms: usize,
+    /// Mean of the held-out residual over the spread of x''.
+    pub mu: f64,
+    /// Spread of the held-out residual over the spread of x''.
+    pub sigma: f64,
+}
+
+/// Everything one DOF's identification did.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DofTrace {
+    /// The DOF.
+    pub dof: String,
+    /// Library before pruning.
+    pub library: Vec<String>,
+    /// Criterion 1.
+    pub criterion1: Option<Criterion1>,
+    /// Criterion 2 (when run).
+    pub criterion2: Option<Criterion2>,
+    /// Library used for the regression.
+    pub regression_library: Vec<String>,
+    /// Criterion 3 per record.
+    pub bins: Vec<RecordBins>,
+    /// Settings.
+    pub settings: ChosenSettings,
+    /// Criterion 4 trajectory.
+    pub assembly: Vec<AssemblyStep>,
+    /// Criterion 4 outcome in words.
+    pub assembly_verdict: String,
+    /// Held-out record of Criterion 4.
+    pub held_out_record: String,
+}
+
+/// The trace of an identification run (serialisable; the CLI prints it with `--json`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Trace {
+    /// `"tfs-sindy"` or `"sindy"`.
+    pub method: String,
+    /// Per DOF.
+    pub dofs: Vec<DofTrace>,
+    /// Milliseconds per stage.
+    pub timing_ms: Vec<(String, f64)>,
+}
+
+/// An identified model with its trace.
+#[derive(Debug, Clone)]
+pub struct Identified {
+    /// The model (its `trace` field holds the JSON of [`Identified::trace`]).
+    pub model: Model,
+    /// What was done.
+    pub trace: Trace,
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// The first `len` samples of a record.
+fn head(r: &Record, len: usize, name: String) -> Result<Record> {
+    let cols = r
+        .names()
+        .iter()
+        .map(|nm| {
+            (
+                nm.clone(),
+                r.column(nm).expect("own column")[..len].to_vec(),
+            )
+        })
+        .collect();
+    Ok(Record::new(name, r.t()[..len].to_vec(), cols)?)
+}
+
+/// Records cut to a fast FFT length (at most a fraction of a percent of the samples dropped at
+/// the end); a single record is split into two halves so there is always held-out data.
+fn blocks_of(records: &[Record]) -> Result<Vec<Record>> {
+    if records.is_empty() {
+        return invalid("no records given; pass at least one measurement record");
+    }
+    if records.len() > 1 {
+        return records
+            .iter()
+            .map(|r| {
+                let m = crate::spectral::smooth_len(r.len());
+                if m == r.len() {
+                    Ok(r.clone())
+                } else {
+                    head(r, m, r.source().to_string())
+                }
+            })
+            .collect();
+    }
+    let r = &records[0];
+    let n = r.len();
+    let h = crate::spectral::smooth_len(n / 2);
+    let mut out = Vec::new();
+    for (k, (a, b)) in [(0, h), (h, h + crate::spectral::smooth_len(n - h))]
+        .into_iter()
+        .enumerate()
+    {
+        let cols = r
+            .names()
+            .iter()
+            .map(|nm| (nm.clone(), r.column(nm).expect("own column")[a..b].to_vec()))
+            .collect();
+        out.push(Record::new(
+            format!("{}#{}", r.source(), k + 1),
+            r.t()[a..b].to_vec(),
+            cols,
+        )?);
+    }
+    Ok(out)
+}
+
+/// Small centred factor of `[Θ | y]` over several blocks: compress `[1 | Θ]` against `y` and drop
+/// the constant's row and column.
+fn centred_factor(blocks: &[(Mat<f64>, Vec<f64>)], cols: &[usize]) -> Result<Mat<f64>> {
+    let mut comps = Vec::new();
+    for (a, y) in blocks {
+        let aa = Mat::<f64>::from_fn(a.nrows(), cols.len() + 1, |i, j| {
+            if j == 0 { 1.0 } else { a[(i, cols[j - 1])] }
+        });
+        comps.push(Compressed::from_rows(aa.as_ref(), y)?);
+    }
+    let c = Compressed::merge(&comps)?;
+    let n = cols.len() + 1;
+    let r = c.r();
+    let cv = c.c();
+    let rho = c.rss0().max(0.0).sqrt();
+    Ok(Mat::<f64>::from_fn(n, n, |i, j| {
+        let (ii, jj) = (i + 1, j + 1);
+        if jj < n {
+            if ii <= jj { r[(ii, jj)] } else { 0.0 }
+        } else if ii < n {
+            cv[ii]
+        } else {
+            rho
+        }
+    }))
+}
+
+/// Criterion 1 on time-domain blocks `(Θ, x'')` (constant columns excluded).
+fn criterion1_blocks(
+    blocks: &[(Mat<f64>, Vec<f64>)],
+    cols: &[usize],
+) -> Result<(crate::Kappa, Mat<f64>)> {
+    let f = centred_factor(blocks, cols)?;
+    Ok((noise_level_index_factor(f.as_ref())?, f))
+}
+
+/// Criterion 4 statistics of a model on time-domain data: (μ, σ) relative to the spread of y.
+pub fn residual_stats(a: MatRef<'_, f64>, y: &[f64], coef: &[f64]) -> (f64, f64) {
+    let m = y.len() as f64;
+    let ym = y.iter().sum::<f64>() / m;
+    let ysd = (y.iter().map(|v| (v - ym).powi(2)).sum::<f64>() / m)
+        .sqrt()
+        .max(f64::MIN_POSITIVE);
+    let mut e = vec![0.0; y.len()];
+    for (i, ei) in e.iter_mut().enumerate() {
+        let mut s = y[i];
+        for (j, c) in coef.iter().enumerate() {
+            if *c != 0.0 {
+                s -= c * a[(i, j)];
+            }
+        }
+        *ei = s;
+    }
+    let em = e.iter().sum::<f64>() / m;
+    let esd = (e.iter().map(|v| (v - em).powi(2)).sum::<f64>() / m).sqrt();
+    (em.abs() / ysd, esd / ysd)
+}
+
+/// A regressor that is least squares on a fixed support (for bagging intervals).
+struct SupportLs(Vec<bool>);
+impl Regressor for SupportLs {
+    fn fit_compressed(&self, p: &Compressed) -> tfs_regress::Result<Fit> {
+        lstsq_support(p, &self.0)
+    }
+}
+
+fn path_opts(n: usize) -> PathOptions {
+    PathOptions {
+        stlsq: Stlsq::default(),
+        n_thresholds: n.max(2),
+        min_ratio: 1e-4,
+        criterion: InfoCriterion::Bic,
+    }
+}
+
+/// Fits on `train`, choosing the support on the λ path scored on `val` (or with a fixed threshold).
+fn fit_select(
+    train: &Compressed,
+    val: &Compressed,
+    threshold: Option<f64>,
+    n_thr: usize,
+) -> Result<(Vec<f64>, f64)> {
+    if let Some(t) = threshold {
+        let f = Stlsq {
+            threshold: t,
+            ..Stlsq::default()
+        }
+        .fit_compressed(train)?;
+        return Ok((f.coef, t));
+    }
+    let path = lambda_path(train, val, &path_opts(n_thr))?;
+    let b = path.best();
+    Ok((b.coef.clone(), b.threshold))
+}
+
+/// One block's frequency-domain rows: merged, per window, row count, kept frequencies.
+type BlockRows = (Compressed, Vec<Compressed>, usize, Vec<f64>);
+
+/// Per-block data for one DOF.
+struct DofData {
+    /// Time-domain (Θ, x'') per block (band-limited, trimmed), full library.
+    td: Vec<(Mat<f64>, Vec<f64>)>,
+}
+
+/// T-F-S SINDy (criteria 1–4 with data assembly). See the crate documentation.
+pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identified> {
+    let t_all = Instant::now();
+    let opt = &spec.tfs;
+    validate_tfs(opt)?;
+    let libs = spec.libraries()?;
+    let blocks = blocks_of(records)?;
+    let mut timing = Vec::new();
+    let mut pl = RealFftPlanner::<f64>::new();
+    let t0 = Instant::now();
+    let preps: Vec<Prepared<'_>> = blocks
+        .iter()
+        .map(|r| prepare(r, &spec.dofs, opt.cutoff_hz, &mut pl))
+        .collect::<Result<_>>()?;
+    timing.push(("band-limited reconstruction".to_string(), ms(t0)));
+    let nb = preps.len();
+    let trim = |p: &Prepared<'_>| (p.rec.len() / 50).max(4);
+    // Time-domain checks use at most ~4000 rows per record (a subsample; κ and residual
+    // statistics do not need every sample).
+    let stride = |p: &Prepared<'_>| (p.rec.len() / 4000).max(1);
+    let mut equations = Vec::new();
+    let mut dof_traces = Vec::new();
+    for (d, lib) in libs.iter().enumerate() {
+        let dof = &spec.dofs[d];
+        let names = lib.names();
+        // ---- time-domain blocks on the reconstruction (criteria 1, 2 and the held-out checks).
+        let t0 = Instant::now();
+        let data = DofData {
+            td: preps
+                .iter()
+                .map(|p| time_domain(p, &spec.dofs, d, lib, trim(p), stride(p)))
+                .collect::<Result<_>>()?,
+        };
+        let nonconst: Vec<usize> = (0..lib.len())
+            .filter(|&j| !lib.terms()[j].is_constant())
+            .collect();
+        // ---- Criterion 1.
+        let (kappa, factor) = criterion1_blocks(&data.td, &nonconst)?;
+        let (kappa0, source, curve, knee) = match opt.kappa0 {
+            Kappa0Choice::Fixed(k) => (k, "given by the user".to_string(), Vec::new(), None),
+            Kappa0Choice::Calibrate => {
+                calibrate(&blocks, spec, d, lib, &nonconst, kappa, opt, &mut pl)?
+            }
+        };
+        let kv = kappa.get(opt.kappa_variant);
+        let c1 = Criterion1 {
+            kappa,
+            variant: opt.kappa_variant,
+            kappa0,
+            kappa0_source: source,
+            high_snr: kv >= kappa0,
+            curve,
+            knee_snr_db: knee,
+        };
+        timing.push((format!("{dof}: criterion 1"), ms(t0)));
+        // ---- Criterion 2.
+        let t0 = Instant::now();
+        let mut keep: Vec<usize> = (0..lib.len()).collect();
+        let mut c2 = None;
+        if opt.prune && c1.high_snr && nonconst.len() > 1 {
+            let sd = crate::kappa::column_norms(factor.as_ref());
+            let nn: Vec<String> = nonconst.iter().map(|&j| names[j].clone()).collect();
+            let res = prune_factor(
+                factor.as_ref(),
+                &sd,
+                &nn,
+                opt.kappa_variant,
+                opt.kappa1,
+                opt.min_abrupt_drop,
+            )?;
+            let kept_nc: Vec<usize> = res.kept.iter().map(|&k| nonconst[k]).collect();
+            keep = (0..lib.len())
+                .filter(|j| !nonconst.contains(j) || kept_nc.contains(j))
+                .collect();
+            c2 = Some(res);
+        }
+        timing.push((format!("{dof}: criterion 2"), ms(t0)));
+        // ---- Criterion 3: transforms for each window count.
+        let t0 = Instant::now();
+        let dmin = opt.deltas.iter().cloned().fold(f64::INFINITY, f64::min);
+        let qs: Vec<usize> = preps.iter().map(|p| decimation(p, lib, opt.form)).collect();
+        let series: Vec<_> = preps
+            .iter()
+            .zip(&qs)
+            .map(|(p, &q)| {
+                record_series(
+                    p,
+                    &spec.dofs,
+                    d,
+                    lib,
+                    opt.form,
+                    opt.savitzky_golay,
+                    q,
+                    opt.debias,
+                )
+            })
+            .collect::<Result<_>>()?;
+        let mut transforms = Vec::new();
+        for &wc in &opt.window_counts {
+            let per: Vec<_> = series
+                .iter()
+                .map(|s| window_transforms(s, wc, dmin, &mut pl))
+                .collect();
+            transforms.push(per);
+        }
+        timing.push((format!("{dof}: criterion 3 transforms"), ms(t0)));
+        // Time-domain validation blocks restricted to kept columns.
+        let t0 = Instant::now();
+        let val: Vec<Compressed> = data
+            .td
+            .iter()
+            .map(|(a, y)| {
+                let ak = Mat::<f64>::from_fn(a.nrows(), keep.len(), |i, j| a[(i, keep[j])]);
+                Compressed::from_rows(ak.as_ref(), y)
+            })
+            .collect::<std::result::Result<_, _>>()?;
+        // Compressed rows per (window count, delta, block).
+        let compress_blocks = |wi: usize, delta: f64| -> Result<Vec<BlockRows>> {
+            transforms[wi]
+                .iter()
+                .map(|wins| {
+                    let mut parts = Vec::new();
+                    let mut rows = 0;
+                    let mut freqs = Vec::new();
+                    for w in wins {
+                        let (a, y, f) = rows_for(w, delta, &keep);
+                        if a.nrows() == 0 {
+                            continue;
+                        }
+                        rows += a.nrows();
+                        freqs.extend(f);
+                        parts.push(Compressed::from_rows(a.as_ref(), &y)?);
+                    }
+                    if parts.is_empty() {
+                        parts.push(Compressed::empty(keep.len()));
+                    }
+                    Ok((Compressed::merge(&parts)?, parts, rows, freqs))
+                })
+                .collect()
+        };
+        // ---- Settings by leave-one-block-out held-out error.
+        let mut candidates = Vec::new();
+        let mut best: Option<(f64, usize, f64)> = None;
+        for (wi, &wc) in opt.window_counts.iter().enumerate() {
+            for &delta in &opt.deltas {
+                let cb = compress_blocks(wi, delta)?;
+                let mut err = 0.0;
+                for f in 0..nb {
+                    let train: Vec<Compressed> = (0..nb)
+                        .filter(|&k| k != f)
+                        .map(|k| cb[k].0.clone())
+                        .collect();
+                    let train = Compressed::merge(&train)?;
+                    let (coef, _) = fit_select(&train, &cb[f].0, opt.threshold, opt.n_thresholds)?;
+                    err += val[f].rss(&coef)? / val[f].b_norm2().max(f64::MIN_POSITIVE);
+                }
+                err /= nb as f64;
+                candidates.push(SettingScore {
+                    delta,
+                    windows: wc,
+                    held_out_error: err,
+                });
+                if best.is_none_or(|b| err < b.0) {
+                    best = Some((err, wi, delta));
+                }
+            }
+        }
+        let (best_err, wi, delta) = best.expect("at least one setting");
+        let windows = opt.window_counts[wi];
+        timing.push((format!("{dof}: settings selection"), ms(t0)));
+        // ---- Data assembly + Criterion 4 (the last block is held out).
+        let t0 = Instant::now();
+        let cb = compress_blocks(wi, delta)?;
+        let hold = nb - 1;
+        let (ha, hy) = &data.td[hold];
+        let hak = Mat::<f64>::from_fn(ha.nrows(), keep.len(), |i, j| ha[(i, keep[j])]);
+        let mut steps: Vec<AssemblyStep> = Vec::new();
+        let mut fits: Vec<(Vec<f64>, f64)> = Vec::new();
+        let mut stop = None;
+        for k in 1..=hold {
+            let train =
+                Compressed::merge(&cb[..k].iter().map(|c| c.0.clone()).collect::<Vec<_>>())?;
+            let (coef, thr) = fit_select(&train, &cb[hold].0, opt.threshold, opt.n_thresholds)?;
+            let (mu, sigma) = residual_stats(hak.as_ref(), hy, &coef);
+            steps.push(AssemblyStep {
+                records: blocks[..k].iter().map(|r| r.source().to_string()).collect(),
+                rows: cb[..k].iter().map(|c| c.2).sum(),
+                n_terms: coef.iter().filter(|c| **c != 0.0).count(),
+                mu,
+                sigma,
+            });
+            fits.push((coef, thr));
+            let ok = match (opt.mu0, opt.sigma0) {
+                (Some(m0), Some(s0)) => mu <= m0 && sigma <= s0,
+                (m0, s0) => {
+                    let m_ok = mu <= m0.unwrap_or(0.05);
+                    let s_ok = match s0 {
+                        Some(s0) => sigma <= s0,
+                        None => k >= 2 && sigma >= 0.99 * steps[k - 2].sigma,
+                    };
+                    m_ok && s_ok
+                }
+            };
+            if ok {
+                stop = Some(k);
+                break;
+            }
+        }
+        let (coef, thr, used, verdict) = match stop {
+            Some(k) => {
+                let (c, t) = fits[k - 1].clone();
+                (
+                    c,
+                    t,
+                    k,
+                    format!(
+                        "criterion 4 met after {k} record(s): μ = {:.4}, σ = {:.4} on held-out '{}'",
+                        steps[k - 1].mu,
+                        steps[k - 1].sigma,
+                        blocks[hold].source()
+                    ),
+                )
+            }
+            None => {
+                // Records ran out: keep the last support, refit on every block.
+                let (c, t) = fits.last().cloned().unwrap_or((vec![0.0; keep.len()], 0.0));
+                let support: Vec<bool> = c.iter().map(|v| *v != 0.0).collect();
+                let all = Compressed::merge(&cb.iter().map(|c| c.0.clone()).collect::<Vec<_>>())?;
+                let f = lstsq_support(&all, &support)?;
+                (
+                    f.coef,
+                    t,
+                    nb,
+                    format!(
+                        "records ran out before criterion 4 was met (last step μ = {:.4}, σ = {:.4}); support from the last step, coefficients refit on all {nb} records",
+                        steps.last().map_or(f64::NAN, |s| s.mu),
+                        steps.last().map_or(f64::NAN, |s| s.sigma)
+                    ),
+                )
+            }
+        };
+        timing.push((format!("{dof}: assembly and criterion 4"), ms(t0)));
+        // ---- Intervals by bagging over windows of the records used.
+        let support: Vec<bool> = coef.iter().map(|v| *v != 0.0).collect();
+        let mut intervals: Vec<Option<[f64; 2]>> = vec![None; keep.len()];
+        if opt.bagging >= 2 {
+            let parts: Vec<Compressed> = cb[..used]
+                .iter()
+                .flat_map(|c| c.1.iter().cloned())
+                .collect();
+            if parts.len() >= 2 {
+                let s = bagging(
+                    &parts,
+                    &SupportLs(support.clone()),
+                    &BagOptions {
+                        n_boot: opt.bagging,
+                        level: 0.9,
+                        seed: 1,
+                    },
+                )?;
+                for j in 0..keep.len() {
+                    if support[j] {
+                        intervals[j] = Some([s.lower[j], s.upper[j]]);
+                    }
+                }
+            }
+        }
+        let terms = keep
+            .iter()
+            .enumerate()
+            .filter(|(j, _)| coef[*j] != 0.0)
+            .map(|(j, &col)| {
+                let mut mt = ModelTerm::new(lib.terms()[col].clone(), coef[j]);
+                mt.interval = intervals[j];
+                mt
+            })
+            .collect();
+        equations.push(Equation {
+            dof: dof.clone(),
+            terms,
+        });
+        let bins = cb
+            .iter()
+            .zip(&preps)
+            .zip(&blocks)
+            .zip(&qs)
+            .map(|(((c, p), r), &q)| {
+                let lo = c.3.iter().cloned().fold(f64::INFINITY, f64::min);
+                let hi = c.3.iter().cloned().fold(0.0, f64::max);
+                RecordBins {
+                    record: r.source().to_string(),
+                    cutoff_hz: p.smooth[d].band.cutoff_hz,
+                    in_band_noise_share: p.smooth[d].band.in_band_noise_share,
+                    kept_bins: c.3.len(),
+                    band_hz: [if lo.is_finite() { lo } else { 0.0 }, hi],
+                    decimation: q,
+                }
+            })
+            .collect();
+        let why = vec![
+            format!(
+                "δ = {delta} and {windows} window(s) per record: lowest mean held-out residual ({best_err:.3e}) when each record in turn is left out (time-domain residual on its band-limited reconstruction)"
+            ),
+            match opt.threshold {
+                Some(t) => format!("STLSQ threshold {t} given by the user"),
+                None => format!(
+                    "STLSQ threshold {thr:.4} (scaled): BIC of the frequency-domain rows of the held-out record '{}' along a {}-point λ path",
+                    blocks[hold].source(),
+                    opt.n_thresholds
+                ),
+            },
+            format!(
+                "reconstruction cut-off per record chosen from the spectrum (noise floor vs signal), form {:?}",
+                opt.form
+            ),
+        ];
+        dof_traces.push(DofTrace {
+            dof: dof.clone(),
+            library: names.clone(),
+            criterion1: Some(c1),
+            criterion2: c2,
+            regression_library: keep.iter().map(|&j| names[j].clone()).collect(),
+            bins,
+            settings: ChosenSettings {
+                form: opt.form,
+                delta,
+                windows,
+                threshold: thr,
+                candidates,
+                why,
+            },
+            assembly: steps,
+            assembly_verdict: verdict,
+            held_out_record: blocks[hold].source().to_string(),
+        });
+    }
+    timing.push(("total".to_string(), ms(t_all)));
+    let trace = Trace {
+        method: "tfs-sindy".into(),
+        dofs: dof_traces,
+        timing_ms: timing,
+    };
+    let mut model = Model::new(spec.dofs.clone(), equations, "tfs-sindy")?;
+    model.trace =
+        serde_json::to_value(&trace).map_err(|e| CriteriaError::Invalid(e.to_string()))?;
+    Ok(Identified { model, trace })
+}
+
+fn validate_tfs(o: &TfsOptions) -> Result<()> {
+    if o.deltas.is_empty() || o.deltas.iter().any(|d| !(*d > 0.0 && *d <= 1.0)) {
+        return invalid(format!(
+            "tfs.deltas = {:?}: give at least one δ in (0, 1]",
+            o.deltas
+        ));
+    }
+    if o.window_counts.is_empty() || o.window_counts.contains(&0) {
+        return invalid(format!(
+            "tfs.window_counts = {:?}: give at least one count ≥ 1",
+            o.window_counts
+        ));
+    }
+    if let Some(c) = o.cutoff_hz
+        && (c.is_nan() || c <= 0.0)
+    {
+        return invalid(format!("tfs.cutoff_hz = {c}: must be positive"));
+    }
+    if let Some(t) = o.threshold
+        && (t.is_nan() || t < 0.0)
+    {
+        return invalid(format!("tfs.threshold = {t}: must be ≥ 0"));
+    }
+    if let Kappa0Choice::Calibrate = o.kappa0
+        && o.calibration_snrs_db.windows(2).any(|w| w[1] >= w[0])
+    {
+        return invalid("tfs.calibration_snrs_db must be strictly decreasing");
+    }
+    Ok(())
+}
+
+/// Most samples the κ0 calibration looks at (a central segment of the longest record).
+const CALIBRATION_SAMPLES: usize = 20_000;
+
+/// κ0 calibration: add white noise at each SNR to the DOF displacements and linear inputs of
+/// every record, recompute κ, and take κ at the knee of κ(SNR).
+#[allow(clippy::too_many_arguments)]
+fn calibrate(
+    blocks: &[Record],
+    spec: &IdentifySpec,
+    d: usize,
+    lib: &Library,
+    nonconst: &[usize],
+    kappa: crate::Kappa,
+    opt: &TfsOptions,
+    pl: &mut RealFftPlanner<f64>,
+) -> Result<(f64, String, Vec<CalibrationPoint>, Option<f64>)> {
+    let mut curve = vec![CalibrationPoint {
+        added_snr_db: None,
+        kappa,
+    }];
+    let noisy_cols: Vec<String> = spec
+        .dofs
+        .iter()
+        .cloned()
+        .chain(
+            lib.terms()
+                .iter()
+                .filter(|t| t.uses_input() && t.factors().len() == 1)
+                .flat_map(|t| t.required_columns()),
+        )
+        .collect();
+    // The central ≤ 20,000 samples of the longest record are enough to see where κ starts to fall.
+    let longest = (0..blocks.len())
+        .max_by_key(|&i| blocks[i].len())
+        .unwrap_or(0);
+    let src = &blocks[longest];
+    let n = src.len();
+    let (a, b) = if n > CALIBRATION_SAMPLES {
+        ((n - CALIBRATION_SAMPLES) / 2, (n + CALIBRATION_SAMPLES) / 2)
+    } else {
+        (0, n)
+    };
+    let cols = src
+        .names()
+        .iter()
+        .map(|nm| {
+            (
+                nm.clone(),
+                src.column(nm).expect("own column")[a..b].to_vec(),
+            )
+        })
+        .collect();
+    let segment = Record::new(src.source(), src.t()[a..b].to_vec(), cols)?;
+    let blocks = std::slice::from_ref(&segment);
+    for (si, &snr) in opt.calibration_snrs_db.iter().enumerate() {
+        let mut noisy = Vec::new();
+        for (bi, r) in blocks.iter().enumerate() {
+            let mut r2 = r.clone();
+            for (ci, c) in noisy_cols.iter().enumerate() {
+                if let Some(v) = r.column(c) {
+                    let seed = 1000 * si as u64 + 31 * bi as u64 + ci as u64;
+                    let n =
+                        tfs_signal::noise::noise_for(v, snr, tfs_signal::NoiseKind::White, seed)?;
+                    let nv: Vec<f64> = v.iter().zip(n).map(|(a, b)| a + b).collect();
+                    r2.set_column(c.clone(), nv)?;
+                }
+            }
+            noisy.push(r2);
+        }
+        let mut td = Vec::new();
+        for r in &noisy {
+            let p = prepare(r, &spec.dofs, opt.cutoff_hz, pl)?;
+            let trim = (r.len() / 50).max(4);
+            td.push(time_domain(
+                &p,
+                &spec.dofs,
+                d,
+                lib,
+                trim,
+                (r.len() / 4000).max(1),
+            )?);
+        }
+        let (k, _) = criterion1_blocks(&td, nonconst)?;
+        curve.push(CalibrationPoint {
+            added_snr_db: Some(snr),
+            kappa: k,
+        });
+    }
+    match kappa0_from_curve(&curve, opt.kappa_variant) {
+        Some((k0, snr)) => Ok((
+            k0,
+            format!("calibrated: κ at the knee of κ vs added-noise SNR (knee at {snr} dB)"),
+            curve,
+            Some(snr),
+        )),
+        None => {
+            let k0 = curve
+                .iter()
+                .map(|p| p.kappa.get(opt.kappa_variant))
+                .fold(f64::INFINITY, f64::min);
+            Ok((
+                k0,
+                "calibrated: κ never dropped with added noise, κ0 = lowest κ seen".into(),
+                curve,
+                None,
+            ))
+        }
+    }
+}
+
+/// Classical SINDy (Appendix B): numerical derivatives of the raw data, the library in the time
+/// domain, STLSQ with the threshold chosen on the last record held out (or given).
+pub fn identify_sindy(records: &[Record], spec: &IdentifySpec) -> Result<Identified> {
+    let t_all = Instant::now();
+    let libs = spec.libraries()?;
+    let blocks = blocks_of(records)?;
+    let opt = &spec.sindy;
+    let mut equations = Vec::new();
+    let mut dof_traces = Vec::new();
+    let mut timing = Vec::new();
+    for (d, lib) in libs.iter().enumerate() {
+        let t0 = Instant::now();
+        let mut comps = Vec::new();
+        for r in &blocks {
+            let dt = check_record(r, &spec.dofs)?;
+            let (cs, acc) = match opt.savitzky_golay {
+                Some(sg) => raw_columns_sg(r, &spec.dofs, d, dt, sg)?,
+                None => {
+                    let mut cs = tfs_library::ColumnSet::new(r as &dyn tfs_data::Columns);
+                    let mut acc = Vec::new();
+                    for (i, dn) in spec.dofs.iter().enumerate() {
+                        let x = r.column(dn).expect("checked");
+                        cs.insert(format!("{dn}'"), tfs_signal::central_difference(x, dt, 1)?)?;
+                        if i == d {
+                            acc = tfs_signal::central_difference(x, dt, 2)?;
+                        }
+                    }
+                    (cs, acc)
+                }
+            };
+            let a = lib.evaluate(&cs)?;
+            let trim = opt.savitzky_golay.map_or(1, |s| s.0);
+            let m = a.nrows() - 2 * trim;
+            let at = a.as_ref().subrows(trim, m);
+            comps.push(Compressed::from_rows(at, &acc[trim..trim + m])?);
+        }
+        timing.push((format!("{}: library and compression", spec.dofs[d]), ms(t0)));
+        let t0 = Instant::now();
+        let nb = comps.len();
+        let (coef, thr, why) = match opt.threshold {
+            Some(t) => {
+                let all = Compressed::merge(&comps)?;
+                let f = Stlsq {
+                    threshold: t,
+                    ..Stlsq::default()
+                }
+                .fit_compressed(&all)?;
+                (f.coef, t, "STLSQ threshold given by the user".to_string())
+            }
+            None => {
+                let train = Compressed::merge(&comps[..nb - 1])?;
+                let path = lambda_path(&train, &comps[nb - 1], &path_opts(opt.n_thresholds))?;
+                let b = path.best();
+                let all = Compressed::merge(&comps)?;
+                let f = lstsq_support(&all, &b.support)?;
+                (
+                    f.coef,
+                    b.threshold,
+                    format!(
+                        "STLSQ threshold {:.4} (scaled): BIC on held-out '{}', coefficients refit on all records",
+                        b.threshold,
+                        blocks[nb - 1].source()
+                    ),
+                )
+            }
+        };
+        timing.push((format!("{}: regression", spec.dofs[d]), ms(t0)));
+        let terms = lib
+            .terms()
+            .iter()
+            .zip(&coef)
+            .filter(|(_, c)| **c != 0.0)
+            .map(|(t, c)| ModelTerm::new(t.clone(), *c))
+            .collect();
+        equations.push(Equation {
+            dof: spec.dofs[d].clone(),
+            terms,
+        });
+        dof_traces.push(DofTrace {
+            dof: spec.dofs[d].clone(),
+            library: lib.names(),
+            criterion1: None,
+            criterion2: None,
+            regression_library: lib.names(),
+            bins: Vec::new(),
+            settings: ChosenSettings {
+                form: TransformForm::PlainSavitzkyGolay,
+                delta: 0.0,
+                windows: 0,
+                threshold: thr,
+                candidates: Vec::new(),
+                why: vec![why],
+            },
+            assembly: Vec::new(),
+            assembly_verdict: "not used by classical SINDy".into(),
+            held_out_record: blocks[nb - 1].source().to_string(),
+        });
+    }
+    timing.push(("total".to_string(), ms(t_all)));
+    let trace = Trace {
+        method: "sindy".into(),
+        dofs: dof_traces,
+        timing_ms: timing,
+    };
+    let mut model = Model::new(spec.dofs.clone(), equations, "sindy")?;
+    model.trace =
+        serde_json::to_value(&trace).map_err(|e| CriteriaError::Invalid(e.to_string()))?;
+    Ok(Identified { model, trace })
+}

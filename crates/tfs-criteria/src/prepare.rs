@@ -1,0 +1,385 @@
+//! Per-record preparation shared by the pipelines: validation, band-limited reconstruction of
+//! every DOF, evaluation of library terms on the reconstruction, and windowed transforms.
+
+use faer::Mat;
+use realfft::RealFftPlanner;
+use realfft::num_complex::Complex;
+use tfs_data::{Columns, Record};
+use tfs_library::{ColumnSet, Factor, Library, Term, Var, evaluate_term};
+
+use crate::error::{CriteriaError, Result, invalid};
+use crate::spectral::{
+    Smoothed, band_limit, bin_omegas, hermite_power, weak_first_derivative, weak_second_derivative,
+    window, window_layout, windowed_fft,
+};
+
+/// How the frequency-domain rows are formed (Criterion 3 variants).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize, Default)]
+pub enum TransformForm {
+    /// Derivative transfer onto the window (no numerical differentiation), nonlinear terms on the
+    /// band-limited reconstruction. The default.
+    #[default]
+    Weak,
+    /// Plain windowed transform of spectrally differentiated band-limited data.
+    PlainSpectral,
+    /// The paper's plain transform: Savitzky–Golay derivatives of the raw data, terms on raw data.
+    PlainSavitzkyGolay,
+}
+
+/// Checks a record has the DOF columns, enough samples and a usable time step.
+pub(crate) fn check_record(rec: &Record, dofs: &[String]) -> Result<f64> {
+    let dt = rec.dt();
+    if rec.len() < 64 {
+        return invalid(format!(
+            "record '{}' has {} samples; at least 64 are needed",
+            rec.source(),
+            rec.len()
+        ));
+    }
+    if !(dt.is_finite() && dt > 0.0) {
+        return invalid(format!(
+            "record '{}': the time column 't' must increase uniformly (dt = {dt})",
+            rec.source()
+        ));
+    }
+    for d in dofs {
+        let Some(c) = rec.column(d) else {
+            return invalid(format!(
+                "record '{}' has no column '{d}' for DOF '{d}'; columns are {:?}",
+                rec.source(),
+                rec.names()
+            ));
+        };
+        if let Some(i) = c.iter().position(|v| !v.is_finite()) {
+            return invalid(format!(
+                "record '{}', column '{d}', row {}: value {} is not finite",
+                rec.source(),
+                i + 1,
+                c[i]
+            ));
+        }
+    }
+    Ok(dt)
+}
+
+/// A record with every DOF reconstructed in its data-chosen band.
+pub(crate) struct Prepared<'a> {
+    pub rec: &'a Record,
+    pub dt: f64,
+    pub smooth: Vec<Smoothed>,
+}
+
+pub(crate) fn prepare<'a>(
+    rec: &'a Record,
+    dofs: &[String],
+    cutoff_hz: Option<f64>,
+    pl: &mut RealFftPlanner<f64>,
+) -> Result<Prepared<'a>> {
+    let dt = check_record(rec, dofs)?;
+    let smooth = dofs
+        .iter()
+        .map(|d| band_limit(rec.column(d).expect("checked"), dt, cutoff_hz, pl))
+        .collect();
+    Ok(Prepared { rec, dt, smooth })
+}
+
+/// Columns of a prepared record: the DOFs and their velocities replaced by the reconstruction.
+pub(crate) fn smoothed_columns<'a>(p: &'a Prepared<'_>, dofs: &[String]) -> Result<ColumnSet<'a>> {
+    let mut cs = ColumnSet::new(p.rec as &dyn Columns);
+    for (d, s) in dofs.iter().zip(&p.smooth) {
+        cs.insert(d.clone(), s.x.clone())?;
+        cs.insert(format!("{d}'"), s.v.clone())?;
+    }
+    Ok(cs)
+}
+
+/// One library column in time, as it enters the windowed transform.
+pub(crate) enum Series {
+    /// Transform `θ·w`.
+    Plain(Vec<f64>),
+    /// The term is `G'`: transform `−(G·w' − iωG·w)`.
+    Transfer(Vec<f64>),
+}
+
+/// Time series of every library term (and the left-hand side) for one DOF of one record.
+pub(crate) struct RecordSeries {
+    /// Sampling step of the series (after decimation).
+    pub dt: f64,
+    pub lhs: Vec<f64>,
+    pub weak_lhs: bool,
+    pub terms: Vec<Series>,
+}
+
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn record_series(
+    p: &Prepared<'_>,
+    dofs: &[String],
+    dof: usize,
+    lib: &Library,
+    form: TransformForm,
+    sg: (usize, usize),
+    q: usize,
+    debias: bool,
+) -> Result<RecordSeries> {
+    let mut s = record_series_full(p, dofs, dof, lib, form, sg, debias)?;
+    if q > 1 {
+        // Inputs are broadband: low-pass them below the new Nyquist before decimating (the DOF
+        // signals are already band-limited below it).
+        let nyq = 0.5 / (p.dt * q as f64);
+        let mut pl = RealFftPlanner::new();
+        let dec = |v: &[f64]| v.iter().step_by(q).copied().collect::<Vec<f64>>();
+        for (t, ser) in lib.terms().iter().zip(s.terms.iter_mut()) {
+            let v = match ser {
+                Series::Plain(v) | Series::Transfer(v) => v,
+            };
+            if t.uses_input() {
+                *v = band_limit(v, p.dt, Some(0.8 * nyq), &mut pl).x;
+            }
+            *v = dec(v);
+        }
+        s.lhs = dec(&s.lhs);
+        s.dt = p.dt * q as f64;
+    }
+    Ok(s)
+}
+
+/// The decimation factor that keeps every windowed integral exact: the integrand of a polynomial
+/// term of degree `p` in signals band-limited to `f_c` has bandwidth ≤ (p+1)·f_c at the kept bins,
+/// so a sampling rate of 1.25·(p+1)·f_c suffices. Non-polynomial terms give 1 (no decimation).
+pub(crate) fn decimation(p: &Prepared<'_>, lib: &Library, form: TransformForm) -> usize {
+    if form == TransformForm::PlainSavitzkyGolay {
+        return 1;
+    }
+    let Some(deg) = lib
+        .terms()
+        .iter()
+        .map(|t| t.degree())
+        .try_fold(0u32, |a, d| d.map(|d| a.max(d)))
+    else {
+        return 1;
+    };
+    let fc = p
+        .smooth
+        .iter()
+        .map(|s| s.band.cutoff_hz)
+        .fold(0.0, f64::max);
+    if fc.is_nan() || fc <= 0.0 {
+        return 1;
+    }
+    let need = 1.25 * (deg.max(1) + 1) as f64 * fc;
+    ((1.0 / p.dt) / need).floor().max(1.0) as usize
+}
+
+fn record_series_full(
+    p: &Prepared<'_>,
+    dofs: &[String],
+    dof: usize,
+    lib: &Library,
+    form: TransformForm,
+    sg: (usize, usize),
+    debias: bool,
+) -> Result<RecordSeries> {
+    match form {
+        TransformForm::Weak | TransformForm::PlainSpectral => {
+            let cs = smoothed_columns(p, dofs)?;
+            let weak = form == TransformForm::Weak;
+            let mut terms = Vec::with_capacity(lib.len());
+            // A single power of one DOF's displacement, evaluated without the noise bias.
+            let debiased = |t: &Term| -> Option<Vec<f64>> {
+                if !debias {
+                    return None;
+                }
+                match t.factors() {
+                    [Factor::Pow(Var::Disp(d), k)] => {
+                        let i = dofs.iter().position(|n| n == d)?;
+                        Some(hermite_power(
+                            &p.smooth[i].x,
+                            *k,
+                            p.smooth[i].band.noise_var,
+                        ))
+                    }
+                    _ => None,
+                }
+            };
+            for t in lib.terms() {
+                if weak && let Some(ed) = t.exact_derivative() {
+                    let anti = ed.antiderivative();
+                    let mut g = match debiased(&anti) {
+                        Some(g) => g,
+                        None => evaluate_term(&anti, &cs)?,
+                    };
+                    g.iter_mut().for_each(|v| *v *= ed.scale);
+                    terms.push(Series::Transfer(g));
+                } else if let Some(v) = debiased(t) {
+                    terms.push(Series::Plain(v));
+                } else {
+                    terms.push(Series::Plain(evaluate_term(t, &cs)?));
+                }
+            }
+            let lhs = if weak {
+                p.smooth[dof].x.clone()
+            } else {
+                p.smooth[dof].a.clone()
+            };
+            Ok(RecordSeries {
+                dt: p.dt,
+                lhs,
+                weak_lhs: weak,
+                terms,
+            })
+        }
+        TransformForm::PlainSavitzkyGolay => {
+            let (cs, a) = raw_columns_sg(p.rec, dofs, dof, p.dt, sg)?;
+            let terms = lib
+                .terms()
+                .iter()
+                .map(|t| evaluate_term(t, &cs).map(Series::Plain))
+                .collect::<std::result::Result<Vec<_>, _>>()?;
+            Ok(RecordSeries {
+                dt: p.dt,
+                lhs: a,
+                weak_lhs: false,
+                terms,
+            })
+        }
+    }
+}
+
+/// Raw columns with Savitzky–Golay velocities, and the SG acceleration of DOF `dof`.
+pub(crate) fn raw_columns_sg<'a>(
+    rec: &'a Record,
+    dofs: &[String],
+    dof: usize,
+    dt: f64,
+    sg: (usize, usize),
+) -> Result<(ColumnSet<'a>, Vec<f64>)> {
+    let mut cs = ColumnSet::new(rec as &dyn Columns);
+    let mut acc = Vec::new();
+    for (i, d) in dofs.iter().enumerate() {
+        let x = rec.column(d).expect("checked");
+        let v = tfs_signal::savitzky_golay(x, dt, sg.0, sg.1, 1)?;
+        cs.insert(format!("{d}'"), v)?;
+        if i == dof {
+            acc = tfs_signal::savitzky_golay(x, dt, sg.0, sg.1, 2)?;
+        }
+    }
+    Ok((cs, acc))
+}
+
+/// Windowed transforms of one DOF of one record, at the bins that can be selected.
+pub(crate) struct WindowTransform {
+    /// Frequencies (Hz) of the stored bins.
+    pub freq: Vec<f64>,
+    /// |LHS| relative to its maximum over the window's bins.
+    pub rel_amp: Vec<f64>,
+    /// LHS transform at the stored bins.
+    pub lhs: Vec<Complex<f64>>,
+    /// Term transforms at the stored bins (`cols[j][b]`).
+    pub cols: Vec<Vec<Complex<f64>>>,
+}
+
+/// Transforms of `count` overlapping windows; bins with |LHS| < `delta_min`·max are not stored.
+pub(crate) fn window_transforms(
+    s: &RecordSeries,
+    count: usize,
+    delta_min: f64,
+    pl: &mut RealFftPlanner<f64>,
+) -> Vec<WindowTransform> {
+    let dt = s.dt;
+    let n = s.lhs.len();
+    let (starts, len) = window_layout(n, count);
+    let win = window(len, dt);
+    let om = bin_omegas(len, dt);
+    let df = 1.0 / (len as f64 * dt);
+    starts
+        .iter()
+        .map(|&st| {
+            let sl = |v: &[f64]| v[st..st + len].to_vec();
+            let lhs_full = if s.weak_lhs {
+                weak_second_derivative(&sl(&s.lhs), &win, &om, dt, pl)
+            } else {
+                windowed_fft(&sl(&s.lhs), &win.0, dt, pl)
+            };
+            let max = lhs_full.iter().fold(0.0f64, |a, c| a.max(c.norm()));
+            let bins: Vec<usize> = (0..lhs_full.len())
+                .filter(|&k| max > 0.0 && lhs_full[k].norm() >= delta_min * max)
+                .collect();
+            let cols = s
+                .terms
+                .iter()
+                .map(|t| {
+                    let full = match t {
+                        Series::Plain(v) => windowed_fft(&sl(v), &win.0, dt, pl),
+                        Series::Transfer(g) => weak_first_derivative(&sl(g), &win, &om, dt, pl),
+                    };
+                    bins.iter().map(|&k| full[k]).collect()
+                })
+                .collect();
+            WindowTransform {
+                freq: bins.iter().map(|&k| k as f64 * df).collect(),
+                rel_amp: bins.iter().map(|&k| lhs_full[k].norm() / max).collect(),
+                lhs: bins.iter().map(|&k| lhs_full[k]).collect(),
+                cols,
+            }
+        })
+        .collect()
+}
+
+/// Real rows (real and imaginary parts stacked) of the bins with relative amplitude ≥ `delta`,
+/// restricted to the columns `keep`. Returns (A, b, kept bin frequencies).
+pub(crate) fn rows_for(
+    w: &WindowTransform,
+    delta: f64,
+    keep: &[usize],
+) -> (Mat<f64>, Vec<f64>, Vec<f64>) {
+    let sel: Vec<usize> = (0..w.lhs.len())
+        .filter(|&b| w.rel_amp[b] >= delta)
+        .collect();
+    let mut rows: Vec<(usize, bool)> = Vec::with_capacity(2 * sel.len());
+    for &b in &sel {
+        rows.push((b, false));
+        if w.freq[b] > 0.0 {
+            rows.push((b, true));
+        }
+    }
+    let a = Mat::<f64>::from_fn(rows.len(), keep.len(), |i, j| {
+        let (b, im) = rows[i];
+        let c = w.cols[keep[j]][b];
+        if im { c.im } else { c.re }
+    });
+    let y = rows
+        .iter()
+        .map(|&(b, im)| if im { w.lhs[b].im } else { w.lhs[b].re })
+        .collect();
+    (a, y, sel.iter().map(|&b| w.freq[b]).collect())
+}
+
+/// Time-domain library matrix and target on the band-limited reconstruction (ends trimmed).
+pub(crate) fn time_domain(
+    p: &Prepared<'_>,
+    dofs: &[String],
+    dof: usize,
+    lib: &Library,
+    trim: usize,
+    stride: usize,
+) -> Result<(Mat<f64>, Vec<f64>)> {
+    let cs = smoothed_columns(p, dofs)?;
+    let full = lib.evaluate(&cs)?;
+    let n = full.nrows();
+    if n <= 2 * trim + lib.len() + 2 {
+        return Err(CriteriaError::Invalid(format!(
+            "record '{}' is too short ({n} samples) for a library of {} terms",
+            p.rec.source(),
+            lib.len()
+        )));
+    }
+    let stride = stride.max(1);
+    let rows = (n - 2 * trim).div_ceil(stride);
+    let a = Mat::<f64>::from_fn(rows, lib.len(), |i, j| full[(trim + i * stride, j)]);
+    let y = p.smooth[dof].a[trim..n - trim]
+        .iter()
+        .step_by(stride)
+        .copied()
+        .collect();
+    Ok((a, y))
+}

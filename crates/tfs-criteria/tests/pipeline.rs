@@ -1,0 +1,173 @@
+//! Pipeline behaviour: errors, the criteria inside the pipeline, the baseline, a 2-DOF chain.
+
+mod common;
+use common::*;
+use tfs_criteria::{IdentifySpec, Kappa0Choice, identify_sindy, identify_tfs};
+use tfs_data::Record;
+use tfs_dynamics::{Rk4Scratch, SecondOrderSystem, rk4_step};
+use tfs_signal::{Excitation, Sweep, SweepKind};
+
+const LIB: &str = "x^1..7, x', xb_acc";
+
+#[test]
+fn missing_dof_column_is_an_error_that_names_it() {
+    let recs = train(None, 0.2, 2);
+    let spec = IdentifySpec::new(&["y"], "y, y', xb_acc");
+    let e = identify_tfs(&recs, &spec).unwrap_err().to_string();
+    assert!(e.contains("'y'") && e.contains("train1"), "{e}");
+    let mut spec = IdentifySpec::new(&["x"], LIB);
+    spec.tfs.deltas.clear();
+    let e = identify_tfs(&recs, &spec).unwrap_err().to_string();
+    assert!(e.contains("tfs.deltas"), "{e}");
+}
+
+/// On noise-free data the classical baseline with central differences is accurate too.
+#[test]
+fn classical_sindy_recovers_clean_data() {
+    let recs = train(None, 0.4, 3);
+    let mut spec = IdentifySpec::new(&["x"], LIB);
+    spec.sindy.savitzky_golay = None;
+    let id = identify_sindy(&recs, &spec).unwrap();
+    let e = errors(&id.model);
+    assert!(
+        e.force_rel_rms < 0.01 && e.damping_rel < 0.01,
+        "{}",
+        id.model.equation_string()
+    );
+}
+
+/// With pruning forced on (κ0 = 0), Criterion 2 runs on the small factor, its trace removes one
+/// column per step down to the target alone, and the trace and model serialise.
+#[test]
+fn criterion2_runs_inside_the_pipeline_and_the_trace_serialises() {
+    let recs = train(Some((60.0, tfs_signal::NoiseKind::White)), 0.4, 3);
+    let mut spec = IdentifySpec::new(&["x"], LIB);
+    spec.tfs.prune = true;
+    spec.tfs.kappa0 = Kappa0Choice::Fixed(0.0);
+    spec.tfs.window_counts = vec![3];
+    let id = identify_tfs(&recs, &spec).unwrap();
+    let t = &id.trace.dofs[0];
+    let c2 = t.criterion2.as_ref().expect("criterion 2 ran");
+    assert_eq!(c2.trace.len(), 9);
+    let mut removed: Vec<usize> = c2.trace.iter().map(|s| s.removed).collect();
+    removed.sort_unstable();
+    removed.dedup();
+    assert_eq!(removed.len(), 9, "each column removed once");
+    assert_eq!(t.regression_library.len(), c2.kept.len());
+    let json = serde_json::to_value(&id.trace).unwrap();
+    assert!(json["dofs"][0]["criterion1"]["kappa"]["raw"].is_number());
+    assert!(json["dofs"][0]["assembly"][0]["sigma"].is_number());
+    assert!(id.model.to_json_string().unwrap().contains("tfs-model/1"));
+    eprintln!(
+        "pruned to {:?}: {}",
+        t.regression_library,
+        id.model.equation_string()
+    );
+}
+
+/// A 2-DOF chain in relative coordinates (paper Eq. 18 form) with a cubic first spring.
+struct Chain;
+const K1: f64 = 4.0;
+const K13: f64 = 2.0;
+const K2: f64 = 6.0;
+const C1: f64 = 0.5;
+const C2: f64 = 0.8;
+impl SecondOrderSystem for Chain {
+    fn dofs(&self) -> usize {
+        2
+    }
+    fn inputs(&self) -> usize {
+        1
+    }
+    fn accel(&self, _t: f64, x: &[f64], v: &[f64], u: &[f64], a: &mut [f64]) {
+        let f1 = K1 * x[0] + K13 * x[0].powi(3) + C1 * v[0];
+        let f2 = K2 * (x[1] - x[0]) + C2 * (v[1] - v[0]);
+        a[0] = -f1 + f2 - u[0];
+        a[1] = -f2 - u[0];
+    }
+}
+
+fn chain_record(name: &str, f1: f64, amp: f64, seed: u64) -> Record {
+    let ex = Sweep::new(SweepKind::Linear, 0.1, f1, 60.0, amp, 2.0).unwrap();
+    let dt = 0.01;
+    let n = 6001;
+    let t: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
+    let (mut x, mut v) = ([0.0; 2], [0.0; 2]);
+    let mut sc = Rk4Scratch::new(2);
+    let (mut x1, mut x2) = (vec![0.0; n], vec![0.0; n]);
+    for i in 1..n {
+        let s = t[i - 1];
+        rk4_step(
+            &Chain,
+            s,
+            dt,
+            &mut x,
+            &mut v,
+            &[ex.value(s)],
+            &[ex.value(s + dt / 2.0)],
+            &[ex.value(s + dt)],
+            &mut sc,
+        );
+        x1[i] = x[0];
+        x2[i] = x[1];
+    }
+    let acc = ex.sample(&t);
+    let add = |v: &mut Vec<f64>, k: u64| {
+        let nz =
+            tfs_signal::noise::noise_for(v, 50.0, tfs_signal::NoiseKind::White, seed + k).unwrap();
+        v.iter_mut().zip(nz).for_each(|(a, b)| *a += b);
+    };
+    add(&mut x1, 1);
+    add(&mut x2, 2);
+    Record::new(
+        name,
+        t,
+        vec![("x1".into(), x1), ("x2".into(), x2), ("xb_acc".into(), acc)],
+    )
+    .unwrap()
+}
+
+#[test]
+fn two_dof_chain_with_relative_coordinate_libraries() {
+    let recs = vec![
+        chain_record("c1", 2.0, 2.0, 10),
+        chain_record("c2", 1.5, 3.0, 20),
+        chain_record("c3", 2.5, 2.5, 30),
+    ];
+    let mut spec = IdentifySpec::new(&["x1", "x2"], "");
+    spec.dof_libraries = vec![
+        "x1^1..3, x1', (x2-x1)^1..3, (x2-x1)', xb_acc".into(),
+        "(x2-x1)^1..3, (x2-x1)', x1, xb_acc".into(),
+    ];
+    spec.tfs.kappa0 = Kappa0Choice::Fixed(0.0);
+    let id = identify_tfs(&recs, &spec).unwrap();
+    eprintln!("{}", id.model.equation_string());
+    let coef = |dof: &str, term: &str| {
+        let t = tfs_library::Term::parse(term, &["x1", "x2"]).unwrap();
+        id.model.coef(dof, &t).unwrap_or(0.0)
+    };
+    let close = |got: f64, want: f64| (got - want).abs() <= 0.02 * want.abs();
+    assert!(close(coef("x1", "x1"), -K1), "k1 {}", coef("x1", "x1"));
+    assert!(
+        close(coef("x1", "x1^3"), -K13),
+        "k13 {}",
+        coef("x1", "x1^3")
+    );
+    assert!(close(coef("x1", "x1'"), -C1), "c1 {}", coef("x1", "x1'"));
+    assert!(
+        close(coef("x1", "(x2-x1)"), K2),
+        "k2 {}",
+        coef("x1", "(x2-x1)")
+    );
+    assert!(
+        close(coef("x2", "(x2-x1)"), -K2),
+        "k2 {}",
+        coef("x2", "(x2-x1)")
+    );
+    assert!(
+        close(coef("x2", "(x2-x1)'"), -C2),
+        "c2 {}",
+        coef("x2", "(x2-x1)'")
+    );
+    assert!(close(coef("x2", "xb_acc"), -1.0));
+}
