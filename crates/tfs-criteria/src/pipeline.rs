@@ -98,7 +98,10 @@ impl Default for TfsOptions {
 /// Options of the classical SINDy baseline.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SindyOptions {
-    /// Savitzky–Golay (half window, polynomial order) for x' and x''; `None` = central differences.
+    /// Savitzky–Golay (half window, polynomial order) for x' and x''; `None` (default) =
+    /// second-order central differences, the classical baseline's estimator (as in PySINDy's
+    /// default `FiniteDifference`). A fixed smoothing window biases x'' at the harmonics of a
+    /// sweep even on clean data, so the baseline does not smooth unless asked to.
     pub savitzky_golay: Option<(usize, usize)>,
     /// Fixed STLSQ threshold (scaled units); `None` selects it on a λ path with the last record held out.
     pub threshold: Option<f64>,
@@ -109,7 +112,7 @@ pub struct SindyOptions {
 impl Default for SindyOptions {
     fn default() -> Self {
         Self {
-            savitzky_golay: Some((12, 3)),
+            savitzky_golay: None,
             threshold: None,
             n_thresholds: 40,
         }

@@ -1,0 +1,175 @@
+//! `tfs diagnose`: compare a model with measurements, localise where it fails, and rank the
+//! catalogue's physical effects that may be missing (or say clearly that none is).
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use serde_json::json;
+use tfs::diagnose::{DiagnoseOptions, diagnose};
+use tfs::plot::{BarChart, Figure, LineChart, Series};
+
+use super::{print_json, read_model, read_records};
+
+/// Arguments of `tfs diagnose`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The model (tfs-model/1 JSON).
+    #[arg(long)]
+    pub model: PathBuf,
+    /// CSV records with the model's displacement and input columns.
+    #[arg(required = true)]
+    pub data: Vec<PathBuf>,
+    /// Write residual map, spectra, phase portraits and the ranking (SVG and PNG) into this directory.
+    #[arg(long)]
+    pub plots: Option<PathBuf>,
+    /// Print the diagnosis as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// Family-wise significance level of the effect tests.
+    #[arg(long, default_value_t = 0.01)]
+    pub alpha: f64,
+    /// Minimum effect size as a share of the force RMS.
+    #[arg(long, default_value_t = 0.02)]
+    pub min_share: f64,
+}
+
+/// Runs `tfs diagnose`.
+pub fn run(args: Args) -> Result<()> {
+    let model = read_model(&args.model)?;
+    let computed = tfs::diagnose::effects::computed_columns(&model);
+    let mut required = model.dofs.clone();
+    required.extend(
+        model
+            .inputs
+            .iter()
+            .filter(|i| !computed.iter().any(|c| c.name() == **i))
+            .cloned(),
+    );
+    let records = read_records(&args.data, &required)?;
+    let opts = DiagnoseOptions {
+        alpha: args.alpha,
+        min_share: args.min_share,
+        ..DiagnoseOptions::default()
+    };
+    let d = diagnose(&model, &records, &opts).context("diagnosing the model")?;
+    if let Some(dir) = &args.plots {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("--plots {}: cannot create the directory", dir.display()))?;
+        write_plots(dir, &d)?;
+    }
+    if args.json {
+        print_json(&json!({
+            "model": args.model.display().to_string(),
+            "ranked": d.ranked,
+            "verdict": d.verdict,
+            "residual_summary": d.residual_summary,
+            "records": d.records,
+            "localisation": d.localisation,
+            "tests": d.tests,
+            "cutoff_hz": d.cutoff_hz,
+        }))?;
+    } else {
+        println!("{}", d.verdict);
+        for s in &d.residual_summary {
+            println!("residual: {s}");
+        }
+        for r in &d.records {
+            match (&r.r_mse, &r.error) {
+                (Some(v), _) => println!("{}: R-MSE {:?}", r.record, v),
+                (_, Some(e)) => println!("{}: simulation failed: {e}", r.record),
+                _ => {}
+            }
+            for m in &r.missing_harmonics {
+                println!("  missing drive harmonics (order) {m}");
+            }
+        }
+        println!(
+            "\n{:<22} {:>5} {:>10} {:>10} {:>8} {:>12} {:>12}",
+            "effect", "sig", "delta", "p", "share", "coef", "R-MSE after"
+        );
+        for r in &d.ranked {
+            println!(
+                "{:<22} {:>5} {:>10.4} {:>10.2e} {:>8.4} {:>12.4e} {:>12}",
+                r.name,
+                if r.significant { "yes" } else { "no" },
+                r.delta_heldout,
+                r.p_value,
+                r.share,
+                r.coef,
+                r.r_mse_after
+                    .map(|v| format!("{v:.4e}"))
+                    .unwrap_or_else(|| "failed".into())
+            );
+        }
+    }
+    Ok(())
+}
+
+fn write_plots(dir: &std::path::Path, d: &tfs::diagnose::Diagnosis) -> Result<()> {
+    // Ranking: held-out improvement per effect.
+    let bars = BarChart {
+        title: "Held-out equation-error drop per effect".into(),
+        x_label: "effect".into(),
+        y_label: "relative drop".into(),
+        labels: d.ranked.iter().map(|r| r.name.clone()).collect(),
+        values: d.ranked.iter().map(|r| r.delta_heldout.max(0.0)).collect(),
+        log_y: false,
+        color: None,
+    };
+    Figure::from(bars).save(&dir.join("effects"))?;
+    for (k, r) in d.records.iter().enumerate() {
+        for s in &r.spectra {
+            let mut chart = LineChart::new(
+                format!("{}: spectrum of {}", r.record, s.dof),
+                "f (Hz)",
+                "amplitude",
+            )
+            .log_y(true)
+            .with_series(Series::line(
+                "measured",
+                s.freqs.iter().copied().zip(s.measured.iter().map(|a| a.max(1e-12))).collect(),
+            ))
+            .with_series(Series::dashed(
+                "model",
+                s.freqs.iter().copied().zip(s.model.iter().map(|a| a.max(1e-12))).collect(),
+            ));
+            for h in s.harmonics.iter().filter(|h| h.missing) {
+                chart = chart.with_vline(h.band.0, format!("{}x drive (missing)", h.order));
+            }
+            Figure::from(chart).save(&dir.join(format!("spectrum-{k}-{}", s.dof)))?;
+        }
+        for p in &r.phase {
+            let chart = LineChart::new(
+                format!("{}: phase portrait of {}", r.record, p.dof),
+                p.dof.clone(),
+                format!("{}'", p.dof),
+            )
+            .with_series(Series::line("measured", p.measured.clone()))
+            .with_series(Series::dashed("model", p.model.clone()));
+            Figure::from(chart).save(&dir.join(format!("phase-{k}-{}", p.dof)))?;
+        }
+    }
+    for l in &d.localisation {
+        // Residual map as one line per x bin over x' (mean residual).
+        let mut chart = LineChart::new(
+            format!("Residual of {}'' over {}' per {} bin", l.dof, l.dof, l.dof),
+            format!("{}'", l.dof),
+            "mean residual",
+        );
+        let m = &l.map;
+        for (i, row) in m.mean.iter().enumerate() {
+            let pts: Vec<(f64, f64)> = row
+                .iter()
+                .enumerate()
+                .filter(|(_, v)| v.is_finite())
+                .map(|(j, v)| (0.5 * (m.v_edges[j] + m.v_edges[j + 1]), *v))
+                .collect();
+            if pts.len() >= 2 {
+                let xc = 0.5 * (m.x_edges[i] + m.x_edges[i + 1]);
+                chart = chart.with_series(Series::line(format!("{} = {xc:.3}", l.dof), pts));
+            }
+        }
+        Figure::from(chart).save(&dir.join(format!("residual-map-{}", l.dof)))?;
+    }
+    Ok(())
+}

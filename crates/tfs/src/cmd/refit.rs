@@ -1,0 +1,68 @@
+//! `tfs refit`: add named physical effects to a model one by one, refit by equation error on the
+//! records, keep the history, and print the error ladder.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use serde_json::json;
+use tfs::diagnose::{add_effect, error_ladder, ladder_table};
+
+use super::{print_json, read_model, read_records};
+
+/// Arguments of `tfs refit`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The model (tfs-model/1 JSON).
+    #[arg(long)]
+    pub model: PathBuf,
+    /// An effect to add (catalogue name, e.g. dry-friction, quadratic-damping, stiffness-x^3,
+    /// offset, maxwell, input-delay; `name@dof` for one DOF of a chain). Repeat to add several.
+    #[arg(long = "add", required = true)]
+    pub add: Vec<String>,
+    /// CSV records with the model's displacement and input columns.
+    #[arg(required = true)]
+    pub data: Vec<PathBuf>,
+    /// Where to write the refitted model.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Print the ladder and the model as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs `tfs refit`.
+pub fn run(args: Args) -> Result<()> {
+    let mut model = read_model(&args.model)?;
+    let computed = tfs::diagnose::effects::computed_columns(&model);
+    let mut required = model.dofs.clone();
+    required.extend(
+        model
+            .inputs
+            .iter()
+            .filter(|i| !computed.iter().any(|c| c.name() == **i))
+            .cloned(),
+    );
+    let records = read_records(&args.data, &required)?;
+    if args.add.is_empty() {
+        bail!("--add: give at least one effect name");
+    }
+    for name in &args.add {
+        model = add_effect(&model, name, &records).with_context(|| format!("--add {name}"))?;
+    }
+    model
+        .write_path(&args.out)
+        .with_context(|| format!("--out {}", args.out.display()))?;
+    let ladder = error_ladder(&model);
+    if args.json {
+        print_json(&json!({
+            "out": args.out.display().to_string(),
+            "ladder": ladder,
+            "model": model.to_json_value()?,
+        }))?;
+    } else {
+        println!("{}", model.equation_string());
+        print!("{}", ladder_table(&ladder));
+        println!("wrote {}", args.out.display());
+    }
+    Ok(())
+}
