@@ -1,0 +1,641 @@
+//! The public entry points: [`refine`] and [`choose_by_validation`].
+
+use serde_json::json;
+use tfs_data::Record;
+use tfs_dynamics::{SampledInput, SimulateOptions, rms_error, simulate_model_on_record};
+use tfs_library::{HistoryEntry, Model, RecordScore};
+use tfs_signal::Differentiator;
+
+use crate::lm::{LmSettings, Prepared, Problem, Segment, levenberg_marquardt};
+use crate::sens::Structure;
+use crate::{RefineError, Result};
+
+/// Options of [`refine`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct RefineOptions {
+    /// Segment length in resonance periods (the period is the peak of the measured
+    /// displacement's amplitude spectrum); default 5.
+    pub segment_periods: f64,
+    /// Fixed segment length in samples; overrides `segment_periods` when set.
+    pub segment_len: Option<usize>,
+    /// RK4 sub-steps per sample interval (the input is spline-interpolated inside); default 4.
+    pub substeps: usize,
+    /// LM iterations per stage (each defect weight, and the polish); default 40.
+    pub max_iterations: usize,
+    /// Stop when an accepted step lowers the cost by less than this fraction; default 1e-8.
+    pub ftol: f64,
+    /// Stop when the scaled gradient `max |g_j| / D_j` is below `gtol · ‖r‖`; default 1e-10.
+    pub gtol: f64,
+    /// Continuity-defect weights of successive multiple-shooting stages (each stage starts from
+    /// the previous stage's coefficients, segment states re-initialised from the data); default
+    /// `[1, 10, 100]`.
+    pub defect_weights: Vec<f64>,
+    /// Finish with single shooting (one segment per record) when it does not blow up; default true.
+    pub polish: bool,
+    /// Weight each record's residuals by `1/RMS` of its displacement (about its mean) so records
+    /// of different amplitude weigh equally; default true. When false all records share one
+    /// weight per DOF (the pooled RMS).
+    pub scale_records: bool,
+    /// Differentiator for the initial guesses of segment velocities; default Savitzky–Golay
+    /// (half window 3, degree 4).
+    pub velocity: Differentiator,
+    /// How before/after training scores are simulated (tfs-dynamics Dopri5); default
+    /// [`SimulateOptions::default`].
+    pub simulate: SimulateOptions,
+}
+
+impl Default for RefineOptions {
+    fn default() -> Self {
+        Self {
+            segment_periods: 5.0,
+            segment_len: None,
+            substeps: 4,
+            max_iterations: 40,
+            ftol: 1e-8,
+            gtol: 1e-10,
+            defect_weights: vec![1.0, 10.0, 100.0],
+            polish: true,
+            scale_records: true,
+            velocity: Differentiator::SavitzkyGolay {
+                half_window: 3,
+                poly_order: 4,
+            },
+            simulate: SimulateOptions::default(),
+        }
+    }
+}
+
+/// Result of [`refine`].
+#[derive(Debug, Clone)]
+pub struct Refined {
+    /// The refined model (same terms; the start model if refinement did not help).
+    pub model: Model,
+    /// Training simulation cost of the start model: `Σ_records Σ_dofs (rms_error · w)²`
+    /// with `w` the residual weights (`+∞` if it blows up).
+    pub initial_cost: f64,
+    /// The same cost for [`Refined::model`]; never above `initial_cost`.
+    pub final_cost: f64,
+    /// Total LM iterations over all stages.
+    pub iterations: usize,
+    /// Per training record: (source name, RMS simulation error before, after), RMS over DOFs,
+    /// in the record's units (`+∞` for a blow-up).
+    pub per_record: Vec<(String, f64, f64)>,
+    /// True if the last LM stage met a stopping tolerance and the result improved or matched.
+    pub converged: bool,
+    /// What happened, in words.
+    pub message: String,
+}
+
+/// Scores of [`choose_by_validation`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ValidationScores {
+    /// Per record: (source name, RMS error of the first model, RMS error of the second),
+    /// RMS over DOFs, `+∞` for a blow-up.
+    pub per_record: Vec<(String, f64, f64)>,
+    /// Sum over records of squared RMS errors normalised by the record's displacement RMS
+    /// (first model).
+    pub eq_score: f64,
+    /// The same for the second (refined) model.
+    pub refined_score: f64,
+    /// True if the refined model was chosen.
+    pub chose_refined: bool,
+}
+
+fn check_records(model: &Model, records: &[Record], what: &str) -> Result<()> {
+    if records.is_empty() {
+        return Err(RefineError::Invalid {
+            name: what.into(),
+            message: "no records given; pass at least one record".into(),
+        });
+    }
+    for r in records {
+        if r.len() < 8 {
+            return Err(RefineError::Invalid {
+                name: format!("{what} record '{}'", r.source()),
+                message: format!("has {} samples; at least 8 are needed", r.len()),
+            });
+        }
+        let dt = r.dt();
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(RefineError::Invalid {
+                name: format!("{what} record '{}'", r.source()),
+                message: format!("time axis gives dt = {dt}; it must increase uniformly"),
+            });
+        }
+        for name in model.dofs.iter().chain(&model.inputs) {
+            let col = r.column(name).ok_or_else(|| RefineError::MissingColumn {
+                record: r.source().into(),
+                column: name.clone(),
+                available: r.names().join(", "),
+            })?;
+            if let Some(k) = col.iter().position(|v| !v.is_finite()) {
+                return Err(RefineError::NonFinite {
+                    record: r.source().into(),
+                    column: name.clone(),
+                    row: k,
+                    value: col[k],
+                });
+            }
+        }
+        if let Some(k) = r.t().iter().position(|v| !v.is_finite()) {
+            return Err(RefineError::NonFinite {
+                record: r.source().into(),
+                column: "t".into(),
+                row: k,
+                value: r.t()[k],
+            });
+        }
+    }
+    Ok(())
+}
+
+fn rms(x: &[f64]) -> f64 {
+    let m = x.iter().sum::<f64>() / x.len() as f64;
+    (x.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / x.len() as f64).sqrt()
+}
+
+/// Per-DOF RMS simulation errors of `model` on `record` (`+∞` on blow-up).
+fn sim_errors(model: &Model, record: &Record, opts: &SimulateOptions) -> Vec<f64> {
+    match simulate_model_on_record(model, record, opts) {
+        Ok(tr) => model
+            .dofs
+            .iter()
+            .enumerate()
+            .map(|(i, d)| {
+                record
+                    .column(d)
+                    .and_then(|m| rms_error(m, &tr.x[i]).ok())
+                    .filter(|e| e.is_finite())
+                    .unwrap_or(f64::INFINITY)
+            })
+            .collect(),
+        Err(_) => vec![f64::INFINITY; model.dofs.len()],
+    }
+}
+
+fn combine(errs: &[f64]) -> f64 {
+    (errs.iter().map(|e| e * e).sum::<f64>() / errs.len() as f64).sqrt()
+}
+
+fn with_coefs(model: &Model, coefs: &[f64]) -> Model {
+    let mut m = model.clone();
+    let mut j = 0;
+    for d in model.dofs.clone() {
+        if let Some(eq) = m.equations.iter_mut().find(|e| e.dof == d) {
+            for t in &mut eq.terms {
+                t.coef = coefs[j];
+                t.interval = None;
+                j += 1;
+            }
+        }
+    }
+    m
+}
+
+/// Dominant (non-DC) frequency of `x` in Hz, if any.
+fn dominant_frequency(x: &[f64], dt: f64) -> Option<f64> {
+    let (f, a) = tfs_signal::amplitude_spectrum(x, dt).ok()?;
+    let (k, _) = a
+        .iter()
+        .enumerate()
+        .skip(1)
+        .max_by(|p, q| p.1.total_cmp(q.1))?;
+    Some(f[k]).filter(|f| *f > 0.0)
+}
+
+/// Re-estimates the coefficients of `model` (same terms, zeros stay zero) to minimise the
+/// free-run simulation error of the displacements on `train`.
+///
+/// Multiple shooting: each record is split into segments whose initial states are extra
+/// unknowns, with continuity defects as weighted residuals (weights increased stage by stage,
+/// [`RefineOptions::defect_weights`]); then an optional single-shooting polish. Each stage is a
+/// Levenberg–Marquardt run with forward sensitivities (analytic state Jacobians of the model)
+/// integrated by fixed-step RK4. The result is scored by simulating with tfs-dynamics; if it is
+/// not better than the start on the training records, the start model is returned (with a
+/// message saying so). A [`HistoryEntry`] `"refine (simulation error)"` is appended.
+///
+/// Errors: empty `train`, a record missing a DOF or input column (named), non-finite data,
+/// invalid options.
+pub fn refine(model: &Model, train: &[Record], opts: &RefineOptions) -> Result<Refined> {
+    check_records(model, train, "train")?;
+    check_options(opts)?;
+    let (st, coefs0) = Structure::new(model)?;
+    let n = st.n;
+    // Prepare records.
+    let mut recs = Vec::with_capacity(train.len());
+    for r in train {
+        let dt = r.dt();
+        let channels: Vec<Vec<f64>> = model
+            .inputs
+            .iter()
+            .map(|c| r.column(c).map(<[f64]>::to_vec).unwrap_or_default())
+            .collect();
+        let input = SampledInput::new(r.t()[0], dt, channels)?;
+        let xm: Vec<Vec<f64>> = model
+            .dofs
+            .iter()
+            .map(|d| r.column(d).map(<[f64]>::to_vec).unwrap_or_default())
+            .collect();
+        let mut vm = Vec::with_capacity(n);
+        for x in &xm {
+            vm.push(opts.velocity.apply(x, dt, 1)?);
+        }
+        recs.push(Prepared {
+            input,
+            t0: r.t()[0],
+            dt,
+            xm,
+            vm,
+            w: vec![1.0; n],
+        });
+    }
+    // Weights and scales.
+    let mut xs = vec![0.0; n];
+    let mut vs = vec![0.0; n];
+    for i in 0..n {
+        let all_x: Vec<f64> = recs.iter().flat_map(|r| r.xm[i].iter().copied()).collect();
+        let all_v: Vec<f64> = recs.iter().flat_map(|r| r.vm[i].iter().copied()).collect();
+        let sx = rms(&all_x);
+        let sv = rms(&all_v);
+        if sx.is_nan() || sx <= 0.0 {
+            return Err(RefineError::Invalid {
+                name: format!("train column '{}'", model.dofs[i]),
+                message: "displacement is constant in every record; refinement needs motion".into(),
+            });
+        }
+        xs[i] = sx.max(all_x.iter().map(|v| v.abs()).fold(0.0, f64::max) * 1e-3);
+        vs[i] = if sv > 0.0 { sv } else { sx };
+        for r in &mut recs {
+            let s = if opts.scale_records {
+                let s = rms(&r.xm[i]);
+                if s > 0.0 { s } else { sx }
+            } else {
+                sx
+            };
+            r.w[i] = 1.0 / s;
+        }
+    }
+    // Segment length.
+    let seg_len = match opts.segment_len {
+        Some(l) => l,
+        None => {
+            let r0 = &recs[0];
+            let f = dominant_frequency(&r0.xm[0], r0.dt);
+            match f {
+                Some(f) => ((opts.segment_periods / (f * r0.dt)).round() as usize).max(4),
+                None => 50,
+            }
+        }
+    };
+    let pscale: Vec<f64> = coefs0
+        .iter()
+        .map(|c| if *c != 0.0 { c.abs() } else { 1.0 })
+        .collect();
+    // Blow-up guard: a state beyond 1e6 times the data RMS is treated as divergence.
+    let limit = 1e6;
+    let make_segs = |single: bool, seg_len: usize| -> Vec<Segment> {
+        let mut segs = Vec::new();
+        for (ri, r) in recs.iter().enumerate() {
+            let len = r.xm[0].len();
+            if single {
+                segs.push(Segment {
+                    rec: ri,
+                    k0: 0,
+                    k1: len - 1,
+                    linked: false,
+                });
+                continue;
+            }
+            let mut k0 = 0;
+            while k0 < len - 1 {
+                let mut k1 = (k0 + seg_len).min(len - 1);
+                // Avoid a tiny last segment.
+                if len - 1 - k1 < seg_len / 2 {
+                    k1 = len - 1;
+                }
+                segs.push(Segment {
+                    rec: ri,
+                    k0,
+                    k1,
+                    linked: k1 < len - 1,
+                });
+                k0 = k1;
+            }
+        }
+        segs
+    };
+    let settings = LmSettings {
+        max_iterations: opts.max_iterations,
+        ftol: opts.ftol,
+        gtol: opts.gtol,
+    };
+    // Weighted before-score.
+    let score = |m: &Model| -> (f64, Vec<Vec<f64>>) {
+        let mut cost = 0.0;
+        let mut errs = Vec::new();
+        for (r, p) in train.iter().zip(&recs) {
+            let e = sim_errors(m, r, &opts.simulate);
+            for (ei, wi) in e.iter().zip(&p.w) {
+                cost += (ei * wi) * (ei * wi);
+            }
+            errs.push(e);
+        }
+        (cost, errs)
+    };
+    let (initial_cost, errs_before) = score(model);
+
+    let mut coefs = coefs0.clone();
+    let mut iterations = 0;
+    let mut stages = Vec::new();
+    let mut converged = false;
+    let mut last_message = String::from("no LM stage ran");
+    // Shorten segments (down to 4 samples) while the start model's mean squared scaled error
+    // within segments exceeds 1, i.e. its segment predictions are off by more than the signal
+    // RMS (an unstable or badly wrong start): multiple shooting only helps with short segments.
+    let mut seg_len = seg_len;
+    if opts.segment_len.is_none() {
+        let rows: f64 = recs.iter().map(|r| (r.xm[0].len() * n) as f64).sum();
+        while seg_len > 4 {
+            let pb = Problem {
+                st: &st,
+                recs: &recs,
+                segs: make_segs(false, seg_len),
+                pscale: pscale.clone(),
+                xs: xs.clone(),
+                vs: vs.clone(),
+                defect_weight: 0.0,
+                substeps: opts.substeps,
+                limit,
+            };
+            match pb.normal(&pb.initial(&coefs)) {
+                Some(nm) if 2.0 * nm.cost / rows <= 1.0 => break,
+                _ => seg_len = (seg_len / 2).max(4),
+            }
+        }
+    }
+    for &wd in &opts.defect_weights {
+        // If a segment blows up at the starting point, halve the segments (down to 4 samples).
+        let mut attempt = None;
+        loop {
+            let pb = Problem {
+                st: &st,
+                recs: &recs,
+                segs: make_segs(false, seg_len),
+                pscale: pscale.clone(),
+                xs: xs.clone(),
+                vs: vs.clone(),
+                defect_weight: wd,
+                substeps: opts.substeps,
+                limit,
+            };
+            let p0 = pb.initial(&coefs);
+            debug_assert_eq!(p0.len(), pb.n_params());
+            if let Some(out) = levenberg_marquardt(&pb, p0, &settings) {
+                attempt = Some((pb, out));
+                break;
+            }
+            if seg_len <= 4 {
+                break;
+            }
+            seg_len = (seg_len / 2).max(4);
+        }
+        match attempt {
+            Some((pb, out)) => {
+                iterations += out.iterations;
+                coefs = pb.coefs(&out.p);
+                converged = out.converged;
+                last_message = out.message.clone();
+                stages.push(json!({
+                    "stage": "multiple shooting",
+                    "segments": pb.segs.len(),
+                    "segment_len": seg_len,
+                    "defect_weight": wd,
+                    "cost_start": out.cost0,
+                    "cost_end": out.cost,
+                    "defect_rms": out.defect_rms,
+                    "iterations": out.iterations,
+                    "message": out.message,
+                }));
+            }
+            None => {
+                stages.push(json!({
+                    "stage": "multiple shooting",
+                    "defect_weight": wd,
+                    "message": "simulation of a segment blew up at the start; stage skipped",
+                }));
+            }
+        }
+    }
+    if opts.polish {
+        let pb = Problem {
+            st: &st,
+            recs: &recs,
+            segs: make_segs(true, seg_len),
+            pscale: pscale.clone(),
+            xs: xs.clone(),
+            vs: vs.clone(),
+            defect_weight: 0.0,
+            substeps: opts.substeps,
+            limit,
+        };
+        let p0 = pb.initial(&coefs);
+        match levenberg_marquardt(&pb, p0, &settings) {
+            Some(out) => {
+                iterations += out.iterations;
+                coefs = pb.coefs(&out.p);
+                converged = out.converged;
+                last_message = out.message.clone();
+                stages.push(json!({
+                    "stage": "single shooting polish",
+                    "cost_start": out.cost0,
+                    "cost_end": out.cost,
+                    "iterations": out.iterations,
+                    "message": out.message,
+                }));
+            }
+            None => stages.push(json!({
+                "stage": "single shooting polish",
+                "message": "skipped: the free-run simulation blows up",
+            })),
+        }
+    }
+    let candidate = with_coefs(model, &coefs);
+    let (cand_cost, errs_after) =
+        if coefs.iter().all(|c| c.is_finite()) && candidate.validate().is_ok() {
+            score(&candidate)
+        } else {
+            (f64::INFINITY, vec![vec![f64::INFINITY; n]; train.len()])
+        };
+    let improved =
+        cand_cost < initial_cost || (initial_cost.is_infinite() && cand_cost.is_finite());
+    let (mut out_model, final_cost, errs_final, message) = if improved {
+        (
+            candidate,
+            cand_cost,
+            errs_after,
+            format!(
+                "simulation cost {initial_cost:.6e} -> {cand_cost:.6e} in {iterations} LM iterations ({last_message})"
+            ),
+        )
+    } else {
+        converged = false;
+        (
+            model.clone(),
+            initial_cost,
+            errs_before.clone(),
+            format!(
+                "refinement did not lower the training simulation cost ({initial_cost:.6e}, candidate {cand_cost:.6e}); returning the start model"
+            ),
+        )
+    };
+    let per_record: Vec<(String, f64, f64)> = train
+        .iter()
+        .zip(errs_before.iter().zip(&errs_final))
+        .map(|(r, (b, a))| (r.source().to_string(), combine(b), combine(a)))
+        .collect();
+    let r_mse = train
+        .iter()
+        .zip(&errs_final)
+        .map(|(r, e)| {
+            let num: f64 = e.iter().map(|v| v * v).sum();
+            let den: f64 = model
+                .dofs
+                .iter()
+                .filter_map(|d| r.column(d))
+                .map(|c| c.iter().map(|v| v * v).sum::<f64>() / c.len() as f64)
+                .sum();
+            RecordScore {
+                record: r.source().to_string(),
+                r_mse: if den > 0.0 { num / den } else { f64::NAN },
+            }
+        })
+        .collect();
+    out_model.history.push(HistoryEntry {
+        step: "refine (simulation error)".into(),
+        added: Vec::new(),
+        r_mse,
+        details: json!({
+            "initial_cost": finite_or_null(initial_cost),
+            "final_cost": finite_or_null(final_cost),
+            "improved": improved,
+            "iterations": iterations,
+            "stages": stages,
+            "per_record": per_record.iter().map(|(n, b, a)| json!({
+                "record": n, "rms_before": finite_or_null(*b), "rms_after": finite_or_null(*a)
+            })).collect::<Vec<_>>(),
+            "message": message,
+        }),
+    });
+    Ok(Refined {
+        model: out_model,
+        initial_cost,
+        final_cost,
+        iterations,
+        per_record,
+        converged,
+        message,
+    })
+}
+
+fn finite_or_null(v: f64) -> serde_json::Value {
+    if v.is_finite() {
+        json!(v)
+    } else {
+        serde_json::Value::Null
+    }
+}
+
+fn check_options(o: &RefineOptions) -> Result<()> {
+    let bad = |name: &str, message: String| {
+        Err(RefineError::Invalid {
+            name: name.into(),
+            message,
+        })
+    };
+    if o.substeps == 0 {
+        return bad("substeps", "must be at least 1".into());
+    }
+    if !(o.segment_periods.is_finite() && o.segment_periods > 0.0) {
+        return bad(
+            "segment_periods",
+            format!("{} must be positive and finite", o.segment_periods),
+        );
+    }
+    if o.segment_len.is_some_and(|l| l < 2) {
+        return bad("segment_len", "must be at least 2 samples".into());
+    }
+    if o.defect_weights
+        .iter()
+        .any(|w| !(w.is_finite() && *w > 0.0))
+    {
+        return bad(
+            "defect_weights",
+            format!(
+                "{:?}: every weight must be positive and finite",
+                o.defect_weights
+            ),
+        );
+    }
+    if o.defect_weights.is_empty() && !o.polish {
+        return bad(
+            "defect_weights",
+            "is empty and polish is off, so nothing would run; give a weight or enable polish"
+                .into(),
+        );
+    }
+    if !(o.ftol >= 0.0 && o.gtol >= 0.0) {
+        return bad("ftol/gtol", "must be non-negative".into());
+    }
+    Ok(())
+}
+
+/// Simulates `eq_model` and `refined` on held-out `validation` records (tfs-dynamics
+/// [`simulate_model_on_record`] with default options) and returns a clone of the one that
+/// predicts better (lower sum over records of squared RMS error normalised by the record's
+/// displacement RMS; ties keep `eq_model`), with the scores.
+pub fn choose_by_validation(
+    eq_model: &Model,
+    refined: &Model,
+    validation: &[Record],
+) -> Result<(Model, ValidationScores)> {
+    check_records(eq_model, validation, "validation")?;
+    check_records(refined, validation, "validation")?;
+    let opts = SimulateOptions::default();
+    let mut per_record = Vec::new();
+    let (mut s_eq, mut s_ref) = (0.0, 0.0);
+    for r in validation {
+        let norm: Vec<f64> = eq_model
+            .dofs
+            .iter()
+            .map(|d| r.column(d).map(rms).unwrap_or(1.0).max(f64::MIN_POSITIVE))
+            .collect();
+        let e1 = sim_errors(eq_model, r, &opts);
+        let e2 = sim_errors(refined, r, &opts);
+        s_eq += e1
+            .iter()
+            .zip(&norm)
+            .map(|(e, s)| (e / s) * (e / s))
+            .sum::<f64>();
+        s_ref += e2
+            .iter()
+            .zip(&norm)
+            .map(|(e, s)| (e / s) * (e / s))
+            .sum::<f64>();
+        per_record.push((r.source().to_string(), combine(&e1), combine(&e2)));
+    }
+    let chose_refined = s_ref < s_eq;
+    let chosen = if chose_refined {
+        refined.clone()
+    } else {
+        eq_model.clone()
+    };
+    Ok((
+        chosen,
+        ValidationScores {
+            per_record,
+            eq_score: s_eq,
+            refined_score: s_ref,
+            chose_refined,
+        },
+    ))
+}
