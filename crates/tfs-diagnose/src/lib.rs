@@ -1,1 +1,103 @@
-//! tfs-diagnose (being written).
+//! The diagnosis loop of tfs (DESIGN.md §3): *compare the model with measurements, see where it
+//! fails, learn which physical effect is missing, add it and watch the error fall.*
+//!
+//! * [`compare()`](compare::compare) — simulate under each record's measured input: R-MSE per
+//!   record and per time window, measured vs model spectra with the drive harmonics the model
+//!   misses, phase portraits.
+//! * [`localise()`](residual::localise) — the equation residual `x''_meas − model(x, x', u)`
+//!   mapped over (x, x') bins, frequency and time, with a plain-words summary.
+//! * [`explain()`](explain::explain) — the open [`Catalogue`] of [`Effect`]s (dry friction,
+//!   quadratic/cubic/amplitude damping, missing stiffness powers, offset, Maxwell relaxation,
+//!   input delay), each refitted with the model's terms, scored on held-out data, tested,
+//!   sized and ranked; "no significant missing effect" when none passes.
+//! * [`add_effect`] — add an effect by name, refit, and append to the model's history;
+//!   [`error_ladder`] and [`ladder_table`] show each step.
+//! * [`diagnose`] — all of the above in one report.
+//!
+//! Architecture invariant: no I/O and no plotting; everything returned is data.
+//!
+//! ```
+//! use tfs_diagnose::{Catalogue, ComputedColumn};
+//! let cat = Catalogue::standard(7);
+//! assert!(cat.names().contains(&"dry-friction".to_string()));
+//! let err = cat.get("friction").err().unwrap().to_string();
+//! assert!(err.contains("known effects") && err.contains("maxwell"));
+//! // Computed columns round-trip through their documented names.
+//! let c = ComputedColumn::Maxwell { dof: "x".into(), tau: 0.35 };
+//! assert_eq!(c.name(), "maxwell_x_tau_0p35");
+//! assert_eq!(ComputedColumn::parse(&c.name(), &["x".to_string()]), Some(c));
+//! // The low-pass of a constant is that constant.
+//! let y = tfs_diagnose::effects::lowpass(&[2.0; 50], 0.01, 0.1);
+//! assert!(y.iter().all(|v| (v - 2.0).abs() < 1e-12));
+//! ```
+
+#![warn(missing_docs)]
+
+pub mod compare;
+pub mod effects;
+mod error;
+pub mod explain;
+pub mod prepare;
+pub mod refit;
+pub mod residual;
+pub mod simulate;
+
+pub use compare::{RecordComparison, compare};
+pub use effects::{Catalogue, ComputedColumn, Effect, EffectColumn, EffectContext, Variant};
+pub use error::{DiagnoseError, Result};
+pub use explain::{Explanation, RankedEffect, explain, paired_p_value};
+pub use prepare::DiagnoseOptions;
+pub use refit::{
+    LadderStep, add_effect, add_effect_with, error_ladder, ladder_table, refit, score_records,
+};
+pub use residual::{Localisation, localise};
+pub use simulate::{augment_record, r_mse, simulate};
+
+use serde::Serialize;
+use tfs_data::Record;
+use tfs_library::Model;
+
+/// The full diagnosis of a model against records.
+#[derive(Debug, Clone, Serialize)]
+pub struct Diagnosis {
+    /// Ranked effects.
+    pub ranked: Vec<RankedEffect>,
+    /// One sentence.
+    pub verdict: String,
+    /// Plain-words residual summary, one per DOF.
+    pub residual_summary: Vec<String>,
+    /// Per-record comparison.
+    pub records: Vec<RecordComparison>,
+    /// Residual localisation per DOF.
+    pub localisation: Vec<Localisation>,
+    /// The explanation's bookkeeping (tests, cut-offs, folds).
+    pub tests: usize,
+    /// Cut-off per record (Hz).
+    pub cutoff_hz: Vec<f64>,
+}
+
+/// Compare, localise and explain in one call with the standard catalogue.
+pub fn diagnose(model: &Model, records: &[Record], opts: &DiagnoseOptions) -> Result<Diagnosis> {
+    diagnose_with(model, records, &Catalogue::standard(opts.max_power), opts)
+}
+
+/// [`diagnose`] with a custom catalogue.
+pub fn diagnose_with(
+    model: &Model,
+    records: &[Record],
+    catalogue: &Catalogue,
+    opts: &DiagnoseOptions,
+) -> Result<Diagnosis> {
+    let ex = explain(model, records, catalogue, opts)?;
+    let localisation = localise(model, records, opts)?;
+    let records = compare(model, records, opts)?;
+    Ok(Diagnosis {
+        ranked: ex.ranked,
+        verdict: ex.verdict,
+        residual_summary: localisation.iter().map(|l| l.summary.clone()).collect(),
+        records,
+        localisation,
+        tests: ex.tests,
+        cutoff_hz: ex.cutoff_hz,
+    })
+}

@@ -21,6 +21,10 @@ enum Command {
     Identify(cmd::identify::Args),
     /// Simulate a model under each file's measured input and report R-MSE per file.
     Compare(cmd::compare::Args),
+    /// Diagnose a model against measurements: where it fails and which physical effect is missing.
+    Diagnose(cmd::diagnose::Args),
+    /// Add named physical effects to a model and refit it, keeping its history (error ladder).
+    Refit(cmd::refit::Args),
     /// Kresling truss cell: b0, stable and unstable states, barrier, potential/force plot.
     Kresling(cmd::kresling::Args),
     /// Simulate a test structure (Kresling cell or chain) under base excitation, write CSV.
@@ -43,6 +47,8 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Identify(a) => cmd::identify::run(a),
         Command::Compare(a) => cmd::compare::run(a),
+        Command::Diagnose(a) => cmd::diagnose::run(a),
+        Command::Refit(a) => cmd::refit::run(a),
         Command::Kresling(a) => cmd::kresling::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Basin(a) => cmd::basin::run(a),

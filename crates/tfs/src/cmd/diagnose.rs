@@ -127,11 +127,19 @@ fn write_plots(dir: &std::path::Path, d: &tfs::diagnose::Diagnosis) -> Result<()
             .log_y(true)
             .with_series(Series::line(
                 "measured",
-                s.freqs.iter().copied().zip(s.measured.iter().map(|a| a.max(1e-12))).collect(),
+                s.freqs
+                    .iter()
+                    .copied()
+                    .zip(s.measured.iter().map(|a| a.max(1e-12)))
+                    .collect(),
             ))
             .with_series(Series::dashed(
                 "model",
-                s.freqs.iter().copied().zip(s.model.iter().map(|a| a.max(1e-12))).collect(),
+                s.freqs
+                    .iter()
+                    .copied()
+                    .zip(s.model.iter().map(|a| a.max(1e-12)))
+                    .collect(),
             ));
             for h in s.harmonics.iter().filter(|h| h.missing) {
                 chart = chart.with_vline(h.band.0, format!("{}x drive (missing)", h.order));

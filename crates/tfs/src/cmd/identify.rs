@@ -36,6 +36,14 @@ pub struct Args {
     /// Fixed sparsity threshold (default: chosen on held-out data).
     #[arg(long)]
     pub threshold: Option<f64>,
+    /// Re-estimate the coefficients of the chosen structure by simulation error (Levenberg–Marquardt
+    /// with multiple shooting) on the training records.
+    #[arg(long)]
+    pub refine: bool,
+    /// Held-out records used with --refine to keep whichever fit (equation- or simulation-error)
+    /// predicts them better.
+    #[arg(long = "validate", requires = "refine")]
+    pub validate: Vec<PathBuf>,
     /// Where to write the model (tfs-model/1 JSON).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -112,10 +120,40 @@ pub fn run(args: Args) -> Result<()> {
         }
     }
     let records = read_records(&args.data, &required)?;
-    let identified = match args.method {
+    let mut identified = match args.method {
         Method::Tfs => identify_tfs(&records, &spec)?,
         Method::Sindy => identify_sindy(&records, &spec)?,
     };
+    let mut refine_report = serde_json::Value::Null;
+    if args.refine {
+        let refined = tfs::refine::refine(
+            &identified.model,
+            &records,
+            &tfs::refine::RefineOptions::default(),
+        )?;
+        refine_report = serde_json::json!({
+            "initial_cost": refined.initial_cost,
+            "final_cost": refined.final_cost,
+            "iterations": refined.iterations,
+            "converged": refined.converged,
+            "message": refined.message,
+            "per_record": refined.per_record,
+        });
+        if args.validate.is_empty() {
+            identified.model = refined.model;
+        } else {
+            let held_out = read_records(&args.validate, &required)?;
+            let (chosen, scores) =
+                tfs::refine::choose_by_validation(&identified.model, &refined.model, &held_out)?;
+            refine_report["validation"] = serde_json::json!({
+                "equation_error_fit": scores.eq_score,
+                "simulation_error_fit": scores.refined_score,
+                "chose_refined": scores.chose_refined,
+                "per_record": scores.per_record,
+            });
+            identified.model = chosen;
+        }
+    }
     if let Some(out) = &args.out {
         identified.model.write_path(out)?;
     }
@@ -123,10 +161,14 @@ pub fn run(args: Args) -> Result<()> {
         print_json(&serde_json::json!({
             "model": identified.model.to_json_value()?,
             "trace": serde_json::to_value(&identified.trace)?,
+            "refine": refine_report,
         }))?;
     } else {
         println!("{}", identified.model.equation_string());
         print_trace(&identified.trace);
+        if !refine_report.is_null() {
+            println!("refinement by simulation error: {refine_report}");
+        }
         if let Some(out) = &args.out {
             println!("model written to {}", out.display());
         }

@@ -2,10 +2,12 @@
 
 pub mod basin;
 pub mod compare;
+pub mod diagnose;
 pub mod identify;
 pub mod kresling;
 pub mod med;
 pub mod plots;
+pub mod refit;
 pub mod simulate;
 pub mod systems;
 

@@ -1,0 +1,572 @@
+//! The open catalogue of physical effects: the [`Effect`] trait, the built-in effects, the
+//! [`Catalogue`] registry, and [`ComputedColumn`]s for effects that the term grammar cannot
+//! express.
+//!
+//! An effect offers, for one DOF's equation, a list of [`Variant`]s: one per value of its scanned
+//! nonlinear parameter (or a single variant). A variant adds columns to the equation and may
+//! replace existing terms (an input delay replaces the input by its delayed copy).
+//!
+//! Computed columns are model inputs with a documented name, so a refitted model stays a plain
+//! `tfs-model/1` file:
+//! * `maxwell_<dof>_tau_<τ>`: the velocity of `<dof>` low-pass filtered with time constant τ
+//!   seconds, `τ y' + y = x'` (a hidden Maxwell element: spring in series with a dashpot);
+//! * `<input>_delay_<δ>`: the input column delayed by δ seconds.
+//!
+//! Numbers are written with `p` for the decimal point (`0.35` → `0p35`). Simulating a model with
+//! such columns needs [`crate::simulate`] (delays are computed from the record; the Maxwell
+//! filter is integrated as an extra state driven by the simulated velocity).
+
+use tfs_data::Columns;
+use tfs_library::{Factor, Model, Term, Var};
+
+use crate::{DiagnoseError, Result};
+
+/// A column computed from a record rather than read from it.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ComputedColumn {
+    /// Velocity of `dof` low-pass filtered with time constant `tau` (s).
+    Maxwell {
+        /// The DOF whose velocity is filtered.
+        dof: String,
+        /// Time constant in seconds.
+        tau: f64,
+    },
+    /// Input column `input` delayed by `delay` seconds (the first value is held before the start).
+    Delayed {
+        /// The input column.
+        input: String,
+        /// Delay in seconds.
+        delay: f64,
+    },
+}
+
+/// Rounds to 3 significant digits.
+pub(crate) fn round3(v: f64) -> f64 {
+    if v == 0.0 || !v.is_finite() {
+        return v;
+    }
+    format!("{v:.2e}").parse().unwrap_or(v)
+}
+
+fn encode(v: f64) -> String {
+    let s = format!("{}", round3(v));
+    let s = if s.contains('e') {
+        format!("{:.6}", round3(v))
+            .trim_end_matches('0')
+            .to_string()
+    } else {
+        s
+    };
+    s.replace('.', "p").replace('-', "m")
+}
+
+fn decode(s: &str) -> Option<f64> {
+    let v: f64 = s.replace('p', ".").replace('m', "-").parse().ok()?;
+    (v.is_finite() && v > 0.0).then_some(v)
+}
+
+impl ComputedColumn {
+    /// The column name (see the module docs).
+    pub fn name(&self) -> String {
+        match self {
+            ComputedColumn::Maxwell { dof, tau } => format!("maxwell_{dof}_tau_{}", encode(*tau)),
+            ComputedColumn::Delayed { input, delay } => {
+                format!("{input}_delay_{}", encode(*delay))
+            }
+        }
+    }
+
+    /// Recognises a computed column name; `dofs` are the model's DOFs.
+    pub fn parse(name: &str, dofs: &[String]) -> Option<Self> {
+        if let Some(rest) = name.strip_prefix("maxwell_")
+            && let Some((dof, tau)) = rest.rsplit_once("_tau_")
+            && dofs.iter().any(|d| d == dof)
+        {
+            return Some(ComputedColumn::Maxwell {
+                dof: dof.to_string(),
+                tau: decode(tau)?,
+            });
+        }
+        if let Some((input, delay)) = name.rsplit_once("_delay_")
+            && !input.is_empty()
+        {
+            return Some(ComputedColumn::Delayed {
+                input: input.to_string(),
+                delay: decode(delay)?,
+            });
+        }
+        None
+    }
+
+    /// The column this one is computed from (`"x'"` or the input name).
+    pub fn source(&self) -> String {
+        match self {
+            ComputedColumn::Maxwell { dof, .. } => format!("{dof}'"),
+            ComputedColumn::Delayed { input, .. } => input.clone(),
+        }
+    }
+
+    /// Computes the column from `cols` (which must hold [`ComputedColumn::source`]) sampled
+    /// every `dt` seconds.
+    pub fn compute(&self, cols: &dyn Columns, dt: f64) -> Result<Vec<f64>> {
+        let src = self.source();
+        let s = cols
+            .column(&src)
+            .ok_or_else(|| DiagnoseError::InvalidParameter {
+                name: "record",
+                reason: format!(
+                    "column '{src}' is needed to compute '{}' but is missing",
+                    self.name()
+                ),
+            })?;
+        Ok(match self {
+            ComputedColumn::Maxwell { tau, .. } => lowpass(s, dt, *tau),
+            ComputedColumn::Delayed { delay, .. } => delayed(s, dt, *delay),
+        })
+    }
+}
+
+/// First-order low-pass `τ y' + y = v`, exact for a piecewise-linear `v`, starting from `y = v₀`.
+pub fn lowpass(v: &[f64], dt: f64, tau: f64) -> Vec<f64> {
+    let mut out = Vec::with_capacity(v.len());
+    let Some(&first) = v.first() else {
+        return out;
+    };
+    let a = (-dt / tau).exp();
+    let b = tau / dt * (1.0 - a);
+    let mut y = first;
+    out.push(y);
+    for w in v.windows(2) {
+        let (v0, v1) = (w[0], w[1]);
+        // Exact solution for v(t) = v0 + (v1 − v0) t/dt over one step.
+        y = a * y + (1.0 - a) * v0 + (v1 - v0) * (1.0 - b);
+        out.push(y);
+    }
+    out
+}
+
+/// `v(t − δ)` by linear interpolation between samples, holding the first value before the start.
+pub fn delayed(v: &[f64], dt: f64, delay: f64) -> Vec<f64> {
+    let shift = delay / dt;
+    (0..v.len())
+        .map(|k| {
+            let s = k as f64 - shift;
+            if s <= 0.0 {
+                return v[0];
+            }
+            let i = s.floor() as usize;
+            let f = s - i as f64;
+            if i + 1 >= v.len() {
+                v[v.len() - 1]
+            } else {
+                v[i] * (1.0 - f) + v[i + 1] * f
+            }
+        })
+        .collect()
+}
+
+/// The computed columns a model uses (recognised among its inputs).
+pub fn computed_columns(model: &Model) -> Vec<ComputedColumn> {
+    model
+        .inputs
+        .iter()
+        .filter_map(|n| ComputedColumn::parse(n, &model.dofs))
+        .collect()
+}
+
+/// One column an effect adds: a term of the grammar, and how to compute it when it names a
+/// computed input column.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EffectColumn {
+    /// The term as it will appear in the model.
+    pub term: Term,
+    /// Set when the term is a computed input column.
+    pub computed: Option<ComputedColumn>,
+}
+
+impl EffectColumn {
+    /// A plain grammar term.
+    pub fn term(term: Term) -> Self {
+        Self {
+            term,
+            computed: None,
+        }
+    }
+
+    /// A computed column used linearly.
+    pub fn computed(c: ComputedColumn) -> Self {
+        Self {
+            term: Term::var(Var::Input(c.name())),
+            computed: Some(c),
+        }
+    }
+}
+
+/// One member of an effect's family: a value of its scanned parameter and the columns it brings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Variant {
+    /// The scanned parameter `(name, value)`, if the effect has one.
+    pub parameter: Option<(String, f64)>,
+    /// Columns added to the equation.
+    pub add: Vec<EffectColumn>,
+    /// Existing terms replaced by new columns (same coefficient slot).
+    pub replace: Vec<(Term, EffectColumn)>,
+}
+
+impl Variant {
+    /// A variant that only adds columns.
+    pub fn adding(parameter: Option<(String, f64)>, add: Vec<EffectColumn>) -> Self {
+        Self {
+            parameter,
+            add,
+            replace: Vec::new(),
+        }
+    }
+
+    /// The column whose coefficient is reported as the effect's size (first added, else first
+    /// replacement).
+    pub fn main_term(&self) -> Option<&Term> {
+        self.add
+            .first()
+            .or(self.replace.first().map(|(_, c)| c))
+            .map(|c| &c.term)
+    }
+}
+
+/// What an effect knows about the equation it is offered to.
+#[derive(Debug, Clone)]
+pub struct EffectContext<'a> {
+    /// The model being diagnosed.
+    pub model: &'a Model,
+    /// The DOF whose equation is extended.
+    pub dof: &'a str,
+    /// The equation's current terms.
+    pub terms: Vec<Term>,
+    /// RMS of the DOF's (smoothed) velocity over the data.
+    pub velocity_scale: f64,
+    /// Dominant period of the DOF's response (s).
+    pub period: f64,
+    /// Sampling interval (s).
+    pub dt: f64,
+    /// Highest stiffness power offered.
+    pub max_power: u32,
+}
+
+impl EffectContext<'_> {
+    /// True if the equation already has `term`.
+    pub fn has(&self, term: &Term) -> bool {
+        self.terms.contains(term)
+    }
+    fn disp(&self) -> Var {
+        Var::Disp(self.dof.to_string())
+    }
+    fn vel(&self) -> Var {
+        Var::Vel(self.dof.to_string())
+    }
+}
+
+/// A named physical effect. Implement it in any crate and [`Catalogue::register`] it.
+pub trait Effect: Send + Sync {
+    /// The name `--add` accepts (lower case, no spaces).
+    fn name(&self) -> String;
+    /// One line on the physics.
+    fn description(&self) -> String;
+    /// The family offered to one equation; empty when the effect does not apply (e.g. the term
+    /// is already in the equation).
+    fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant>;
+}
+
+fn single(ctx: &EffectContext<'_>, term: Term) -> Vec<Variant> {
+    if ctx.has(&term) {
+        Vec::new()
+    } else {
+        vec![Variant::adding(None, vec![EffectColumn::term(term)])]
+    }
+}
+
+/// Dry (Coulomb) friction `tanh(x'/ε)`, ε scanned relative to the velocity RMS.
+#[derive(Debug, Clone, Copy)]
+pub struct DryFriction;
+impl Effect for DryFriction {
+    fn name(&self) -> String {
+        "dry-friction".into()
+    }
+    fn description(&self) -> String {
+        "Coulomb friction, smoothed: tanh(x'/eps), eps scanned over 0.3 %..30 % of the velocity RMS"
+            .into()
+    }
+    fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
+        if ctx.velocity_scale <= 0.0 {
+            return Vec::new();
+        }
+        [0.003, 0.01, 0.03, 0.1, 0.3]
+            .iter()
+            .map(|r| round3(r * ctx.velocity_scale))
+            .filter(|&eps| !ctx.has(&Term::new(vec![Factor::Tanh(ctx.vel(), eps)])))
+            .map(|eps| {
+                Variant::adding(
+                    Some(("eps".into(), eps)),
+                    vec![EffectColumn::term(Term::new(vec![Factor::Tanh(
+                        ctx.vel(),
+                        eps,
+                    )]))],
+                )
+            })
+            .collect()
+    }
+}
+
+/// Velocity-squared (quadratic, drag-like) damping `x'·|x'|`.
+#[derive(Debug, Clone, Copy)]
+pub struct QuadraticDamping;
+impl Effect for QuadraticDamping {
+    fn name(&self) -> String {
+        "quadratic-damping".into()
+    }
+    fn description(&self) -> String {
+        "velocity-squared damping x'*abs(x') (air drag, turbulent flow)".into()
+    }
+    fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
+        single(
+            ctx,
+            Term::new(vec![Factor::Pow(ctx.vel(), 1), Factor::Abs(ctx.vel())]),
+        )
+    }
+}
+
+/// Cubic damping `x'^3`.
+#[derive(Debug, Clone, Copy)]
+pub struct CubicDamping;
+impl Effect for CubicDamping {
+    fn name(&self) -> String {
+        "cubic-damping".into()
+    }
+    fn description(&self) -> String {
+        "cubic damping x'^3".into()
+    }
+    fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
+        single(ctx, Term::new(vec![Factor::Pow(ctx.vel(), 3)]))
+    }
+}
+
+/// Amplitude-dependent (van der Pol-like) damping `x²·x'`.
+#[derive(Debug, Clone, Copy)]
+pub struct AmplitudeDamping;
+impl Effect for AmplitudeDamping {
+    fn name(&self) -> String {
+        "amplitude-damping".into()
+    }
+    fn description(&self) -> String {
+        "amplitude-dependent damping x^2*x' (material damping growing with strain)".into()
+    }
+    fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
+        single(
+            ctx,
+            Term::new(vec![Factor::Pow(ctx.disp(), 2), Factor::Pow(ctx.vel(), 1)]),
+        )
+    }
+}
+
+/// A stiffness power `x^k` missing from the equation.
+#[derive(Debug, Clone, Copy)]
+pub struct StiffnessPower(pub u32);
+impl Effect for StiffnessPower {
+    fn name(&self) -> String {
+        format!("stiffness-x^{}", self.0)
+    }
+    fn description(&self) -> String {
+        format!("restoring-force power x^{} missing from the model", self.0)
+    }
+    fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
+        if self.0 == 0 || self.0 > ctx.max_power {
+            return Vec::new();
+        }
+        single(ctx, Term::new(vec![Factor::Pow(ctx.disp(), self.0)]))
+    }
+}
+
+/// A constant offset `1` (gravity, preload, sensor offset).
+#[derive(Debug, Clone, Copy)]
+pub struct Offset;
+impl Effect for Offset {
+    fn name(&self) -> String {
+        "offset".into()
+    }
+    fn description(&self) -> String {
+        "constant force 1 (gravity, preload, sensor offset)".into()
+    }
+    fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
+        single(ctx, Term::constant())
+    }
+}
+
+/// Viscoelastic relaxation: a hidden Maxwell element, the velocity low-pass filtered with time
+/// constant τ, τ scanned relative to the dominant period.
+#[derive(Debug, Clone, Copy)]
+pub struct Maxwell;
+impl Effect for Maxwell {
+    fn name(&self) -> String {
+        "maxwell".into()
+    }
+    fn description(&self) -> String {
+        "viscoelastic relaxation: hidden Maxwell element, x' low-pass filtered with time constant tau (scanned 0.02..2 dominant periods)".into()
+    }
+    fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
+        if !(ctx.period.is_finite() && ctx.period > 0.0) {
+            return Vec::new();
+        }
+        [0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0]
+            .iter()
+            .map(|r| round3(r * ctx.period))
+            .filter(|&tau| tau > ctx.dt)
+            .map(|tau| {
+                let c = ComputedColumn::Maxwell {
+                    dof: ctx.dof.to_string(),
+                    tau,
+                };
+                Variant::adding(Some(("tau".into(), tau)), vec![EffectColumn::computed(c)])
+            })
+            .filter(|v| !ctx.has(&v.add[0].term))
+            .collect()
+    }
+}
+
+/// Input delay and gain (shaker dynamics): every input term `u` is replaced by `u(t − δ)`, δ
+/// scanned over whole samples up to a tenth of the dominant period; the gain is the refitted
+/// input coefficient.
+#[derive(Debug, Clone, Copy)]
+pub struct InputDelay;
+impl Effect for InputDelay {
+    fn name(&self) -> String {
+        "input-delay".into()
+    }
+    fn description(&self) -> String {
+        "input delay and gain: u(t) replaced by u(t - delta), delta scanned up to a tenth of the dominant period".into()
+    }
+    fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
+        let inputs: Vec<String> = ctx
+            .terms
+            .iter()
+            .filter_map(|t| match t.factors() {
+                [Factor::Pow(Var::Input(n), 1)]
+                    if ComputedColumn::parse(n, &ctx.model.dofs).is_none() =>
+                {
+                    Some(n.clone())
+                }
+                _ => None,
+            })
+            .collect();
+        if inputs.is_empty() {
+            return Vec::new();
+        }
+        let mut delays: Vec<f64> = [0.005, 0.01, 0.015, 0.02, 0.03, 0.05, 0.07, 0.1]
+            .iter()
+            .map(|r| ((r * ctx.period / ctx.dt).round().max(1.0)) * ctx.dt)
+            .map(round3)
+            .collect();
+        delays.dedup_by(|a, b| (*a - *b).abs() < 1e-12);
+        delays
+            .into_iter()
+            .map(|delay| Variant {
+                parameter: Some(("delay".into(), delay)),
+                add: Vec::new(),
+                replace: inputs
+                    .iter()
+                    .map(|i| {
+                        (
+                            Term::var(Var::Input(i.clone())),
+                            EffectColumn::computed(ComputedColumn::Delayed {
+                                input: i.clone(),
+                                delay,
+                            }),
+                        )
+                    })
+                    .collect(),
+            })
+            .collect()
+    }
+}
+
+/// The registry of effects, in a fixed order.
+pub struct Catalogue {
+    effects: Vec<Box<dyn Effect>>,
+}
+
+impl std::fmt::Debug for Catalogue {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_list().entries(self.names()).finish()
+    }
+}
+
+impl Default for Catalogue {
+    fn default() -> Self {
+        Self::standard(7)
+    }
+}
+
+impl Catalogue {
+    /// An empty catalogue.
+    pub fn empty() -> Self {
+        Self {
+            effects: Vec::new(),
+        }
+    }
+
+    /// The built-in effects, with stiffness powers `x^1 … x^max_power`.
+    pub fn standard(max_power: u32) -> Self {
+        let mut c = Self::empty();
+        let mut add = |e: Box<dyn Effect>| c.effects.push(e);
+        add(Box::new(DryFriction));
+        add(Box::new(QuadraticDamping));
+        add(Box::new(CubicDamping));
+        add(Box::new(AmplitudeDamping));
+        for k in 1..=max_power {
+            add(Box::new(StiffnessPower(k)));
+        }
+        add(Box::new(Offset));
+        add(Box::new(Maxwell));
+        add(Box::new(InputDelay));
+        c
+    }
+
+    /// Adds an effect; its name must be new, non-empty and free of spaces, `@` and `,`.
+    pub fn register(&mut self, effect: Box<dyn Effect>) -> Result<()> {
+        let name = effect.name();
+        if name.is_empty() || name.contains([' ', '@', ',']) {
+            return Err(DiagnoseError::InvalidParameter {
+                name: "effect name",
+                reason: format!("'{name}' must be non-empty without spaces, '@' or ','"),
+            });
+        }
+        if self.names().contains(&name) {
+            return Err(DiagnoseError::InvalidParameter {
+                name: "effect name",
+                reason: format!("'{name}' is already registered; choose another name"),
+            });
+        }
+        self.effects.push(effect);
+        Ok(())
+    }
+
+    /// The names, in catalogue order.
+    pub fn names(&self) -> Vec<String> {
+        self.effects.iter().map(|e| e.name()).collect()
+    }
+
+    /// The effects.
+    pub fn effects(&self) -> &[Box<dyn Effect>] {
+        &self.effects
+    }
+
+    /// Looks an effect up by name; an unknown name is an error listing the known ones.
+    pub fn get(&self, name: &str) -> Result<&dyn Effect> {
+        self.effects
+            .iter()
+            .find(|e| e.name() == name)
+            .map(|e| e.as_ref())
+            .ok_or_else(|| DiagnoseError::UnknownEffect {
+                name: name.to_string(),
+                known: self.names().join(", "),
+            })
+    }
+}

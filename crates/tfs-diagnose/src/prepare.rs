@@ -1,0 +1,376 @@
+//! Smoothed states (x, x', x'') of measured records, and the block/fold layout used for held-out
+//! evaluation.
+//!
+//! Derivatives come from the spectral differentiator of `tfs-signal` with a cut-off chosen from the
+//! displacement spectrum: the noise floor is the median amplitude of the upper half of the band
+//! (oversampled vibration data has no signal there), and the cut-off is 10 % above the highest
+//! frequency whose amplitude is at least [`DiagnoseOptions::floor_factor`] times that floor.
+//! Rows within three cut-off periods of either end are not used (end effects of the transform).
+
+use tfs_data::{Columns, Record};
+use tfs_library::Model;
+use tfs_signal::{amplitude_spectrum, spectral_derivative};
+
+use crate::{DiagnoseError, Result};
+
+/// Options shared by compare, localise, explain and refit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DiagnoseOptions {
+    /// Low-pass cut-off (Hz) for the smoothed states; `None` chooses it from the spectrum.
+    pub cutoff_hz: Option<f64>,
+    /// A spectral bin is signal when its amplitude is at least this many times the noise floor.
+    pub floor_factor: f64,
+    /// Target number of held-out blocks over all records (for the paired test and bootstrap).
+    pub blocks: usize,
+    /// Contiguous time folds when there is only one record.
+    pub time_folds: usize,
+    /// Family-wise significance level (Bonferroni over every candidate variant tested).
+    pub alpha: f64,
+    /// Minimum size of an effect: RMS change of the fitted force over the RMS of `x''`.
+    pub min_share: f64,
+    /// Bootstrap resamples of blocks for coefficient intervals.
+    pub bootstrap: usize,
+    /// Seed of the bootstrap.
+    pub seed: u64,
+    /// Time windows per record for the windowed R-MSE and residual RMS.
+    pub windows: usize,
+    /// Bins per axis of the (x, x') residual map.
+    pub bins: usize,
+    /// Highest stiffness power offered by the catalogue.
+    pub max_power: u32,
+    /// Simulate refitted candidates on held-out data (`r_mse_after`); off saves time.
+    pub simulate: bool,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        Self {
+            cutoff_hz: None,
+            floor_factor: 10.0,
+            blocks: 32,
+            time_folds: 4,
+            alpha: 0.01,
+            min_share: 0.02,
+            bootstrap: 200,
+            seed: 1,
+            windows: 10,
+            bins: 12,
+            max_power: 7,
+            simulate: true,
+        }
+    }
+}
+
+impl DiagnoseOptions {
+    /// Checks every field.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |name, reason: &str| {
+            Err(DiagnoseError::InvalidParameter {
+                name,
+                reason: reason.to_string(),
+            })
+        };
+        if let Some(fc) = self.cutoff_hz
+            && !(fc.is_finite() && fc > 0.0)
+        {
+            return bad("cutoff_hz", "must be a positive frequency in Hz or None");
+        }
+        if !(self.floor_factor.is_finite() && self.floor_factor > 1.0) {
+            return bad("floor_factor", "must be a finite number above 1");
+        }
+        if self.blocks < 8 {
+            return bad("blocks", "must be at least 8");
+        }
+        if self.time_folds < 2 {
+            return bad("time_folds", "must be at least 2");
+        }
+        if !(self.alpha > 0.0 && self.alpha < 1.0) {
+            return bad("alpha", "must be in (0, 1)");
+        }
+        if !(self.min_share.is_finite() && self.min_share >= 0.0) {
+            return bad("min_share", "must be finite and >= 0");
+        }
+        if self.windows == 0 || self.bins < 2 {
+            return bad("windows/bins", "need at least 1 window and 2 bins");
+        }
+        Ok(())
+    }
+}
+
+/// Checks that every record has the model's DOF and input columns (computed effect columns are
+/// exempt: they are derived from the record).
+pub fn check_records(model: &Model, records: &[Record]) -> Result<()> {
+    if records.is_empty() {
+        return Err(DiagnoseError::NoRecords);
+    }
+    let computed = crate::effects::computed_columns(model);
+    for r in records {
+        for c in model.dofs.iter().chain(model.inputs.iter()) {
+            if computed.iter().any(|cc| cc.name() == *c) {
+                continue;
+            }
+            if r.column(c).is_none() {
+                return Err(DiagnoseError::DofMismatch {
+                    record: r.source().to_string(),
+                    column: c.clone(),
+                    dofs: model.dofs.join(", "),
+                    inputs: model.inputs.join(", "),
+                    available: r.names().join(", "),
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Chooses a low-pass cut-off for `x` from its spectrum (see the module docs).
+pub fn choose_cutoff(x: &[f64], dt: f64, floor_factor: f64) -> Result<f64> {
+    let n = x.len();
+    if n < 16 {
+        return Err(DiagnoseError::TooShort {
+            what: "signal for the cut-off".into(),
+            got: n,
+            needed: 16,
+        });
+    }
+    let slope = (x[n - 1] - x[0]) / (n - 1) as f64;
+    let detrended: Vec<f64> = x
+        .iter()
+        .enumerate()
+        .map(|(k, v)| v - x[0] - slope * k as f64)
+        .collect();
+    let (f, amp) = amplitude_spectrum(&detrended, dt)?;
+    let half = amp.len() / 2;
+    let mut upper: Vec<f64> = amp[half..].to_vec();
+    upper.sort_by(f64::total_cmp);
+    let floor = upper[upper.len() / 2].max(f64::MIN_POSITIVE);
+    let last = (1..amp.len())
+        .rev()
+        .find(|&k| amp[k] >= floor_factor * floor)
+        .unwrap_or(1);
+    let nyq = f[f.len() - 1];
+    Ok((1.1 * f[last]).min(0.9 * nyq).max(f[1.min(f.len() - 1)]))
+}
+
+/// Smoothed columns of one record: low-passed displacements (named like the DOFs), velocities
+/// (`"x'"`), low-passed inputs, and accelerations per DOF. Implements [`Columns`].
+#[derive(Debug, Clone)]
+pub struct RecordStates {
+    /// The record as measured.
+    pub record: Record,
+    /// The cut-off used (Hz).
+    pub cutoff_hz: f64,
+    /// Rows skipped at each end.
+    pub margin: usize,
+    /// Smoothed accelerations, one vector per DOF (model order).
+    pub acc: Vec<Vec<f64>>,
+    cols: Vec<(String, Vec<f64>)>,
+}
+
+impl Columns for RecordStates {
+    fn column(&self, name: &str) -> Option<&[f64]> {
+        self.cols
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.as_slice())
+            .or_else(|| self.record.column(name))
+    }
+    fn rows(&self) -> usize {
+        self.record.len()
+    }
+}
+
+impl RecordStates {
+    /// Estimates the smoothed states of `record` for the DOFs and inputs of `model`.
+    pub fn new(model: &Model, record: &Record, opts: &DiagnoseOptions) -> Result<Self> {
+        let dt = record.dt();
+        let mut fc = f64::INFINITY;
+        let raw: Vec<&[f64]> = model
+            .dofs
+            .iter()
+            .map(|d| {
+                record
+                    .column(d)
+                    .ok_or_else(|| crate::prepare::missing(model, record, d))
+            })
+            .collect::<Result<_>>()?;
+        match opts.cutoff_hz {
+            Some(c) => fc = c,
+            None => {
+                let mut best: f64 = 0.0;
+                for x in &raw {
+                    best = best.max(choose_cutoff(x, dt, opts.floor_factor)?);
+                }
+                fc = fc.min(best);
+            }
+        }
+        let mut cols = Vec::new();
+        let mut acc = Vec::new();
+        for (d, x) in model.dofs.iter().zip(&raw) {
+            cols.push((d.clone(), spectral_derivative(x, dt, 0, Some(fc))?));
+            cols.push((format!("{d}'"), spectral_derivative(x, dt, 1, Some(fc))?));
+            acc.push(spectral_derivative(x, dt, 2, Some(fc))?);
+        }
+        let computed = crate::effects::computed_columns(model);
+        for inp in &model.inputs {
+            if computed.iter().any(|c| c.name() == *inp) {
+                continue;
+            }
+            let u = record
+                .column(inp)
+                .ok_or_else(|| missing(model, record, inp))?;
+            cols.push((inp.clone(), spectral_derivative(u, dt, 0, Some(fc))?));
+        }
+        for c in &computed {
+            let src = c.source();
+            if let crate::effects::ComputedColumn::Delayed { input, .. } = c
+                && !cols.iter().any(|(n, _)| *n == src)
+            {
+                let u = record
+                    .column(input)
+                    .ok_or_else(|| missing(model, record, input))?;
+                cols.push((src, spectral_derivative(u, dt, 0, Some(fc))?));
+            }
+        }
+        let margin = ((3.0 / (fc * dt)).ceil() as usize).max(5);
+        let mut out = Self {
+            record: record.clone(),
+            cutoff_hz: fc,
+            margin,
+            acc,
+            cols,
+        };
+        for c in computed {
+            let v = c.compute(&out, dt)?;
+            out.cols.push((c.name(), v));
+        }
+        Ok(out)
+    }
+
+    /// Adds (or replaces) a derived column.
+    pub fn set(&mut self, name: String, values: Vec<f64>) {
+        match self.cols.iter_mut().find(|(n, _)| *n == name) {
+            Some(slot) => slot.1 = values,
+            None => self.cols.push((name, values)),
+        }
+    }
+
+    /// Number of usable rows (record length minus both margins).
+    pub fn usable(&self) -> usize {
+        self.record.len().saturating_sub(2 * self.margin)
+    }
+
+    /// Minimum block length: four cut-off periods.
+    pub fn min_block(&self) -> usize {
+        ((4.0 / (self.cutoff_hz * self.record.dt())).ceil() as usize).max(10)
+    }
+}
+
+pub(crate) fn missing(model: &Model, record: &Record, column: &str) -> DiagnoseError {
+    DiagnoseError::DofMismatch {
+        record: record.source().to_string(),
+        column: column.to_string(),
+        dofs: model.dofs.join(", "),
+        inputs: model.inputs.join(", "),
+        available: record.names().join(", "),
+    }
+}
+
+/// One contiguous block of usable rows of one record.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Block {
+    /// Record index.
+    pub record: usize,
+    /// First usable row (0 = the first row after the margin).
+    pub start: usize,
+    /// Number of rows.
+    pub len: usize,
+    /// The fold this block is held out in.
+    pub fold: usize,
+}
+
+/// Blocks and folds for held-out evaluation: folds are records when there are several (at most
+/// ten folds; records beyond that share folds round-robin), otherwise contiguous time segments.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Layout {
+    /// The blocks, record by record in time order.
+    pub blocks: Vec<Block>,
+    /// Number of folds.
+    pub folds: usize,
+    /// True when folds are records, false when they are time segments of one record.
+    pub by_record: bool,
+}
+
+impl Layout {
+    /// Builds the layout; errors when the records cannot hold 8 blocks of the minimum length.
+    pub fn new(states: &[RecordStates], opts: &DiagnoseOptions) -> Result<Self> {
+        let min_block = states.iter().map(|s| s.min_block()).max().unwrap_or(10);
+        let total: usize = states.iter().map(|s| s.usable()).sum();
+        let needed = 8 * min_block;
+        if total < needed {
+            return Err(DiagnoseError::TooShort {
+                what: states
+                    .iter()
+                    .map(|s| s.record.source().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                got: total,
+                needed,
+            });
+        }
+        let by_record = states.len() >= 2;
+        let folds = if by_record {
+            states.len().min(10)
+        } else {
+            opts.time_folds
+        };
+        let mut blocks = Vec::new();
+        for (r, s) in states.iter().enumerate() {
+            let u = s.usable();
+            let share = (opts.blocks as f64 * u as f64 / total as f64).round() as usize;
+            let mut nb = share.max(1).min(u / min_block.max(1)).max(1);
+            if !by_record {
+                nb = nb.max(folds).div_ceil(folds) * folds;
+                nb = nb.min((u / min_block).max(folds));
+            }
+            for b in 0..nb {
+                let start = b * u / nb;
+                let end = (b + 1) * u / nb;
+                let fold = if by_record { r % folds } else { b * folds / nb };
+                if end > start {
+                    blocks.push(Block {
+                        record: r,
+                        start,
+                        len: end - start,
+                        fold,
+                    });
+                }
+            }
+        }
+        Ok(Self {
+            blocks,
+            folds,
+            by_record,
+        })
+    }
+}
+
+/// Root mean square of a slice (0 for an empty slice).
+pub(crate) fn rms(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        0.0
+    } else {
+        (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
+    }
+}
+
+/// Dominant period (s) of a signal: the inverse of its spectral peak (DC excluded).
+pub(crate) fn dominant_period(x: &[f64], dt: f64) -> Result<f64> {
+    let mean = x.iter().sum::<f64>() / x.len().max(1) as f64;
+    let centred: Vec<f64> = x.iter().map(|v| v - mean).collect();
+    let (f, a) = amplitude_spectrum(&centred, dt)?;
+    let k = (1..a.len())
+        .max_by(|&i, &j| a[i].total_cmp(&a[j]))
+        .unwrap_or(1);
+    Ok(1.0 / f[k.min(f.len() - 1)].max(f[1.min(f.len() - 1)]))
+}

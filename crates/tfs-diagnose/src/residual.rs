@@ -1,0 +1,345 @@
+//! Localise: the equation residual `r = x''_meas − model(x, x', u)` on smoothed states, mapped over
+//! (x, x') bins, over frequency and over time, with a plain-words summary derived by general rules
+//! (correlation with probe functions, odd/even symmetry in x and x').
+
+use serde::Serialize;
+use tfs_data::{Columns, Record};
+use tfs_library::{ColumnSet, Model, evaluate_term};
+use tfs_signal::amplitude_spectrum;
+
+use crate::Result;
+use crate::prepare::{DiagnoseOptions, RecordStates, check_records, rms};
+
+/// Residual statistics on a regular (x, x') grid; `mean[i][j]` for x bin `i`, x' bin `j`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ResidualMap {
+    /// x bin edges (centred on the mean of x).
+    pub x_edges: Vec<f64>,
+    /// x' bin edges (symmetric about 0).
+    pub v_edges: Vec<f64>,
+    /// Mean residual per bin (NaN when empty).
+    pub mean: Vec<Vec<f64>>,
+    /// Standard deviation per bin (NaN when fewer than 2 samples).
+    pub spread: Vec<Vec<f64>>,
+    /// Samples per bin.
+    pub count: Vec<Vec<usize>>,
+}
+
+/// The localisation of one DOF's residual.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Localisation {
+    /// The DOF.
+    pub dof: String,
+    /// RMS of the residual over RMS of x''.
+    pub relative_rms: f64,
+    /// Mean of the residual over RMS of x''.
+    pub relative_mean: f64,
+    /// Correlation of the residual with each probe function.
+    pub correlations: Vec<(String, f64)>,
+    /// Share of the binned residual power that is odd in x' (about 0).
+    pub odd_in_velocity: f64,
+    /// Share of the binned residual power that is odd in x (about its mean).
+    pub odd_in_displacement: f64,
+    /// The (x, x') map.
+    #[serde(skip)]
+    pub map: ResidualMap,
+    /// Residual amplitude spectrum (frequencies, amplitudes), all records concatenated per record.
+    #[serde(skip)]
+    pub spectrum: Vec<(Vec<f64>, Vec<f64>)>,
+    /// Residual RMS per time window per record: (record, t0, t1, rms).
+    pub windows: Vec<(String, f64, f64, f64)>,
+    /// Plain-words summary.
+    pub summary: String,
+}
+
+/// A probe function of (x, x', u).
+type Probe = Box<dyn Fn(f64, f64, f64) -> f64>;
+
+fn corr(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len() as f64;
+    let ma = a.iter().sum::<f64>() / n;
+    let mb = b.iter().sum::<f64>() / n;
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        sab += (x - ma) * (y - mb);
+        saa += (x - ma).powi(2);
+        sbb += (y - mb).powi(2);
+    }
+    if saa <= 0.0 || sbb <= 0.0 {
+        0.0
+    } else {
+        sab / (saa * sbb).sqrt()
+    }
+}
+
+/// Localises the residual of every DOF of `model` on `records`.
+pub fn localise(
+    model: &Model,
+    records: &[Record],
+    opts: &DiagnoseOptions,
+) -> Result<Vec<Localisation>> {
+    opts.validate()?;
+    check_records(model, records)?;
+    let states: Vec<RecordStates> = records
+        .iter()
+        .map(|r| RecordStates::new(model, r, opts))
+        .collect::<Result<_>>()?;
+    (0..model.dofs.len())
+        .map(|i| localise_dof(model, i, &states, opts))
+        .collect()
+}
+
+fn localise_dof(
+    model: &Model,
+    idx: usize,
+    states: &[RecordStates],
+    opts: &DiagnoseOptions,
+) -> Result<Localisation> {
+    let dof = &model.dofs[idx];
+    let (mut xs, mut vs, mut rs, mut accs, mut us) = (vec![], vec![], vec![], vec![], vec![]);
+    let mut spectrum = Vec::new();
+    let mut windows = Vec::new();
+    for s in states {
+        let set = ColumnSet::new(s);
+        let n = s.rows();
+        let mut pred = vec![0.0; n];
+        for t in &model.equations[idx].terms {
+            let v = evaluate_term(&t.term, &set)?;
+            for (p, q) in pred.iter_mut().zip(v) {
+                *p += t.coef * q;
+            }
+        }
+        let (lo, hi) = (s.margin, s.margin + s.usable());
+        let r: Vec<f64> = (lo..hi).map(|k| s.acc[idx][k] - pred[k]).collect();
+        let x = s.column(dof).unwrap_or(&[]);
+        let v = s.column(&format!("{dof}'")).unwrap_or(&[]);
+        xs.extend_from_slice(&x[lo..hi]);
+        vs.extend_from_slice(&v[lo..hi]);
+        accs.extend_from_slice(&s.acc[idx][lo..hi]);
+        let u = model
+            .inputs
+            .iter()
+            .find_map(|i| s.column(i))
+            .map(|u| u[lo..hi].to_vec())
+            .unwrap_or_else(|| vec![0.0; hi - lo]);
+        us.extend(u);
+        let dt = s.record.dt();
+        spectrum.push(amplitude_spectrum(&r, dt)?);
+        let w = opts.windows.min(r.len() / 2).max(1);
+        for k in 0..w {
+            let (a, b) = (k * r.len() / w, (k + 1) * r.len() / w);
+            windows.push((
+                s.record.source().to_string(),
+                s.record.t()[lo + a],
+                s.record.t()[lo + b - 1],
+                rms(&r[a..b]),
+            ));
+        }
+        rs.extend(r);
+    }
+    let acc_rms = rms(&accs).max(f64::MIN_POSITIVE);
+    let relative_rms = rms(&rs) / acc_rms;
+    let relative_mean = rs.iter().sum::<f64>() / rs.len().max(1) as f64 / acc_rms;
+    let xm = xs.iter().sum::<f64>() / xs.len().max(1) as f64;
+    let probes: Vec<(&str, Probe)> = vec![
+        ("sign(x')", Box::new(|_x, v, _u| v.signum())),
+        ("x'*abs(x')", Box::new(|_x, v, _u| v * v.abs())),
+        ("x'^3", Box::new(|_x, v, _u| v * v * v)),
+        ("x'", Box::new(|_x, v, _u| v)),
+        ("x^2*x'", Box::new(move |x, v, _u| (x - xm).powi(2) * v)),
+        ("x", Box::new(move |x, _v, _u| x - xm)),
+        ("x^2", Box::new(move |x, _v, _u| (x - xm).powi(2))),
+        ("x^3", Box::new(move |x, _v, _u| (x - xm).powi(3))),
+        ("input", Box::new(|_x, _v, u| u)),
+    ];
+    let mut correlations: Vec<(String, f64)> = probes
+        .iter()
+        .map(|(name, f)| {
+            let p: Vec<f64> = (0..rs.len()).map(|k| f(xs[k], vs[k], us[k])).collect();
+            (name.to_string(), corr(&rs, &p))
+        })
+        .collect();
+    correlations.push((
+        "offset".into(),
+        relative_mean / relative_rms.max(f64::MIN_POSITIVE),
+    ));
+    // Symmetric bins.
+    let nb = opts.bins;
+    let xr = xs
+        .iter()
+        .map(|x| (x - xm).abs())
+        .fold(0.0, f64::max)
+        .max(f64::MIN_POSITIVE);
+    let vr = vs
+        .iter()
+        .map(|v| v.abs())
+        .fold(0.0, f64::max)
+        .max(f64::MIN_POSITIVE);
+    let x_edges: Vec<f64> = (0..=nb)
+        .map(|i| xm - xr + 2.0 * xr * i as f64 / nb as f64)
+        .collect();
+    let v_edges: Vec<f64> = (0..=nb)
+        .map(|i| -vr + 2.0 * vr * i as f64 / nb as f64)
+        .collect();
+    let bin =
+        |val: f64, lo: f64, r: f64| (((val - lo) / (2.0 * r) * nb as f64) as usize).min(nb - 1);
+    let mut sum = vec![vec![0.0; nb]; nb];
+    let mut sum2 = vec![vec![0.0; nb]; nb];
+    let mut count = vec![vec![0usize; nb]; nb];
+    for k in 0..rs.len() {
+        let i = bin(xs[k], xm - xr, xr);
+        let j = bin(vs[k], -vr, vr);
+        sum[i][j] += rs[k];
+        sum2[i][j] += rs[k] * rs[k];
+        count[i][j] += 1;
+    }
+    let mean: Vec<Vec<f64>> = (0..nb)
+        .map(|i| {
+            (0..nb)
+                .map(|j| {
+                    if count[i][j] > 0 {
+                        sum[i][j] / count[i][j] as f64
+                    } else {
+                        f64::NAN
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    let spread: Vec<Vec<f64>> = (0..nb)
+        .map(|i| {
+            (0..nb)
+                .map(|j| {
+                    let c = count[i][j];
+                    if c > 1 {
+                        ((sum2[i][j] - sum[i][j].powi(2) / c as f64) / (c - 1) as f64)
+                            .max(0.0)
+                            .sqrt()
+                    } else {
+                        f64::NAN
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    let odd_share = |mirror: &dyn Fn(usize, usize) -> (usize, usize)| {
+        let (mut odd, mut all) = (0.0, 0.0);
+        for i in 0..nb {
+            for j in 0..nb {
+                let (mi, mj) = mirror(i, j);
+                if count[i][j] > 0 && count[mi][mj] > 0 {
+                    let o = 0.5 * (mean[i][j] - mean[mi][mj]);
+                    odd += count[i][j] as f64 * o * o;
+                    all += count[i][j] as f64 * mean[i][j] * mean[i][j];
+                }
+            }
+        }
+        if all > 0.0 { odd / all } else { f64::NAN }
+    };
+    let odd_in_velocity = odd_share(&|i, j| (i, nb - 1 - j));
+    let odd_in_displacement = odd_share(&|i, j| (nb - 1 - i, j));
+    // Worst bin and worst window.
+    let mut worst = (0, 0, 0.0);
+    for i in 0..nb {
+        for j in 0..nb {
+            if count[i][j] >= 5 && mean[i][j].abs() > worst.2 {
+                worst = (i, j, mean[i][j].abs());
+            }
+        }
+    }
+    let summary = summarise(
+        dof,
+        relative_rms,
+        &correlations,
+        odd_in_velocity,
+        odd_in_displacement,
+        (
+            0.5 * (x_edges[worst.0] + x_edges[worst.0 + 1]),
+            0.5 * (v_edges[worst.1] + v_edges[worst.1 + 1]),
+        ),
+        windows
+            .iter()
+            .max_by(|a, b| a.3.total_cmp(&b.3))
+            .map(|w| (w.0.clone(), w.1, w.2)),
+    );
+    Ok(Localisation {
+        dof: dof.clone(),
+        relative_rms,
+        relative_mean,
+        correlations,
+        odd_in_velocity,
+        odd_in_displacement,
+        map: ResidualMap {
+            x_edges,
+            v_edges,
+            mean,
+            spread,
+            count,
+        },
+        spectrum,
+        windows,
+        summary,
+    })
+}
+
+/// Plain words from the probe correlations and symmetry shares (general rules, no case tables).
+fn summarise(
+    dof: &str,
+    rel: f64,
+    corr: &[(String, f64)],
+    odd_v: f64,
+    odd_x: f64,
+    worst: (f64, f64),
+    worst_window: Option<(String, f64, f64)>,
+) -> String {
+    let best = corr
+        .iter()
+        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+        .cloned()
+        .unwrap_or(("none".into(), 0.0));
+    let mut s = format!(
+        "{dof}: equation residual is {:.1} % of the RMS of {dof}''",
+        100.0 * rel
+    );
+    if best.1.abs() < 0.2 {
+        s.push_str("; no systematic dependence on x, x' or the input (largest correlation ");
+        s.push_str(&format!(
+            "{:.2} with {}) — consistent with noise",
+            best.1, best.0
+        ));
+        return s;
+    }
+    let shape = match best.0.as_str() {
+        "sign(x')" => format!(
+            "changes sign with {dof}' and has nearly constant magnitude (dry-friction-like)"
+        ),
+        "x'*abs(x')" | "x'^3" => format!("grows with |{dof}'| and changes sign with {dof}'"),
+        "x'" => format!("is proportional to {dof}' (linear damping is off)"),
+        "x^2*x'" => format!("changes sign with {dof}' and grows with the amplitude of {dof}"),
+        "x" | "x^3" => format!("changes sign with {dof} and grows with |{dof}| (stiffness is off)"),
+        "x^2" => format!(
+            "has the same sign on both sides of the mean of {dof} and grows with |{dof}| (even in {dof})"
+        ),
+        "offset" => "is a constant offset".to_string(),
+        _ => "follows the input (input gain or delay)".to_string(),
+    };
+    s.push_str(&format!(
+        "; it {shape} (correlation {:.2} with {})",
+        best.1, best.0
+    ));
+    if odd_v.is_finite() && odd_x.is_finite() {
+        s.push_str(&format!(
+            "; {:.0} % of its binned power is odd in {dof}', {:.0} % odd in {dof}",
+            100.0 * odd_v,
+            100.0 * odd_x
+        ));
+    }
+    s.push_str(&format!(
+        "; largest near {dof} = {:.3}, {dof}' = {:.3}",
+        worst.0, worst.1
+    ));
+    if let Some((rec, t0, t1)) = worst_window {
+        s.push_str(&format!("; worst in {rec} at t = {t0:.2}..{t1:.2} s"));
+    }
+    s
+}

@@ -1,0 +1,93 @@
+//! Unit checks against closed forms and an independent simulator.
+
+mod common;
+
+use common::*;
+use proptest::prelude::*;
+use tfs_diagnose::effects::{ComputedColumn, delayed, lowpass};
+use tfs_diagnose::{paired_p_value, simulate};
+use tfs_dynamics::rmse_ratio;
+use tfs_library::{Library, Model};
+
+#[test]
+fn lowpass_matches_the_ramp_closed_form() {
+    // τ y' + y = t with y(0) = 0: y = t − τ(1 − e^{−t/τ}); exact for piecewise-linear input.
+    let (dt, tau) = (0.01, 0.3);
+    let t: Vec<f64> = (0..500).map(|k| k as f64 * dt).collect();
+    let y = lowpass(&t, dt, tau);
+    for (tk, yk) in t.iter().zip(&y) {
+        let exact = tk - tau * (1.0 - (-tk / tau).exp());
+        assert!((yk - exact).abs() < 1e-12, "{tk}: {yk} vs {exact}");
+    }
+}
+
+#[test]
+fn delay_by_whole_samples_is_a_shift() {
+    let v: Vec<f64> = (0..50).map(|k| (k as f64 * 0.3).sin()).collect();
+    let d = delayed(&v, 0.01, 0.03);
+    for (a, b) in d[3..].iter().zip(&v) {
+        assert!((a - b).abs() < 1e-12);
+    }
+    assert_eq!(d[0], v[0]);
+}
+
+#[test]
+fn paired_p_value_behaves() {
+    let noise: Vec<f64> = (0..40)
+        .map(|k| if k % 2 == 0 { 1.0 } else { -1.0 })
+        .collect();
+    assert!((paired_p_value(&noise) - 0.5).abs() < 1e-9);
+    let up: Vec<f64> = (0..40).map(|k| 1.0 + 0.1 * (k as f64).sin()).collect();
+    assert!(paired_p_value(&up) < 1e-10);
+    let down: Vec<f64> = up.iter().map(|v| -v).collect();
+    assert!(paired_p_value(&down) > 0.999);
+}
+
+#[test]
+fn maxwell_simulation_matches_an_independent_state_space_model() {
+    // Truth: x'' = −k x − k x³ − c x' − xb_acc − k_m z, z' = x' − z/τ (integrated as its own state
+    // in the test generator). Model: the Maxwell column y = lowpass(x', τ) = z/τ, coefficient −k_m τ.
+    let (km, tau) = (20.0, 0.3);
+    let truth = Truth {
+        restoring: duffing_restoring,
+        damping: 0.63,
+        hidden: vec![Hidden::Maxwell { k: km, tau }],
+        x0: 0.0,
+    };
+    let (rec, x_true) = clean(&truth, 0.3, 3.0, 4.0, 10.0, 0.01);
+    let k = 4.0 * std::f64::consts::PI.powi(2);
+    let col = ComputedColumn::Maxwell {
+        dof: "x".into(),
+        tau,
+    }
+    .name();
+    let lib = Library::parse(&format!("x, x^3, x', xb_acc, {col}"), &["x"]).unwrap();
+    let model =
+        Model::from_coefficients(&lib, &[vec![-k, -k, -0.63, -1.0, -km * tau]], "truth").unwrap();
+    let tr = simulate(&model, &rec).unwrap();
+    let err = rmse_ratio(&x_true, &tr.x[0]).unwrap();
+    assert!(err < 1e-4, "R-MSE {err}");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+    #[test]
+    fn computed_column_names_round_trip(tau in 1e-3f64..1e3, delay in 1e-4f64..10.0) {
+        let dofs = vec!["x".to_string(), "x2".to_string()];
+        for c in [
+            ComputedColumn::Maxwell { dof: "x2".into(), tau },
+            ComputedColumn::Delayed { input: "xb_acc".into(), delay },
+        ] {
+            let back = ComputedColumn::parse(&c.name(), &dofs).unwrap();
+            prop_assert_eq!(back.name(), c.name());
+            let (a, b) = match (&c, &back) {
+                (ComputedColumn::Maxwell { tau: a, .. }, ComputedColumn::Maxwell { tau: b, .. }) => (*a, *b),
+                (ComputedColumn::Delayed { delay: a, .. }, ComputedColumn::Delayed { delay: b, .. }) => (*a, *b),
+                _ => return Err(TestCaseError::fail("kind changed")),
+            };
+            prop_assert!((a - b).abs() <= 5e-3 * a, "{} vs {}", a, b);
+            // The name is a valid grammar identifier.
+            prop_assert!(tfs_library::Term::parse(&c.name(), &dofs).is_ok());
+        }
+    }
+}

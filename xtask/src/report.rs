@@ -1,0 +1,422 @@
+//! The reproduction report: studies made of text, tables (markdown + CSV + HTML) and figures
+//! (SVG + PNG through tfs-plot), the `results.json` tree and the paper-vs-ours summary.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use serde_json::{Map, Value, json};
+use tfs::plot::Figure;
+
+/// A table: written as `<name>.csv`, and shown in the markdown and HTML reports.
+#[derive(Debug, Clone)]
+pub struct Table {
+    /// File stem of the CSV.
+    pub name: String,
+    /// Caption.
+    pub caption: String,
+    /// Column headers.
+    pub header: Vec<String>,
+    /// Rows of formatted cells.
+    pub rows: Vec<Vec<String>>,
+}
+
+impl Table {
+    /// A table with a header and no rows yet.
+    pub fn new(name: &str, caption: &str, header: &[&str]) -> Self {
+        Self {
+            name: name.to_string(),
+            caption: caption.to_string(),
+            header: header.iter().map(|s| s.to_string()).collect(),
+            rows: Vec::new(),
+        }
+    }
+
+    /// Appends a row.
+    pub fn row(&mut self, cells: Vec<String>) {
+        self.rows.push(cells);
+    }
+
+    fn csv(&self) -> String {
+        let esc = |s: &str| {
+            if s.contains([',', '"', '\n']) {
+                format!("\"{}\"", s.replace('"', "\"\""))
+            } else {
+                s.to_string()
+            }
+        };
+        let mut out = String::new();
+        let line = |cells: &[String]| cells.iter().map(|c| esc(c)).collect::<Vec<_>>().join(",");
+        out.push_str(&line(&self.header));
+        out.push('\n');
+        for r in &self.rows {
+            out.push_str(&line(r));
+            out.push('\n');
+        }
+        out
+    }
+
+    fn markdown(&self) -> String {
+        let mut s = format!("**{}** (`tables/{}.csv`)\n\n", self.caption, self.name);
+        let cell = |c: &str| c.replace('|', "\\|");
+        s.push_str(&format!(
+            "| {} |\n",
+            self.header
+                .iter()
+                .map(|c| cell(c))
+                .collect::<Vec<_>>()
+                .join(" | ")
+        ));
+        s.push_str(&format!("|{}\n", "---|".repeat(self.header.len())));
+        for r in &self.rows {
+            s.push_str(&format!(
+                "| {} |\n",
+                r.iter().map(|c| cell(c)).collect::<Vec<_>>().join(" | ")
+            ));
+        }
+        s
+    }
+
+    fn html(&self) -> String {
+        let mut s = format!(
+            "<table><caption>{} (<a href=\"tables/{}.csv\">CSV</a>)</caption>\n<tr>",
+            esc_html(&self.caption),
+            self.name
+        );
+        for h in &self.header {
+            let _ = write!(s, "<th>{}</th>", esc_html(h));
+        }
+        s.push_str("</tr>\n");
+        for r in &self.rows {
+            s.push_str("<tr>");
+            for c in r {
+                let _ = write!(s, "<td>{}</td>", esc_html(c));
+            }
+            s.push_str("</tr>\n");
+        }
+        s.push_str("</table>\n");
+        s
+    }
+}
+
+fn esc_html(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+}
+
+/// One piece of a study's section.
+#[derive(Debug, Clone)]
+enum Block {
+    Text(String),
+    Table(Table),
+    Figure { stem: String, caption: String },
+}
+
+/// One row of the printed summary: metric | paper | ours | within tolerance?
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct SummaryRow {
+    /// What is compared.
+    pub metric: String,
+    /// The paper's value (as printed in the paper).
+    pub paper: String,
+    /// Our value.
+    pub ours: String,
+    /// Within the tolerance (None: no tolerance defined, shown for information).
+    pub within_tolerance: Option<bool>,
+    /// The tolerance rule.
+    pub rule: String,
+}
+
+/// A study being filled: its section blocks, its `results.json` subtree and summary rows.
+pub struct Study {
+    /// Key in `results.json` (e.g. `s1_white`).
+    pub key: String,
+    /// Section title.
+    pub title: String,
+    out: PathBuf,
+    blocks: Vec<Block>,
+    /// Every number of the study.
+    pub results: Map<String, Value>,
+    summary: Vec<SummaryRow>,
+}
+
+impl Study {
+    /// A new study writing its files under `out`.
+    pub fn new(key: &str, title: &str, out: &Path) -> Self {
+        Self {
+            key: key.to_string(),
+            title: title.to_string(),
+            out: out.to_path_buf(),
+            blocks: Vec::new(),
+            results: Map::new(),
+            summary: Vec::new(),
+        }
+    }
+
+    /// Adds a paragraph (markdown; shown pre-formatted-free in HTML).
+    pub fn text(&mut self, s: impl Into<String>) {
+        self.blocks.push(Block::Text(s.into()));
+    }
+
+    /// Writes the table's CSV and adds it to the section.
+    pub fn table(&mut self, t: Table) -> Result<()> {
+        let dir = self.out.join("tables");
+        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+        let p = dir.join(format!("{}.csv", t.name));
+        std::fs::write(&p, t.csv()).with_context(|| format!("writing {}", p.display()))?;
+        self.blocks.push(Block::Table(t));
+        Ok(())
+    }
+
+    /// Saves a figure as `figures/<stem>.svg` and `.png` and adds it to the section.
+    pub fn figure(&mut self, stem: &str, caption: &str, fig: impl Into<Figure>) -> Result<()> {
+        let fig: Figure = fig.into();
+        let path = self.out.join("figures").join(stem);
+        fig.save(&path).with_context(|| format!("figure {stem}"))?;
+        self.blocks.push(Block::Figure {
+            stem: stem.to_string(),
+            caption: caption.to_string(),
+        });
+        Ok(())
+    }
+
+    /// Stores a value in the study's results.
+    pub fn set(&mut self, key: &str, v: Value) {
+        self.results.insert(key.to_string(), v);
+    }
+
+    /// Adds a summary row.
+    pub fn compare(&mut self, metric: &str, paper: &str, ours: &str, ok: Option<bool>, rule: &str) {
+        self.summary.push(SummaryRow {
+            metric: metric.to_string(),
+            paper: paper.to_string(),
+            ours: ours.to_string(),
+            within_tolerance: ok,
+            rule: rule.to_string(),
+        });
+    }
+}
+
+/// The whole report.
+pub struct Report {
+    out: PathBuf,
+    quick: bool,
+    studies: Vec<(Study, Option<String>, f64)>,
+}
+
+impl Report {
+    /// An empty report for `out`.
+    pub fn new(out: &Path, quick: bool) -> Self {
+        Self {
+            out: out.to_path_buf(),
+            quick,
+            studies: Vec::new(),
+        }
+    }
+
+    /// Adds a finished (or failed: `error`) study with its wall time.
+    pub fn push(&mut self, study: Study, error: Option<String>, seconds: f64) {
+        self.studies.push((study, error, seconds));
+    }
+
+    /// All summary rows, in study order.
+    pub fn summary(&self) -> Vec<&SummaryRow> {
+        self.studies
+            .iter()
+            .flat_map(|(s, _, _)| s.summary.iter())
+            .collect()
+    }
+
+    /// Names and errors of the studies that failed.
+    pub fn failures(&self) -> Vec<(String, String)> {
+        self.studies
+            .iter()
+            .filter_map(|(s, e, _)| e.as_ref().map(|e| (s.key.clone(), e.clone())))
+            .collect()
+    }
+
+    /// Writes `results.json`, `report.md` and `index.html`.
+    pub fn write(&self, total_seconds: f64, preamble: &str) -> Result<()> {
+        let mut studies = Map::new();
+        for (s, err, secs) in &self.studies {
+            let mut v = s.results.clone();
+            v.insert("title".into(), json!(s.title));
+            v.insert("seconds".into(), json!(secs));
+            v.insert(
+                "error".into(),
+                err.as_ref().map_or(Value::Null, |e| json!(e)),
+            );
+            studies.insert(s.key.clone(), Value::Object(v));
+        }
+        let results = json!({
+            "format": "tfs-reproduce-paper/1",
+            "quick": self.quick,
+            "total_seconds": total_seconds,
+            "studies": studies,
+            "summary": self.summary(),
+            "failed_studies": self.failures().iter().map(|(k, _)| k.clone()).collect::<Vec<_>>(),
+        });
+        let p = self.out.join("results.json");
+        std::fs::write(&p, serde_json::to_string_pretty(&results)?)
+            .with_context(|| format!("writing {}", p.display()))?;
+        std::fs::write(
+            self.out.join("report.md"),
+            self.markdown(total_seconds, preamble),
+        )
+        .context("writing report.md")?;
+        std::fs::write(
+            self.out.join("index.html"),
+            self.html(total_seconds, preamble),
+        )
+        .context("writing index.html")?;
+        Ok(())
+    }
+
+    fn summary_table(&self) -> Table {
+        let mut t = Table::new(
+            "summary",
+            "Summary: the paper's numbers beside ours",
+            &["metric", "paper", "ours", "within tolerance?", "rule"],
+        );
+        for r in self.summary() {
+            t.row(vec![
+                r.metric.clone(),
+                r.paper.clone(),
+                r.ours.clone(),
+                verdict(r.within_tolerance).to_string(),
+                r.rule.clone(),
+            ]);
+        }
+        t
+    }
+
+    /// Writes the summary CSV (called by [`Report::write`]'s caller before printing).
+    pub fn write_summary_csv(&self) -> Result<()> {
+        let dir = self.out.join("tables");
+        std::fs::create_dir_all(&dir)?;
+        std::fs::write(dir.join("summary.csv"), self.summary_table().csv())?;
+        Ok(())
+    }
+
+    fn markdown(&self, total: f64, preamble: &str) -> String {
+        let mut s = String::from("# T-F-S SINDy paper reproduction\n\n");
+        s.push_str(preamble);
+        let _ = writeln!(
+            s,
+            "\nMode: {}; total wall time {:.1} s.\n",
+            if self.quick {
+                "quick (smaller grids, shorter records)"
+            } else {
+                "full"
+            },
+            total
+        );
+        s.push_str("## Contents\n\n");
+        for (st, err, secs) in &self.studies {
+            let _ = writeln!(
+                s,
+                "- [{}](#{}) — {:.1} s{}",
+                st.title,
+                st.key,
+                secs,
+                if err.is_some() { " — **FAILED**" } else { "" }
+            );
+        }
+        s.push_str("\n## Summary\n\n");
+        s.push_str(&self.summary_table().markdown());
+        for (st, err, _) in &self.studies {
+            let _ = writeln!(s, "\n<a id=\"{}\"></a>\n## {}\n", st.key, st.title);
+            if let Some(e) = err {
+                let _ = writeln!(s, "**This study failed:** `{e}`\n");
+            }
+            for b in &st.blocks {
+                match b {
+                    Block::Text(t) => {
+                        s.push_str(t);
+                        s.push_str("\n\n");
+                    }
+                    Block::Table(t) => {
+                        s.push_str(&t.markdown());
+                        s.push('\n');
+                    }
+                    Block::Figure { stem, caption } => {
+                        let _ = writeln!(
+                            s,
+                            "![{caption}](figures/{stem}.png)\n\n*{caption}* ([SVG](figures/{stem}.svg))\n"
+                        );
+                    }
+                }
+            }
+        }
+        s
+    }
+
+    fn html(&self, total: f64, preamble: &str) -> String {
+        let mut s = String::from(
+            "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>T-F-S SINDy paper reproduction</title>\n<style>body{font-family:sans-serif;max-width:1000px;margin:auto;padding:1em}table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;text-align:left}caption{font-weight:bold;text-align:left}img{max-width:100%;border:1px solid #ddd}.fail{color:#b00}figure{margin:1em 0}</style></head><body>\n<h1>T-F-S SINDy paper reproduction</h1>\n",
+        );
+        for para in preamble.split("\n\n") {
+            let _ = writeln!(s, "<p>{}</p>", esc_html(para));
+        }
+        let _ = writeln!(
+            s,
+            "<p>Mode: {}; total wall time {:.1} s.</p>\n<h2>Summary</h2>",
+            if self.quick { "quick" } else { "full" },
+            total
+        );
+        s.push_str(&self.summary_table().html());
+        s.push_str("<ul>\n");
+        for (st, err, secs) in &self.studies {
+            let _ = writeln!(
+                s,
+                "<li><a href=\"#{}\">{}</a> ({:.1} s){}</li>",
+                st.key,
+                esc_html(&st.title),
+                secs,
+                if err.is_some() {
+                    " <span class=\"fail\">FAILED</span>"
+                } else {
+                    ""
+                }
+            );
+        }
+        s.push_str("</ul>\n");
+        for (st, err, _) in &self.studies {
+            let _ = writeln!(s, "<h2 id=\"{}\">{}</h2>", st.key, esc_html(&st.title));
+            if let Some(e) = err {
+                let _ = writeln!(
+                    s,
+                    "<p class=\"fail\">This study failed: <code>{}</code></p>",
+                    esc_html(e)
+                );
+            }
+            for b in &st.blocks {
+                match b {
+                    Block::Text(t) => {
+                        let _ = writeln!(s, "<p>{}</p>", esc_html(t).replace('\n', "<br>"));
+                    }
+                    Block::Table(t) => s.push_str(&t.html()),
+                    Block::Figure { stem, caption } => {
+                        let _ = writeln!(
+                            s,
+                            "<figure><img src=\"figures/{stem}.png\" alt=\"{c}\"><figcaption>{c} (<a href=\"figures/{stem}.svg\">SVG</a>)</figcaption></figure>",
+                            c = esc_html(caption)
+                        );
+                    }
+                }
+            }
+        }
+        s.push_str("</body></html>\n");
+        s
+    }
+}
+
+/// "yes" / "NO" / "n/a".
+pub fn verdict(ok: Option<bool>) -> &'static str {
+    match ok {
+        Some(true) => "yes",
+        Some(false) => "NO",
+        None => "n/a",
+    }
+}
