@@ -612,6 +612,30 @@ pub fn explain(
                 opts,
             );
             raw.r_mse_after = r.r_mse_after;
+            // An effect whose refitted model predicts the held-out data worse than the model
+            // without it is not a discovered effect, however well it fits the equation error
+            // (a flexible term can soak up the residual of a slightly mis-sized true effect).
+            if r.significant
+                && let Some(before) = r.r_mse_before
+            {
+                let worse = match r.r_mse_after {
+                    Some(after) => after >= before,
+                    None => true,
+                };
+                if worse {
+                    r.significant = false;
+                    r.reason = match r.r_mse_after {
+                        Some(after) => format!(
+                            "held-out equation error falls {:.1} %, but the refitted model predicts the held-out data worse (R-MSE {after:.3e} vs {before:.3e})",
+                            100.0 * r.delta_heldout
+                        ),
+                        None => format!(
+                            "held-out equation error falls {:.1} %, but the refitted model cannot be simulated on the held-out data",
+                            100.0 * r.delta_heldout
+                        ),
+                    };
+                }
+            }
         });
     }
     // Significant first; among equals, the lower held-out simulation R-MSE (failed simulations
