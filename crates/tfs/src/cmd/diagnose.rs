@@ -107,12 +107,18 @@ pub fn run(args: Args) -> Result<()> {
 
 fn write_plots(dir: &std::path::Path, d: &tfs::diagnose::Diagnosis) -> Result<()> {
     // Ranking: held-out improvement per effect.
+    // The six best-ranked candidates: more labels would overlap on the axis.
+    let top: Vec<_> = d.ranked.iter().take(6).collect();
     let bars = BarChart {
-        title: "Held-out equation-error drop per effect".into(),
+        title: "Held-out equation-error drop of the six best-ranked effects (* = significant)"
+            .into(),
         x_label: "effect".into(),
         y_label: "relative drop".into(),
-        labels: d.ranked.iter().map(|r| r.name.clone()).collect(),
-        values: d.ranked.iter().map(|r| r.delta_heldout.max(0.0)).collect(),
+        labels: top
+            .iter()
+            .map(|r| format!("{}{}", r.name, if r.significant { " *" } else { "" }))
+            .collect(),
+        values: top.iter().map(|r| r.delta_heldout.max(0.0)).collect(),
         log_y: false,
         color: None,
     };

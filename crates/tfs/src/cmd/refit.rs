@@ -25,6 +25,9 @@ pub struct Args {
     /// Where to write the refitted model.
     #[arg(long)]
     pub out: PathBuf,
+    /// Write the error ladder (R-MSE per step, log scale) as SVG and PNG into this directory.
+    #[arg(long)]
+    pub plots: Option<PathBuf>,
     /// Print the ladder and the model as JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -53,6 +56,20 @@ pub fn run(args: Args) -> Result<()> {
         .write_path(&args.out)
         .with_context(|| format!("--out {}", args.out.display()))?;
     let ladder = error_ladder(&model);
+    if let Some(dir) = &args.plots {
+        let chart = tfs::plot::BarChart {
+            title: "Error ladder: mean R-MSE of the records after each step".into(),
+            x_label: "step".into(),
+            y_label: "R-MSE (log scale)".into(),
+            labels: ladder.iter().map(|s| s.step.clone()).collect(),
+            values: ladder.iter().map(|s| s.mean_r_mse).collect(),
+            log_y: true,
+            color: None,
+        };
+        tfs::plot::Figure::from(chart)
+            .save(&dir.join("ladder"))
+            .with_context(|| format!("--plots {}", dir.display()))?;
+    }
     if args.json {
         print_json(&json!({
             "out": args.out.display().to_string(),
