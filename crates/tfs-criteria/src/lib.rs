@@ -6,8 +6,11 @@
 //! * Criterion 2 ([`prune_library`], [`prune_factor`]): backward elimination on κ, run on the small
 //!   factor of one thin QR.
 //! * Criterion 3 ([`spectral`]): windowed transforms (plain or derivative-transfer "weak" form),
-//!   bins kept where `|ẍ̂| ≥ δ·max`, nonlinear terms evaluated on a band-limited reconstruction whose
-//!   band comes from the data.
+//!   bins kept where `|ẍ̂| ≥ δ·max` and where `|ẍ̂|²` exceeds the variance the estimated
+//!   displacement noise gives at that bin ([`TfsOptions::min_bin_snr`]; noise of `x` enters both
+//!   sides of the regression there and would bias it), nonlinear terms evaluated on a
+//!   band-limited reconstruction whose band comes from the data (noise floor fitted on the upper
+//!   half of the spectrum, cut-off extended to harmonics that rise above the floor).
 //! * Criterion 4 ([`residual_stats`]) inside the record-by-record data assembly of
 //!   [`identify_tfs`]; [`identify_sindy`] is the classical baseline.
 //!

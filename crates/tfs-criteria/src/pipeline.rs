@@ -66,6 +66,11 @@ pub struct TfsOptions {
     pub bagging: usize,
     /// Savitzky–Golay (half window, order) for the `PlainSavitzkyGolay` form.
     pub savitzky_golay: (usize, usize),
+    /// Criterion 3 noise gate: a bin is used only if its |ẍ̂|² is at least this many times the
+    /// variance the estimated displacement noise gives at that bin (`None` = no gate). Bins
+    /// below it are dominated by the noise of `x`, which enters both sides of the regression and
+    /// biases every coefficient.
+    pub min_bin_snr: Option<f64>,
     /// Evaluate single powers `x^k` as noise-debiased Hermite polynomials of the reconstruction,
     /// using its estimated in-band noise variance.
     pub debias: bool,
@@ -90,6 +95,7 @@ impl Default for TfsOptions {
             sigma0: None,
             bagging: 0,
             savitzky_golay: (12, 3),
+            min_bin_snr: Some(10.0),
             debias: true,
         }
     }
@@ -536,7 +542,7 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
         for &wc in &opt.window_counts {
             let per: Vec<_> = series
                 .iter()
-                .map(|s| window_transforms(s, wc, dmin, &mut pl))
+                .map(|s| window_transforms(s, wc, dmin, opt.min_bin_snr, &mut pl))
                 .collect();
             transforms.push(per);
         }
@@ -747,9 +753,15 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
                 ),
             },
             format!(
-                "reconstruction cut-off per record chosen from the spectrum (noise floor vs signal), form {:?}",
+                "reconstruction cut-off per record chosen from the spectrum (noise floor vs signal, extended to harmonics above the floor), form {:?}",
                 opt.form
             ),
+            match opt.min_bin_snr {
+                Some(g) => format!(
+                    "bins used only where |x''|² ≥ {g} × the variance the estimated displacement noise gives there"
+                ),
+                None => "no per-bin noise gate".to_string(),
+            },
         ];
         dof_traces.push(DofTrace {
             dof: dof.clone(),

@@ -9,8 +9,8 @@ use tfs_library::{ColumnSet, Factor, Library, Term, Var, evaluate_term};
 
 use crate::error::{CriteriaError, Result, invalid};
 use crate::spectral::{
-    Smoothed, band_limit, bin_omegas, hermite_power, weak_first_derivative, weak_second_derivative,
-    window, window_layout, windowed_fft,
+    Band, Smoothed, band_limit, bin_omegas, hermite_power, weak_first_derivative,
+    weak_second_derivative, window, window_layout, windowed_fft,
 };
 
 /// How the frequency-domain rows are formed (Criterion 3 variants).
@@ -108,6 +108,9 @@ pub(crate) struct RecordSeries {
     pub lhs: Vec<f64>,
     pub weak_lhs: bool,
     pub terms: Vec<Series>,
+    /// Noise model of the DOF's displacement and the sampling step it was estimated at (`None`
+    /// for raw-data forms).
+    pub noise: Option<(Band, f64)>,
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -226,6 +229,7 @@ fn record_series_full(
                 lhs,
                 weak_lhs: weak,
                 terms,
+                noise: Some((p.smooth[dof].band, p.dt)),
             })
         }
         TransformForm::PlainSavitzkyGolay => {
@@ -240,6 +244,7 @@ fn record_series_full(
                 lhs: a,
                 weak_lhs: false,
                 terms,
+                noise: None,
             })
         }
     }
@@ -278,11 +283,39 @@ pub(crate) struct WindowTransform {
     pub cols: Vec<Vec<Complex<f64>>>,
 }
 
-/// Transforms of `count` overlapping windows; bins with |LHS| < `delta_min`·max are not stored.
+/// Variance of the weak-form (or plain) transform of `x''` at each bin that the displacement
+/// noise alone produces: for noise of two-sided density `S(f)` the windowed integral of
+/// `n·(w'' − 2iωw' − ω²w)` has variance `S(f)·∫|w'' − 2iωw' − ω²w|² dt`
+/// `= S(f)·(∫w''² − 2ω²∫w w'' + ω⁴∫w² + 4ω²∫w'²)`.
+fn lhs_noise_var(
+    win: &(Vec<f64>, Vec<f64>, Vec<f64>),
+    om: &[f64],
+    dt: f64,
+    noise: &(Band, f64),
+) -> Vec<f64> {
+    let int = |f: &dyn Fn(usize) -> f64| (0..win.0.len()).map(f).sum::<f64>() * dt;
+    let i0 = int(&|i| win.0[i] * win.0[i]);
+    let i1 = int(&|i| win.1[i] * win.1[i]);
+    let i2 = int(&|i| win.2[i] * win.2[i]);
+    let i02 = int(&|i| win.0[i] * win.2[i]);
+    om.iter()
+        .map(|&w| {
+            let f = w / (2.0 * std::f64::consts::PI);
+            let g = (i2 - 2.0 * w * w * i02 + w.powi(4) * i0 + 4.0 * w * w * i1).max(0.0);
+            noise.0.noise_psd(f, noise.1) * g
+        })
+        .collect()
+}
+
+/// Transforms of `count` overlapping windows; bins with |LHS| < `delta_min`·max are not stored,
+/// nor (when `min_bin_snr` is given) bins whose |LHS|² is below `min_bin_snr` times the variance
+/// the estimated displacement noise gives there — in those bins the noise of `x` on both sides
+/// of the regression would bias the coefficients (errors in variables).
 pub(crate) fn window_transforms(
     s: &RecordSeries,
     count: usize,
     delta_min: f64,
+    min_bin_snr: Option<f64>,
     pl: &mut RealFftPlanner<f64>,
 ) -> Vec<WindowTransform> {
     let dt = s.dt;
@@ -291,6 +324,15 @@ pub(crate) fn window_transforms(
     let win = window(len, dt);
     let om = bin_omegas(len, dt);
     let df = 1.0 / (len as f64 * dt);
+    let gate: Option<Vec<f64>> = match (min_bin_snr, &s.noise) {
+        (Some(g), Some(nm)) if g > 0.0 => Some(
+            lhs_noise_var(&win, &om, dt, nm)
+                .into_iter()
+                .map(|v| g * v)
+                .collect(),
+        ),
+        _ => None,
+    };
     starts
         .iter()
         .map(|&st| {
@@ -301,8 +343,15 @@ pub(crate) fn window_transforms(
                 windowed_fft(&sl(&s.lhs), &win.0, dt, pl)
             };
             let max = lhs_full.iter().fold(0.0f64, |a, c| a.max(c.norm()));
+            // The strongest bin is always kept so no window is left without rows.
+            let top = (0..lhs_full.len())
+                .max_by(|&a, &b| lhs_full[a].norm().total_cmp(&lhs_full[b].norm()))
+                .unwrap_or(0);
             let bins: Vec<usize> = (0..lhs_full.len())
                 .filter(|&k| max > 0.0 && lhs_full[k].norm() >= delta_min * max)
+                .filter(|&k| {
+                    k == top || gate.as_ref().is_none_or(|g| lhs_full[k].norm_sqr() >= g[k])
+                })
                 .collect();
             let cols = s
                 .terms

@@ -17,6 +17,27 @@ pub struct Band {
     pub in_band_noise_share: f64,
     /// Estimated variance of the noise left in the reconstruction.
     pub noise_var: f64,
+    /// Noise floor model `ln N̂_k = floor_log_a + floor_beta·ln k` (k = bin of the mirror spectrum).
+    pub floor_log_a: f64,
+    /// Slope of the noise floor model (0 white, ≈ −1 pink).
+    pub floor_beta: f64,
+    /// Bin spacing (Hz) of the mirror spectrum.
+    pub bin_hz: f64,
+    /// Length of the mirror-extended transform (2N).
+    pub mirror_len: usize,
+}
+
+impl Band {
+    /// Estimated two-sided noise power spectral density (signal units² per Hz) at `f_hz` for a
+    /// signal sampled at `dt`: the fitted floor `N̂_k` at `k = f/Δf` equals `2N·σ²` for white
+    /// noise of variance σ² (see [`choose_cutoff`]), and white noise has density `σ²·dt`.
+    pub fn noise_psd(&self, f_hz: f64, dt: f64) -> f64 {
+        if !self.floor_log_a.is_finite() || self.mirror_len == 0 || self.bin_hz <= 0.0 {
+            return 0.0;
+        }
+        let k = (f_hz / self.bin_hz).max(1.0);
+        (self.floor_log_a + self.floor_beta * k.ln()).exp() / self.mirror_len as f64 * dt
+    }
 }
 
 /// Unbiased powers under Gaussian noise: with `y = x + e`, `e ~ N(0, s2)`, the scaled Hermite
@@ -67,45 +88,22 @@ fn mirror_spectrum(x: &[f64], planner: &mut RealFftPlanner<f64>) -> Vec<Complex<
     spec
 }
 
+/// Sub-bands of the upper half of the spectrum whose medians fit the noise floor.
+const FLOOR_SUBBANDS: usize = 16;
+
 /// Chooses the cut-off bin of a power spectrum `p` (bins 0..=K) of a mirror-extended (even) signal.
 ///
 /// The noise floor is modelled as a power law `N̂_k = A·k^β` fitted (least squares in log–log)
-/// to the medians of eight sub-bands of the upper half of the spectrum, each median divided by
+/// to the medians of sixteen sub-bands of the upper half of the spectrum, each median divided by
 /// 0.4549 — the median of a χ²₁ variable of unit mean (the transform of an even extension is
-/// real up to a phase, so a noise bin carries one squared Gaussian). β is clamped to [−2, 0.5]:
+/// real up to a phase, so a noise bin carries one squared Gaussian). β is set to 0 unless it differs from 0 by more than two standard errors, and clamped to [−2, 0.5]:
 /// white noise gives β ≈ 0, pink noise β ≈ −1, and the fitted slope extrapolates the floor into
 /// the signal band. The cut-off `k_c` then minimises the estimated reconstruction error
 /// `Σ_{k≤k_c} N̂_k + Σ_{k>k_c} (P_k − N̂_k)_+` (noise let in below the cut plus signal thrown away
 /// above it), with `k_c ≥ min_bin`. Returns `k_c`, the floor at `k_c` and `Σ_{1≤k≤k_c} N̂_k`.
 pub fn choose_cutoff(p: &[f64], min_bin: usize) -> (usize, f64, f64) {
     let k = p.len();
-    let lo = (k / 2).max(1);
-    let nsub = 8usize.min(k - lo).max(1);
-    let (mut sx, mut sy, mut sxx, mut sxy, mut cnt) = (0.0, 0.0, 0.0, 0.0, 0.0);
-    for b in 0..nsub {
-        let a0 = lo + b * (k - lo) / nsub;
-        let a1 = (lo + (b + 1) * (k - lo) / nsub).max(a0 + 1).min(k);
-        let mut band: Vec<f64> = p[a0..a1].to_vec();
-        band.sort_by(f64::total_cmp);
-        let med = band[band.len() / 2] / 0.454_936_4;
-        if med > 0.0 {
-            let x = (0.5 * (a0 + a1) as f64).ln();
-            let y = med.ln();
-            sx += x;
-            sy += y;
-            sxx += x * x;
-            sxy += x * y;
-            cnt += 1.0;
-        }
-    }
-    let (alpha, beta) = if cnt >= 2.0 && (cnt * sxx - sx * sx).abs() > 0.0 {
-        let beta = ((cnt * sxy - sx * sy) / (cnt * sxx - sx * sx)).clamp(-2.0, 0.5);
-        ((sy - beta * sx) / cnt, beta)
-    } else if cnt >= 1.0 {
-        (sy / cnt, 0.0)
-    } else {
-        (f64::NEG_INFINITY, 0.0)
-    };
+    let (alpha, beta) = fit_floor(p);
     let floor = |i: usize| (alpha + beta * (i.max(1) as f64).ln()).exp();
     let mut tail = vec![0.0; k + 1];
     for i in (0..k).rev() {
@@ -121,7 +119,79 @@ pub fn choose_cutoff(p: &[f64], min_bin: usize) -> (usize, f64, f64) {
             best = (kc, cost, head - floor(0));
         }
     }
-    (best.0, floor(best.0), best.2.max(0.0))
+    // Harmonics: a nonlinear response has energy at multiples of the drive band that may be
+    // worth less than the noise between them in total, yet each rises clearly above the local
+    // floor. Extend the cut-off to the last block of bins whose mean power exceeds the floor by
+    // `HARMONIC_EXCESS` (for noise alone the block mean is a χ²/m average: exceeding 2.5× its mean
+    // with m = 32 has probability ~1e-6). Noise-dominated bins inside the band are excluded
+    // later, in the regression, by the per-bin noise gate.
+    let mut kc = best.0;
+    let mut noise = best.2;
+    let m = HARMONIC_BLOCK;
+    let mut a0 = kc + 1;
+    while a0 + m <= k / 2 {
+        let mean = p[a0..a0 + m].iter().sum::<f64>() / m as f64;
+        let fl = (a0..a0 + m).map(floor).sum::<f64>() / m as f64;
+        if mean > HARMONIC_EXCESS * fl {
+            for i in kc + 1..a0 + m {
+                noise += floor(i);
+            }
+            kc = a0 + m - 1;
+        }
+        a0 += m;
+    }
+    (kc, floor(kc), noise.max(0.0))
+}
+
+/// Bins per block of the harmonic search of [`choose_cutoff`].
+const HARMONIC_BLOCK: usize = 128;
+/// Block mean power over the floor that marks a harmonic in [`choose_cutoff`].
+const HARMONIC_EXCESS: f64 = 1.5;
+
+/// The power-law noise floor `ln N̂_k = α + β ln k` of a mirror power spectrum (see
+/// [`choose_cutoff`]); returns (α, β), α = −∞ when the spectrum is zero.
+pub fn fit_floor(p: &[f64]) -> (f64, f64) {
+    let k = p.len();
+    let lo = (k / 2).max(1);
+    let nsub = FLOOR_SUBBANDS.min(k - lo).max(1);
+    let mut pts: Vec<(f64, f64)> = Vec::with_capacity(nsub);
+    for b in 0..nsub {
+        let a0 = lo + b * (k - lo) / nsub;
+        let a1 = (lo + (b + 1) * (k - lo) / nsub).max(a0 + 1).min(k);
+        let mut band: Vec<f64> = p[a0..a1].to_vec();
+        band.sort_by(f64::total_cmp);
+        let med = band[band.len() / 2] / 0.454_936_4;
+        if med > 0.0 {
+            pts.push(((0.5 * (a0 + a1) as f64).ln(), med.ln()));
+        }
+    }
+    let cnt = pts.len() as f64;
+    if pts.is_empty() {
+        return (f64::NEG_INFINITY, 0.0);
+    }
+    let mx = pts.iter().map(|p| p.0).sum::<f64>() / cnt;
+    let my = pts.iter().map(|p| p.1).sum::<f64>() / cnt;
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    if pts.len() < 3 || sxx <= 0.0 {
+        return (my, 0.0);
+    }
+    let b = sxy / sxx;
+    // Keep the slope only if it is significant (|β| > 2 standard errors): over the short
+    // log-frequency lever arm of the upper half, white noise alone gives slopes of ±0.4, and
+    // extrapolating such a slope into the signal band misplaces the floor by a factor of several.
+    let rss: f64 = pts
+        .iter()
+        .map(|p| (p.1 - my - b * (p.0 - mx)).powi(2))
+        .sum();
+    let se = (rss / (cnt - 2.0) / sxx).sqrt();
+    let beta = if b.abs() > 2.0 * se {
+        b.clamp(-2.0, 0.5)
+    } else {
+        0.0
+    };
+    let alpha = my - beta * mx;
+    (alpha, beta)
 }
 
 /// Band-limited reconstruction of `x` sampled at `dt`, with spectral derivatives; the band is
@@ -145,6 +215,7 @@ pub fn band_limit(
         }
         None => choose_cutoff(&power, 1),
     };
+    let floor_model = fit_floor(&power);
     let total: f64 = power.iter().skip(1).sum::<f64>().max(f64::MIN_POSITIVE);
     let share = (noise_sum / total).min(1.0);
     // Parseval on the 2N-point extension: variance = 2·Σ_{1≤k≤kc} N̂_k / (2N)².
@@ -188,6 +259,10 @@ pub fn band_limit(
             noise_floor: floor,
             in_band_noise_share: share,
             noise_var,
+            floor_log_a: floor_model.0,
+            floor_beta: floor_model.1,
+            bin_hz: df,
+            mirror_len: nn,
         },
     }
 }
@@ -397,6 +472,39 @@ mod tests {
             "rms acceleration error {ea}, band {:?}",
             sm.band
         );
+    }
+
+    /// On pure white noise of variance σ² the fitted floor is flat (β = 0 after the significance
+    /// test) and its density is σ²·dt, for several independent draws.
+    #[test]
+    fn white_noise_floor_is_flat_with_the_right_density() {
+        let dt = 0.01;
+        let n = 6000;
+        for seed in [3u64, 17, 29, 41] {
+            let mut s = seed;
+            let x: Vec<f64> = (0..n)
+                .map(|_| {
+                    let mut acc = 0.0;
+                    for _ in 0..12 {
+                        s = s
+                            .wrapping_mul(6364136223846793005)
+                            .wrapping_add(1442695040888963407);
+                        acc += (s >> 11) as f64 / (1u64 << 53) as f64;
+                    }
+                    0.5 * (acc - 6.0)
+                })
+                .collect();
+            let sm = band_limit(&x, dt, None, &mut RealFftPlanner::new());
+            let want = 0.25 * dt;
+            for f in [0.5, 5.0, 40.0] {
+                let got = sm.band.noise_psd(f, dt);
+                assert!(
+                    (got / want - 1.0).abs() < 0.15,
+                    "seed {seed}, {f} Hz: {got} vs {want} ({:?})",
+                    sm.band
+                );
+            }
+        }
     }
 
     #[test]

@@ -7,15 +7,19 @@ use serde_json::json;
 use tfs::basin::{BasinConfig, med_sdof};
 
 use super::basin::run_map;
-use super::systems::model_sdof;
+use super::systems::{model_sdof, truth_sdof};
 use super::{parse_grid, parse_range, print_json, read_model};
 
 /// Arguments of `tfs med`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// The model (tfs-model/1 JSON, 1 DOF, at least two stable states).
+    #[arg(long, required_unless_present = "truth", conflicts_with = "truth")]
+    pub model: Option<PathBuf>,
+    /// Compute the MED of a truth instead of a model: kresling, kresling:surrogate or
+    /// kresling:truss.
     #[arg(long)]
-    pub model: PathBuf,
+    pub truth: Option<String>,
     /// Grid NxM of the basin map the search starts from.
     #[arg(long, default_value = "200x200")]
     pub grid: String,
@@ -43,13 +47,21 @@ pub fn run(args: Args) -> Result<()> {
     let v_range = parse_range(&args.v, "--v")?;
     let w = x_range.1 - x_range.0;
     let search = (x_range.0 - 0.5 * w, x_range.1 + 0.5 * w);
-    let model = read_model(&args.model)?;
-    let sdof = model_sdof(&args.model, &model, search)?;
+    let (sdof, what) = match (&args.model, &args.truth) {
+        (Some(path), _) => {
+            let model = read_model(path)?;
+            (
+                model_sdof(path, &model, search)?,
+                path.display().to_string(),
+            )
+        }
+        (None, Some(spec)) => (truth_sdof(spec, search)?, spec.clone()),
+        (None, None) => bail!("give --model FILE or --truth SPEC"),
+    };
     let n = sdof.wells.stable().len();
     if n < 2 {
         bail!(
-            "{}: the model has {} stable state(s) on {search:?}; MED needs a bistable model",
-            args.model.display(),
+            "{what}: {} stable state(s) on {search:?}; MED needs a bistable system",
             n
         );
     }
@@ -72,7 +84,7 @@ pub fn run(args: Args) -> Result<()> {
     )?;
     if args.json {
         print_json(&json!({
-            "model": args.model.display().to_string(),
+            "system": what,
             "from": sdof.wells.stable()[args.from - 1],
             "to": sdof.wells.stable()[args.to - 1],
             "x0": med.x0, "v0": med.v0, "energy": med.energy,
