@@ -190,6 +190,124 @@ impl CompiledModel {
         }
     }
 
+    /// Number of terms over all equations (the length of [`CompiledModel::coefficients`]).
+    pub fn n_terms(&self) -> usize {
+        self.terms.len()
+    }
+
+    /// The coefficients of every term, equation by equation in DOF order.
+    pub fn coefficients(&self) -> Vec<f64> {
+        self.terms.iter().map(|t| t.0).collect()
+    }
+
+    /// The DOF index of the equation term `j` belongs to.
+    ///
+    /// # Panics
+    /// If `j >= n_terms()`.
+    pub fn equation_of(&self, j: usize) -> usize {
+        self.equations
+            .iter()
+            .position(|&(t0, t1)| (t0..t1).contains(&j))
+            .expect("term index below n_terms()")
+    }
+
+    /// Evaluates the model with the coefficients `coefs` (in place of the compiled ones, same order
+    /// as [`CompiledModel::coefficients`]) and returns everything a sensitivity or Jacobian-based
+    /// method needs, without allocating for terms of up to 8 factors:
+    /// `a[i] = Σ_j coefs[j]·θ_j` for the terms of equation `i`, the regressors `theta[j] = θ_j`,
+    /// and the state Jacobians `ax[i·n + k] = ∂a_i/∂x_k`, `av[i·n + k] = ∂a_i/∂v_k` (analytic,
+    /// by the product rule over each term's factors; `|s|` has derivative `sign(s)`, `sign(s)`
+    /// derivative 0).
+    ///
+    /// # Panics
+    /// On slices shorter than the model needs (`n` DOFs, `n_terms` coefficients, `n²` Jacobian
+    /// entries): a programming error.
+    #[allow(clippy::too_many_arguments)]
+    pub fn eval_jacobian(
+        &self,
+        coefs: &[f64],
+        x: &[f64],
+        v: &[f64],
+        u: &[f64],
+        a: &mut [f64],
+        theta: &mut [f64],
+        ax: &mut [f64],
+        av: &mut [f64],
+    ) {
+        let n = self.dofs();
+        a[..n].fill(0.0);
+        ax[..n * n].fill(0.0);
+        av[..n * n].fill(0.0);
+        let mut vals = [0.0f64; 8];
+        let mut ders = [0.0f64; 8];
+        let mut big_vals = Vec::new();
+        let mut big_ders = Vec::new();
+        for (i, &(t0, t1)) in self.equations.iter().enumerate() {
+            for j in t0..t1 {
+                let (_, f0, f1) = self.terms[j];
+                let fs = &self.factors[f0..f1];
+                let nf = fs.len();
+                let (fv, fd): (&mut [f64], &mut [f64]) = if nf <= 8 {
+                    (&mut vals[..nf], &mut ders[..nf])
+                } else {
+                    big_vals.resize(nf, 0.0);
+                    big_ders.resize(nf, 0.0);
+                    (&mut big_vals[..], &mut big_ders[..])
+                };
+                let mut prod = 1.0;
+                for (m, f) in fs.iter().enumerate() {
+                    let s = Self::value(f.src, x, v, u);
+                    let (val, der) = match f.kind {
+                        Kind::Pow(0) => (1.0, 0.0),
+                        Kind::Pow(1) => (s, 1.0),
+                        Kind::Pow(k) => (pow_u(s, k), k as f64 * pow_u(s, k - 1)),
+                        Kind::Abs => (s.abs(), sign0(s)),
+                        Kind::Sign => (sign0(s), 0.0),
+                        Kind::Tanh(inv) => {
+                            let th = (s * inv).tanh();
+                            (th, inv * (1.0 - th * th))
+                        }
+                    };
+                    fv[m] = val;
+                    fd[m] = der;
+                    prod *= val;
+                }
+                theta[j] = prod;
+                let c = coefs[j];
+                a[i] += c * prod;
+                for (m, f) in fs.iter().enumerate() {
+                    if fd[m] == 0.0 {
+                        continue;
+                    }
+                    let others: f64 = fv
+                        .iter()
+                        .enumerate()
+                        .filter(|&(l, _)| l != m)
+                        .map(|(_, w)| w)
+                        .product();
+                    let g = c * fd[m] * others;
+                    match f.src {
+                        Src::X(k) => ax[i * n + k] += g,
+                        Src::V(k) => av[i * n + k] += g,
+                        Src::U(_) => {}
+                        Src::RelX(k, b) => {
+                            ax[i * n + k] += g;
+                            if let Base::X(l) = b {
+                                ax[i * n + l] -= g;
+                            }
+                        }
+                        Src::RelV(k, b) => {
+                            av[i * n + k] += g;
+                            if let Base::X(l) = b {
+                                av[i * n + l] -= g;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     /// Checked form of [`CompiledModel::accel`]: errors on wrong slice lengths.
     pub fn try_accel(&self, x: &[f64], v: &[f64], u: &[f64], out: &mut [f64]) -> Result<()> {
         let n = self.dofs();

@@ -4,107 +4,35 @@
 use std::sync::Mutex;
 
 use tfs_dynamics::SecondOrderSystem;
-use tfs_library::{Coord, Factor, Model, Var};
+use tfs_library::{CompiledModel, Model};
 
-use crate::{RefineError, Result};
+use crate::Result;
 
-#[derive(Debug, Clone, Copy)]
-enum Base {
-    X(usize),
-    U(usize),
-}
-
-#[derive(Debug, Clone, Copy)]
-enum Src {
-    X(usize),
-    V(usize),
-    U(usize),
-    RelX(usize, Base),
-    RelV(usize, Base),
-}
-
-#[derive(Debug, Clone, Copy)]
-enum Kind {
-    Pow(u32),
-    Abs,
-    Sign,
-    Tanh(f64),
-}
-
-#[derive(Debug, Clone)]
-struct TermEval {
-    eq: usize,
-    factors: Vec<(Kind, Src)>,
-}
-
-/// The model's structure (terms in DOF order, then equation order), resolved to indices.
+/// The model's structure (terms in DOF order, then equation order), compiled by tfs-library.
 /// Coefficients are kept outside so they can be varied.
 #[derive(Debug, Clone)]
 pub(crate) struct Structure {
     pub n: usize,
     pub inputs: usize,
-    terms: Vec<TermEval>,
+    compiled: CompiledModel,
+    /// Equation (DOF index) of each coefficient.
+    eqs: Vec<usize>,
 }
 
 impl Structure {
     /// Resolves `model`'s terms. Returns the structure and the coefficient vector.
     pub fn new(model: &Model) -> Result<(Self, Vec<f64>)> {
-        model.validate()?;
-        let dof = |n: &str| {
-            model
-                .dofs
-                .iter()
-                .position(|d| d == n)
-                .ok_or_else(|| RefineError::Model(format!("term uses unknown DOF '{n}'")))
-        };
-        let input =
-            |n: &str| {
-                model.inputs.iter().position(|d| d == n).ok_or_else(|| {
-                    RefineError::Model(format!("input '{n}' is needed but not listed"))
-                })
-            };
-        let mut terms = Vec::new();
-        let mut coefs = Vec::new();
-        for (e, d) in model.dofs.iter().enumerate() {
-            for mt in &model.equation(d)?.terms {
-                let mut factors = Vec::new();
-                for f in mt.term.factors() {
-                    let src = match f.var() {
-                        Var::Disp(n) => Src::X(dof(n)?),
-                        Var::Vel(n) => Src::V(dof(n)?),
-                        Var::Input(n) => Src::U(input(n)?),
-                        Var::RelDisp(a, b) => Src::RelX(
-                            dof(a)?,
-                            match b {
-                                Coord::Dof(n) => Base::X(dof(n)?),
-                                Coord::Input(n) => Base::U(input(n)?),
-                            },
-                        ),
-                        Var::RelVel(a, b) => Src::RelV(
-                            dof(a)?,
-                            match b {
-                                Coord::Dof(n) => Base::X(dof(n)?),
-                                Coord::Input(_) => Base::U(input(&b.velocity_column())?),
-                            },
-                        ),
-                    };
-                    let kind = match f {
-                        Factor::Pow(_, k) => Kind::Pow(*k),
-                        Factor::Abs(_) => Kind::Abs,
-                        Factor::Sign(_) => Kind::Sign,
-                        Factor::Tanh(_, eps) => Kind::Tanh(1.0 / eps),
-                    };
-                    factors.push((kind, src));
-                }
-                terms.push(TermEval { eq: e, factors });
-                coefs.push(mt.coef);
-            }
-        }
+        let compiled = model.compile()?;
+        let coefs = compiled.coefficients();
+        let eqs = (0..compiled.n_terms())
+            .map(|j| compiled.equation_of(j))
+            .collect();
         Ok((
             Self {
-                n: model.dofs.len(),
-                inputs: model.inputs.len(),
-                terms,
+                n: compiled.dofs(),
+                inputs: compiled.inputs(),
+                compiled,
+                eqs,
             },
             coefs,
         ))
@@ -112,17 +40,16 @@ impl Structure {
 
     /// Number of coefficients.
     pub fn params(&self) -> usize {
-        self.terms.len()
+        self.eqs.len()
     }
 
     /// Equation (DOF index) of coefficient `j`.
-    #[cfg(test)]
     pub fn eq_of(&self, j: usize) -> usize {
-        self.terms[j].eq
+        self.eqs[j]
     }
 
     /// Evaluates `a = Σ c_j θ_j`, the regressors `θ_j`, and the Jacobians `ax[i·n+k] = ∂a_i/∂x_k`,
-    /// `av[i·n+k] = ∂a_i/∂v_k` (analytic: product rule over each term's factors).
+    /// `av[i·n+k] = ∂a_i/∂v_k` ([`CompiledModel::eval_jacobian`]).
     #[allow(clippy::too_many_arguments)]
     pub fn eval(
         &self,
@@ -135,102 +62,8 @@ impl Structure {
         ax: &mut [f64],
         av: &mut [f64],
     ) {
-        let n = self.n;
-        a[..n].fill(0.0);
-        ax[..n * n].fill(0.0);
-        av[..n * n].fill(0.0);
-        let mut vals = [0.0f64; 8];
-        let mut ders = [0.0f64; 8];
-        for (j, t) in self.terms.iter().enumerate() {
-            let nf = t.factors.len();
-            let mut prod = 1.0;
-            // Small fixed buffers; terms with more than 8 factors fall back to a slower path.
-            let mut big_vals = Vec::new();
-            let mut big_ders = Vec::new();
-            let (fv, fd): (&mut [f64], &mut [f64]) = if nf <= 8 {
-                (&mut vals[..nf], &mut ders[..nf])
-            } else {
-                big_vals.resize(nf, 0.0);
-                big_ders.resize(nf, 0.0);
-                (&mut big_vals[..], &mut big_ders[..])
-            };
-            for (m, &(kind, src)) in t.factors.iter().enumerate() {
-                let s = value(src, x, v, u);
-                let (f, d) = match kind {
-                    Kind::Pow(0) => (1.0, 0.0),
-                    Kind::Pow(1) => (s, 1.0),
-                    Kind::Pow(2) => (s * s, 2.0 * s),
-                    Kind::Pow(3) => (s * s * s, 3.0 * s * s),
-                    Kind::Pow(k) => (s.powi(k as i32), k as f64 * s.powi(k as i32 - 1)),
-                    Kind::Abs => (s.abs(), sign0(s)),
-                    Kind::Sign => (sign0(s), 0.0),
-                    Kind::Tanh(inv) => {
-                        let th = (s * inv).tanh();
-                        (th, inv * (1.0 - th * th))
-                    }
-                };
-                fv[m] = f;
-                fd[m] = d;
-                prod *= f;
-            }
-            theta[j] = prod;
-            let c = coefs[j];
-            let i = t.eq;
-            a[i] += c * prod;
-            for (m, &(_, src)) in t.factors.iter().enumerate() {
-                if fd[m] == 0.0 {
-                    continue;
-                }
-                let mut others = 1.0;
-                for (l, f) in fv.iter().enumerate() {
-                    if l != m {
-                        others *= f;
-                    }
-                }
-                let g = c * fd[m] * others;
-                match src {
-                    Src::X(k) => ax[i * n + k] += g,
-                    Src::V(k) => av[i * n + k] += g,
-                    Src::U(_) => {}
-                    Src::RelX(k, b) => {
-                        ax[i * n + k] += g;
-                        if let Base::X(l) = b {
-                            ax[i * n + l] -= g;
-                        }
-                    }
-                    Src::RelV(k, b) => {
-                        av[i * n + k] += g;
-                        if let Base::X(l) = b {
-                            av[i * n + l] -= g;
-                        }
-                    }
-                }
-            }
-        }
-    }
-}
-
-#[inline]
-fn sign0(s: f64) -> f64 {
-    if s > 0.0 {
-        1.0
-    } else if s < 0.0 {
-        -1.0
-    } else {
-        0.0
-    }
-}
-
-#[inline]
-fn value(src: Src, x: &[f64], v: &[f64], u: &[f64]) -> f64 {
-    match src {
-        Src::X(i) => x[i],
-        Src::V(i) => v[i],
-        Src::U(k) => u[k],
-        Src::RelX(i, Base::X(j)) => x[i] - x[j],
-        Src::RelX(i, Base::U(k)) => x[i] - u[k],
-        Src::RelV(i, Base::X(j)) => v[i] - v[j],
-        Src::RelV(i, Base::U(k)) => v[i] - u[k],
+        self.compiled
+            .eval_jacobian(coefs, x, v, u, a, theta, ax, av);
     }
 }
 
@@ -317,7 +150,7 @@ impl SecondOrderSystem for Augmented<'_> {
                     .sum();
             }
             if q < p {
-                let i = self.st.terms[q].eq;
+                let i = self.st.eq_of(q);
                 o[i] += s.theta[q] * self.pscale[q];
             }
         }
