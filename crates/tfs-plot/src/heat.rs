@@ -40,6 +40,22 @@ pub struct BasinMap {
 }
 
 /// Mixes a colour with white (`w` = share of white).
+/// Maximal horizontal runs of equal values in a row-major grid with `nx` columns:
+/// `(row, first column, one past the last column, value)`.
+fn runs<T: Copy + PartialEq>(values: &[T], nx: usize) -> Vec<(usize, usize, usize, T)> {
+    let mut out = Vec::new();
+    for (j, row) in values.chunks(nx.max(1)).enumerate() {
+        let mut i0 = 0;
+        for i in 1..=row.len() {
+            if i == row.len() || row[i] != row[i0] {
+                out.push((j, i0, i, row[i0]));
+                i0 = i;
+            }
+        }
+    }
+    out
+}
+
 fn tint(c: RGBColor, w: f64) -> RGBColor {
     let m = |v: u8| (f64::from(v) * (1.0 - w) + 255.0 * w).round() as u8;
     RGBColor(m(c.0), m(c.1), m(c.2))
@@ -126,27 +142,30 @@ impl BasinMap {
             .draw()
             .map_err(e)?;
         let (dx, dy) = ((x.1 - x.0) / self.nx as f64, (y.1 - y.0) / self.ny as f64);
-        let cell = |k: usize| {
-            let (i, j) = (k % self.nx, k / self.nx);
-            let (cx, cy) = (x.0 + i as f64 * dx, y.0 + j as f64 * dy);
-            [(cx, cy), (cx + dx, cy + dy)]
+        // One rectangle per horizontal run of equal cells (not per cell): the same picture with
+        // far fewer SVG elements on large grids.
+        let span = |j: usize, i0: usize, i1: usize| {
+            let (cx0, cx1, cy) = (
+                x.0 + i0 as f64 * dx,
+                x.0 + i1 as f64 * dx,
+                y.0 + j as f64 * dy,
+            );
+            [(cx0, cy), (cx1, cy + dy)]
         };
+        let class_runs = runs(&self.labels, self.nx);
         chart
-            .draw_series(
-                self.labels
-                    .iter()
-                    .enumerate()
-                    .map(|(k, &l)| Rectangle::new(cell(k), self.class_color(l).filled())),
-            )
+            .draw_series(class_runs.iter().map(|&(j, i0, i1, l)| {
+                Rectangle::new(span(j, i0, i1), self.class_color(l).filled())
+            }))
             .map_err(e)?;
         let mark = RGBColor(20, 20, 20).mix(0.6).filled();
         if let Some(h) = &self.highlight {
             chart
                 .draw_series(
-                    h.iter()
-                        .enumerate()
-                        .filter(|(_, on)| **on)
-                        .map(|(k, _)| Rectangle::new(cell(k), mark)),
+                    runs(h, self.nx)
+                        .into_iter()
+                        .filter(|r| r.3)
+                        .map(|(j, i0, i1, _)| Rectangle::new(span(j, i0, i1), mark)),
                 )
                 .map_err(e)?;
         }
@@ -211,5 +230,28 @@ impl BasinMap {
                 .map_err(e)?;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::runs;
+
+    #[test]
+    fn runs_cover_every_cell_once_and_split_at_changes() {
+        let v = [1u8, 1, 2, 2, 2, 1, 3, 3, 3];
+        let r = runs(&v, 3);
+        assert_eq!(
+            r,
+            vec![
+                (0, 0, 2, 1),
+                (0, 2, 3, 2),
+                (1, 0, 2, 2),
+                (1, 2, 3, 1),
+                (2, 0, 3, 3)
+            ]
+        );
+        let covered: usize = r.iter().map(|&(_, a, b, _)| b - a).sum();
+        assert_eq!(covered, v.len());
     }
 }
