@@ -10,7 +10,15 @@
 //! `tfs-model/1` file:
 //! * `maxwell_<dof>_tau_<τ>`: the velocity of `<dof>` low-pass filtered with time constant τ
 //!   seconds, `τ y' + y = x'` (a hidden Maxwell element: spring in series with a dashpot);
-//! * `<input>_delay_<δ>`: the input column delayed by δ seconds.
+//! * `<input>_delay_<δ>`: the input column delayed by δ seconds;
+//! * `<input>_lowpass_<τ>`: the input column low-pass filtered with time constant τ seconds.
+//!
+//! Coordinates: every effect is offered on the DOF's own coordinate and on each relative
+//! coordinate `(a-b)`, `(a-b)'` its equation already uses (chain couplings, motion relative to a
+//! moving base); the scan keeps the best. Raw units: when the equation has the constant term `1`
+//! (the displacement's origin is an arbitrary sensor offset absorbed by the constant),
+//! displacement powers are offered about the mean position, `(x − x̄)^k`, and expanded into plain
+//! powers in the model ([`EffectColumn::centred`]), so a DC offset does not change the effect.
 //!
 //! Numbers are written with `p` for the decimal point (`0.35` → `0p35`). Simulating a model with
 //! such columns needs [`crate::simulate`] (delays are computed from the record; the Maxwell
@@ -37,6 +45,14 @@ pub enum ComputedColumn {
         input: String,
         /// Delay in seconds.
         delay: f64,
+    },
+    /// Input column `input` low-pass filtered with time constant `tau` seconds (`τ y' + y = u`,
+    /// starting from `y = u₀`): the first-order dynamics of an exciter or amplifier.
+    Lowpass {
+        /// The input column.
+        input: String,
+        /// Time constant in seconds.
+        tau: f64,
     },
 }
 
@@ -73,6 +89,9 @@ impl ComputedColumn {
             ComputedColumn::Delayed { input, delay } => {
                 format!("{input}_delay_{}", encode(*delay))
             }
+            ComputedColumn::Lowpass { input, tau } => {
+                format!("{input}_lowpass_{}", encode(*tau))
+            }
         }
     }
 
@@ -95,6 +114,14 @@ impl ComputedColumn {
                 delay: decode(delay)?,
             });
         }
+        if let Some((input, tau)) = name.rsplit_once("_lowpass_")
+            && !input.is_empty()
+        {
+            return Some(ComputedColumn::Lowpass {
+                input: input.to_string(),
+                tau: decode(tau)?,
+            });
+        }
         None
     }
 
@@ -102,8 +129,16 @@ impl ComputedColumn {
     pub fn source(&self) -> String {
         match self {
             ComputedColumn::Maxwell { dof, .. } => format!("{dof}'"),
-            ComputedColumn::Delayed { input, .. } => input.clone(),
+            ComputedColumn::Delayed { input, .. } | ComputedColumn::Lowpass { input, .. } => {
+                input.clone()
+            }
         }
+    }
+
+    /// True for columns computed from a record's input (delay, low-pass), which simulate as
+    /// ordinary inputs; false for the Maxwell column, which depends on the simulated state.
+    pub fn from_input(&self) -> bool {
+        !matches!(self, ComputedColumn::Maxwell { .. })
     }
 
     /// Computes the column from `cols` (which must hold [`ComputedColumn::source`]) sampled
@@ -122,6 +157,7 @@ impl ComputedColumn {
         Ok(match self {
             ComputedColumn::Maxwell { tau, .. } => lowpass(s, dt, *tau),
             ComputedColumn::Delayed { delay, .. } => delayed(s, dt, *delay),
+            ComputedColumn::Lowpass { tau, .. } => lowpass(s, dt, *tau),
         })
     }
 }
@@ -178,10 +214,17 @@ pub fn computed_columns(model: &Model) -> Vec<ComputedColumn> {
 /// computed input column.
 #[derive(Debug, Clone, PartialEq)]
 pub struct EffectColumn {
-    /// The term as it will appear in the model.
+    /// The term as it will appear in the model (for a centred column: its leading power).
     pub term: Term,
     /// Set when the term is a computed input column.
     pub computed: Option<ComputedColumn>,
+    /// Set for a column centred on an operating point: `(dof, m)` — the term's factor
+    /// `dof^k` is evaluated as `(dof − m)^k`. One coefficient multiplies the whole column; in the
+    /// model it is expanded into plain powers (see [`EffectColumn::expansion`]), so the model
+    /// stays a `tfs-model/1` polynomial. Used in raw units, where the displacement's origin is
+    /// an arbitrary sensor offset: `(x − m)^3` is the cubic stiffness about the mean position,
+    /// whereas `x^3` of the raw signal is a different, shift-dependent family.
+    pub centre: Option<(String, f64)>,
 }
 
 impl EffectColumn {
@@ -190,6 +233,7 @@ impl EffectColumn {
         Self {
             term,
             computed: None,
+            centre: None,
         }
     }
 
@@ -198,6 +242,85 @@ impl EffectColumn {
         Self {
             term: Term::var(Var::Input(c.name())),
             computed: Some(c),
+            centre: None,
+        }
+    }
+
+    /// `term` with its factor `dof^k` centred on `m` (a plain term when `term` has no such
+    /// factor or `m` is 0).
+    pub fn centred(term: Term, dof: &str, m: f64) -> Self {
+        let has = term
+            .factors()
+            .iter()
+            .any(|f| matches!(f, Factor::Pow(Var::Disp(d), _) if d == dof));
+        Self {
+            term,
+            computed: None,
+            centre: (has && m != 0.0 && m.is_finite()).then(|| (dof.to_string(), m)),
+        }
+    }
+
+    /// The plain terms and weights this column stands for: `[(term, 1)]`, or for a centred
+    /// column `Σ_j C(k, j)(−m)^(k−j) · dof^j · rest` (binomial expansion; `j = 0` is `rest`, the
+    /// constant `1` when the term is a pure power).
+    pub fn expansion(&self) -> Vec<(Term, f64)> {
+        let Some((dof, m)) = &self.centre else {
+            return vec![(self.term.clone(), 1.0)];
+        };
+        let mut k = 0;
+        let mut rest = Vec::new();
+        for f in self.term.factors() {
+            match f {
+                Factor::Pow(Var::Disp(d), p) if d == dof => k = *p,
+                other => rest.push(other.clone()),
+            }
+        }
+        let mut out = Vec::with_capacity(k as usize + 1);
+        let mut binom = 1.0;
+        for j in (0..=k).rev() {
+            // binom = C(k, j), built from j = k downwards.
+            let w = binom * (-m).powi((k - j) as i32);
+            let mut factors = rest.clone();
+            if j > 0 {
+                factors.push(Factor::Pow(Var::Disp(dof.clone()), j));
+            }
+            out.push((Term::new(factors), w));
+            binom = binom * j as f64 / (k - j + 1) as f64;
+        }
+        out
+    }
+
+    /// How the column reads in reports: the term, or `(x-m)^k·rest` when centred.
+    pub fn label(&self) -> String {
+        match &self.centre {
+            None => self.term.to_string(),
+            Some((dof, m)) => {
+                let k = self
+                    .term
+                    .factors()
+                    .iter()
+                    .find_map(|f| match f {
+                        Factor::Pow(Var::Disp(d), p) if d == dof => Some(*p),
+                        _ => None,
+                    })
+                    .unwrap_or(1);
+                let rest: Vec<String> = self
+                    .term
+                    .factors()
+                    .iter()
+                    .filter(|f| !matches!(f, Factor::Pow(Var::Disp(d), _) if d == dof))
+                    .map(|f| Term::new(vec![f.clone()]).to_string())
+                    .collect();
+                let base = if k == 1 {
+                    format!("({dof}-{})", round3(*m))
+                } else {
+                    format!("({dof}-{})^{k}", round3(*m))
+                };
+                std::iter::once(base)
+                    .chain(rest)
+                    .collect::<Vec<_>>()
+                    .join("*")
+            }
         }
     }
 }
@@ -250,6 +373,9 @@ pub struct EffectContext<'a> {
     pub dt: f64,
     /// Highest stiffness power offered.
     pub max_power: u32,
+    /// Mean of the DOF's (smoothed) displacement over the data: the operating point about which
+    /// displacement-dependent effects are offered when the equation has a constant term.
+    pub displacement_mean: f64,
 }
 
 impl EffectContext<'_> {
@@ -262,6 +388,43 @@ impl EffectContext<'_> {
     }
     fn vel(&self) -> Var {
         Var::Vel(self.dof.to_string())
+    }
+    /// The velocity coordinates an effect may act on: the DOF's own velocity first, then every
+    /// relative velocity `(a-b)'` the equation already uses (the couplings of a chain, or the
+    /// motion relative to a moving base), in order of first appearance.
+    pub fn velocity_vars(&self) -> Vec<Var> {
+        self.coordinate_vars(self.vel(), Var::is_velocity)
+    }
+    /// The displacement coordinates: the DOF's own displacement first, then every relative
+    /// displacement `(a-b)` the equation uses.
+    pub fn displacement_vars(&self) -> Vec<Var> {
+        self.coordinate_vars(self.disp(), Var::is_displacement)
+    }
+    fn coordinate_vars(&self, own: Var, keep: fn(&Var) -> bool) -> Vec<Var> {
+        let mut out = vec![own];
+        for t in &self.terms {
+            for v in t.vars() {
+                if keep(v) && !out.contains(v) {
+                    out.push(v.clone());
+                }
+            }
+        }
+        out
+    }
+    /// True when the equation has the constant term `1`: the displacement's origin is then
+    /// arbitrary (raw units with a sensor offset, absorbed by the constant), and powers of the
+    /// displacement are offered about [`EffectContext::displacement_mean`].
+    pub fn raw_origin(&self) -> bool {
+        self.has(&Term::constant())
+    }
+    /// A displacement-dependent column: centred on the mean position in raw units (see
+    /// [`EffectContext::raw_origin`]), plain otherwise.
+    pub fn displacement_column(&self, term: Term) -> EffectColumn {
+        if self.raw_origin() {
+            EffectColumn::centred(term, self.dof, self.displacement_mean)
+        } else {
+            EffectColumn::term(term)
+        }
     }
 }
 
@@ -284,6 +447,36 @@ fn single(ctx: &EffectContext<'_>, term: Term) -> Vec<Variant> {
     }
 }
 
+/// Like `single`, for a displacement-dependent term: centred on the mean position in raw units.
+fn single_displacement(ctx: &EffectContext<'_>, term: Term) -> Vec<Variant> {
+    if ctx.has(&term) {
+        Vec::new()
+    } else {
+        vec![Variant::adding(None, vec![ctx.displacement_column(term)])]
+    }
+}
+
+/// One variant per coordinate: `make(v)` for every velocity (or displacement) coordinate `v` of
+/// the equation, skipping terms already present. The DOF's own coordinate goes through `own`
+/// (centred in raw units for displacement terms), relative ones are plain terms.
+fn per_coordinate(
+    ctx: &EffectContext<'_>,
+    vars: Vec<Var>,
+    make: impl Fn(&Var) -> Term,
+    own: impl Fn(&EffectContext<'_>, Term) -> Vec<Variant>,
+) -> Vec<Variant> {
+    let mut out = Vec::new();
+    for (i, v) in vars.iter().enumerate() {
+        let term = make(v);
+        if i == 0 {
+            out.extend(own(ctx, term));
+        } else if !ctx.has(&term) {
+            out.push(Variant::adding(None, vec![EffectColumn::term(term)]));
+        }
+    }
+    out
+}
+
 /// Dry (Coulomb) friction `tanh(x'/ε)`, ε scanned relative to the velocity RMS.
 #[derive(Debug, Clone, Copy)]
 pub struct DryFriction;
@@ -299,20 +492,19 @@ impl Effect for DryFriction {
         if ctx.velocity_scale <= 0.0 {
             return Vec::new();
         }
-        [0.003, 0.01, 0.03, 0.1, 0.3]
-            .iter()
-            .map(|r| round3(r * ctx.velocity_scale))
-            .filter(|&eps| !ctx.has(&Term::new(vec![Factor::Tanh(ctx.vel(), eps)])))
-            .map(|eps| {
-                Variant::adding(
-                    Some(("eps".into(), eps)),
-                    vec![EffectColumn::term(Term::new(vec![Factor::Tanh(
-                        ctx.vel(),
-                        eps,
-                    )]))],
-                )
-            })
-            .collect()
+        let mut out = Vec::new();
+        for v in ctx.velocity_vars() {
+            for eps in [0.003, 0.01, 0.03, 0.1, 0.3].map(|r| round3(r * ctx.velocity_scale)) {
+                let term = Term::new(vec![Factor::Tanh(v.clone(), eps)]);
+                if !ctx.has(&term) {
+                    out.push(Variant::adding(
+                        Some(("eps".into(), eps)),
+                        vec![EffectColumn::term(term)],
+                    ));
+                }
+            }
+        }
+        out
     }
 }
 
@@ -327,9 +519,11 @@ impl Effect for QuadraticDamping {
         "velocity-squared damping x'*abs(x') (air drag, turbulent flow)".into()
     }
     fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
-        single(
+        per_coordinate(
             ctx,
-            Term::new(vec![Factor::Pow(ctx.vel(), 1), Factor::Abs(ctx.vel())]),
+            ctx.velocity_vars(),
+            |v| Term::new(vec![Factor::Pow(v.clone(), 1), Factor::Abs(v.clone())]),
+            single,
         )
     }
 }
@@ -345,7 +539,12 @@ impl Effect for CubicDamping {
         "cubic damping x'^3".into()
     }
     fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
-        single(ctx, Term::new(vec![Factor::Pow(ctx.vel(), 3)]))
+        per_coordinate(
+            ctx,
+            ctx.velocity_vars(),
+            |v| Term::new(vec![Factor::Pow(v.clone(), 3)]),
+            single,
+        )
     }
 }
 
@@ -360,10 +559,20 @@ impl Effect for AmplitudeDamping {
         "amplitude-dependent damping x^2*x' (material damping growing with strain)".into()
     }
     fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
-        single(
+        // Own coordinate: x^2*x'; a coupling: (a-b)^2*(a-b)'.
+        let mut out = single_displacement(
             ctx,
             Term::new(vec![Factor::Pow(ctx.disp(), 2), Factor::Pow(ctx.vel(), 1)]),
-        )
+        );
+        for v in ctx.velocity_vars().into_iter().skip(1) {
+            if let Some(d) = v.integral() {
+                let term = Term::new(vec![Factor::Pow(d, 2), Factor::Pow(v, 1)]);
+                if !ctx.has(&term) {
+                    out.push(Variant::adding(None, vec![EffectColumn::term(term)]));
+                }
+            }
+        }
+        out
     }
 }
 
@@ -381,7 +590,13 @@ impl Effect for StiffnessPower {
         if self.0 == 0 || self.0 > ctx.max_power {
             return Vec::new();
         }
-        single(ctx, Term::new(vec![Factor::Pow(ctx.disp(), self.0)]))
+        let k = self.0;
+        per_coordinate(
+            ctx,
+            ctx.displacement_vars(),
+            |v| Term::new(vec![Factor::Pow(v.clone(), k)]),
+            single_displacement,
+        )
     }
 }
 
@@ -444,18 +659,7 @@ impl Effect for InputDelay {
         "input delay and gain: u(t) replaced by u(t - delta), delta scanned up to a tenth of the dominant period".into()
     }
     fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
-        let inputs: Vec<String> = ctx
-            .terms
-            .iter()
-            .filter_map(|t| match t.factors() {
-                [Factor::Pow(Var::Input(n), 1)]
-                    if ComputedColumn::parse(n, &ctx.model.dofs).is_none() =>
-                {
-                    Some(n.clone())
-                }
-                _ => None,
-            })
-            .collect();
+        let inputs = linear_inputs(ctx);
         if inputs.is_empty() {
             return Vec::new();
         }
@@ -478,6 +682,62 @@ impl Effect for InputDelay {
                             EffectColumn::computed(ComputedColumn::Delayed {
                                 input: i.clone(),
                                 delay,
+                            }),
+                        )
+                    })
+                    .collect(),
+            })
+            .collect()
+    }
+}
+
+/// The inputs used linearly by the equation (plain input columns, not computed ones).
+fn linear_inputs(ctx: &EffectContext<'_>) -> Vec<String> {
+    ctx.terms
+        .iter()
+        .filter_map(|t| match t.factors() {
+            [Factor::Pow(Var::Input(n), 1)]
+                if ComputedColumn::parse(n, &ctx.model.dofs).is_none() =>
+            {
+                Some(n.clone())
+            }
+            _ => None,
+        })
+        .collect()
+}
+
+/// Input filter and gain (exciter or amplifier dynamics): every input term `u` is replaced by
+/// `u` low-pass filtered with time constant τ, τ scanned over 1 %..30 % of the dominant period;
+/// the gain is the refitted input coefficient.
+#[derive(Debug, Clone, Copy)]
+pub struct InputFilter;
+impl Effect for InputFilter {
+    fn name(&self) -> String {
+        "input-filter".into()
+    }
+    fn description(&self) -> String {
+        "input filter and gain: u replaced by u low-pass filtered with time constant tau (first-order exciter/amplifier dynamics), tau scanned over 1 %..30 % of the dominant period".into()
+    }
+    fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
+        let inputs = linear_inputs(ctx);
+        if inputs.is_empty() || !(ctx.period.is_finite() && ctx.period > 0.0) {
+            return Vec::new();
+        }
+        [0.01, 0.02, 0.05, 0.1, 0.2, 0.3]
+            .iter()
+            .map(|r| round3(r * ctx.period))
+            .filter(|&tau| tau >= 0.1 * ctx.dt)
+            .map(|tau| Variant {
+                parameter: Some(("tau".into(), tau)),
+                add: Vec::new(),
+                replace: inputs
+                    .iter()
+                    .map(|i| {
+                        (
+                            Term::var(Var::Input(i.clone())),
+                            EffectColumn::computed(ComputedColumn::Lowpass {
+                                input: i.clone(),
+                                tau,
                             }),
                         )
                     })
@@ -526,6 +786,7 @@ impl Catalogue {
         add(Box::new(Offset));
         add(Box::new(Maxwell));
         add(Box::new(InputDelay));
+        add(Box::new(InputFilter));
         c
     }
 

@@ -8,8 +8,10 @@
 //!   mapped over (x, x') bins, frequency and time, with a plain-words summary.
 //! * [`explain()`](explain::explain) — the open [`Catalogue`] of [`Effect`]s (dry friction,
 //!   quadratic/cubic/amplitude damping, missing stiffness powers, offset, Maxwell relaxation,
-//!   input delay), each refitted with the model's terms, scored on held-out data, tested,
-//!   sized and ranked; "no significant missing effect" when none passes.
+//!   input delay, input filter), each on the DOF's own and relative (chain) coordinates, in raw
+//!   units about the mean position when the model has a constant; refitted with the model's
+//!   terms, scored on held-out data, tested, sized and ranked; "no significant missing effect"
+//!   when none passes.
 //! * [`add_effect`] — add an effect by name, refit, and append to the model's history;
 //!   [`error_ladder`] and [`ladder_table`] show each step.
 //! * [`diagnose`] — all of the above in one report.
@@ -26,6 +28,14 @@
 //! let c = ComputedColumn::Maxwell { dof: "x".into(), tau: 0.35 };
 //! assert_eq!(c.name(), "maxwell_x_tau_0p35");
 //! assert_eq!(ComputedColumn::parse(&c.name(), &["x".to_string()]), Some(c));
+//! // In raw units a power is offered about the mean position: (x − 0.5)² = x² − x + 0.25.
+//! let x2 = tfs_library::Term::parse("x^2", &["x"]).unwrap();
+//! let weights: Vec<f64> = tfs_diagnose::EffectColumn::centred(x2, "x", 0.5)
+//!     .expansion()
+//!     .iter()
+//!     .map(|(_, w)| *w)
+//!     .collect();
+//! assert_eq!(weights, vec![1.0, -1.0, 0.25]);
 //! // The low-pass of a constant is that constant.
 //! let y = tfs_diagnose::effects::lowpass(&[2.0; 50], 0.01, 0.1);
 //! assert!(y.iter().all(|v| (v - 2.0).abs() < 1e-12));

@@ -223,7 +223,8 @@ impl RecordStates {
         }
         for c in &computed {
             let src = c.source();
-            if let crate::effects::ComputedColumn::Delayed { input, .. } = c
+            if let crate::effects::ComputedColumn::Delayed { input, .. }
+            | crate::effects::ComputedColumn::Lowpass { input, .. } = c
                 && !cols.iter().any(|(n, _)| *n == src)
             {
                 let u = record

@@ -118,11 +118,15 @@ pub fn add_effect_with(
         let vname = format!("{dof}'");
         let mut vel = Vec::new();
         let mut periods = Vec::new();
+        let (mut xsum, mut xn) = (0.0, 0usize);
         for s in &states {
             let v = tfs_data::Columns::column(s, &vname).unwrap_or(&[]);
             vel.extend_from_slice(&v[s.margin..s.margin + s.usable()]);
             let x = tfs_data::Columns::column(s, dof).unwrap_or(&[]);
             periods.push(dominant_period(x, s.record.dt())?);
+            let used = &x[s.margin.min(x.len())..(s.margin + s.usable()).min(x.len())];
+            xsum += used.iter().sum::<f64>();
+            xn += used.len();
         }
         periods.sort_by(f64::total_cmp);
         let ctx = crate::effects::EffectContext {
@@ -133,6 +137,7 @@ pub fn add_effect_with(
             period: periods[periods.len() / 2],
             dt,
             max_power: opts.max_power,
+            displacement_mean: if xn > 0 { xsum / xn as f64 } else { 0.0 },
         };
         let variants = eff.variants(&ctx);
         if variants.is_empty() {
@@ -158,7 +163,7 @@ pub fn add_effect_with(
         let coef = full_fit(&compress_blocks(&d, &layout)?)?;
         out = with_equation(&out, idx, &cols, &coef)?;
         for c in v.add.iter().chain(v.replace.iter().map(|(_, c)| c)) {
-            added.push(c.term.to_string());
+            added.push(c.label());
         }
         details.push(json!({"dof": dof, "parameter": v.parameter}));
     }

@@ -1,6 +1,6 @@
 //! Simulating models that use computed effect columns, and R-MSE helpers.
 //!
-//! A delayed input is an ordinary input computed from the record ([`augment_record`]). A Maxwell
+//! A delayed or low-pass filtered input is an ordinary input computed from the record ([`augment_record`]). A Maxwell
 //! column depends on the *simulated* velocity, so [`simulate`] integrates each Maxwell filter as
 //! an extra state: an auxiliary coordinate `p` with `p'' = (x' − p')/τ`, whose velocity `p'` is
 //! the filtered velocity. Its initial value comes from the record's column (computed from the
@@ -41,7 +41,7 @@ pub fn augment_record(model: &Model, record: &Record, opts: &DiagnoseOptions) ->
                 let tmp = Record::new("tmp", record.t().to_vec(), vec![(c.source(), v)])?;
                 c.compute(&tmp, dt)?
             }
-            ComputedColumn::Delayed { input, .. } => {
+            ComputedColumn::Delayed { input, .. } | ComputedColumn::Lowpass { input, .. } => {
                 if record.column(input).is_none() {
                     return Err(missing(model, record, input));
                 }

@@ -77,17 +77,59 @@ proptest! {
         for c in [
             ComputedColumn::Maxwell { dof: "x2".into(), tau },
             ComputedColumn::Delayed { input: "xb_acc".into(), delay },
+            ComputedColumn::Lowpass { input: "u".into(), tau },
         ] {
             let back = ComputedColumn::parse(&c.name(), &dofs).unwrap();
             prop_assert_eq!(back.name(), c.name());
             let (a, b) = match (&c, &back) {
                 (ComputedColumn::Maxwell { tau: a, .. }, ComputedColumn::Maxwell { tau: b, .. }) => (*a, *b),
                 (ComputedColumn::Delayed { delay: a, .. }, ComputedColumn::Delayed { delay: b, .. }) => (*a, *b),
+                (ComputedColumn::Lowpass { tau: a, .. }, ComputedColumn::Lowpass { tau: b, .. }) => (*a, *b),
                 _ => return Err(TestCaseError::fail("kind changed")),
             };
             prop_assert!((a - b).abs() <= 5e-3 * a, "{} vs {}", a, b);
             // The name is a valid grammar identifier.
             prop_assert!(tfs_library::Term::parse(&c.name(), &dofs).is_ok());
         }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+    /// A centred column's binomial expansion evaluates to `(x − m)^k · rest` (independent: the
+    /// power of the shifted value), and a centred column with m = 0 is the plain term.
+    #[test]
+    fn centred_expansion_is_the_shifted_power(
+        k in 1u32..8,
+        m in -3.0f64..3.0,
+        x in -4.0f64..4.0,
+        v in -2.0f64..2.0,
+        with_vel in proptest::bool::ANY,
+    ) {
+        use tfs_diagnose::EffectColumn;
+        use tfs_library::{Factor, Term, Var};
+        let mut factors = vec![Factor::Pow(Var::Disp("x".into()), k)];
+        if with_vel {
+            factors.push(Factor::Pow(Var::Vel("x".into()), 1));
+        }
+        let c = EffectColumn::centred(Term::new(factors), "x", m);
+        let sum: f64 = c
+            .expansion()
+            .iter()
+            .map(|(t, w)| {
+                let mut val = *w;
+                for f in t.factors() {
+                    val *= match f.var() {
+                        Var::Disp(_) => f.apply(x),
+                        _ => f.apply(v),
+                    };
+                }
+                val
+            })
+            .sum();
+        let exact = (x - m).powi(k as i32) * if with_vel { v } else { 1.0 };
+        prop_assert!((sum - exact).abs() <= 1e-9 * (1.0 + exact.abs() + (x.abs() + m.abs()).powi(k as i32)));
+        let plain = EffectColumn::centred(c.term.clone(), "x", 0.0);
+        prop_assert_eq!(plain.expansion(), vec![(c.term.clone(), 1.0)]);
     }
 }

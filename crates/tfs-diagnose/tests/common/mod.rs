@@ -27,6 +27,8 @@ pub enum Hidden {
     },
     /// The structure feels the recorded input δ seconds late.
     Delay(f64),
+    /// The structure feels the recorded input through a first-order low-pass of time constant τ.
+    InputFilter(f64),
 }
 
 impl Hidden {
@@ -39,7 +41,7 @@ impl Hidden {
             Hidden::Cubic(_) => 0.0,
             Hidden::Offset(f) => f,
             Hidden::Maxwell { k, .. } => -k * z,
-            Hidden::Delay(_) => 0.0,
+            Hidden::Delay(_) | Hidden::InputFilter(_) => 0.0,
         }
     }
 }
@@ -116,6 +118,34 @@ pub fn record(
     }) {
         Some(d) => t.iter().map(|&tk| sweep.value((tk - d).max(0.0))).collect(),
         None => u.clone(),
+    };
+    // A first-order low-pass τ y' + y = u, integrated independently of the crate's filter:
+    // fine RK4 steps on the linearly interpolated input.
+    let felt = match truth.hidden.iter().find_map(|h| match h {
+        Hidden::InputFilter(tau) => Some(*tau),
+        _ => None,
+    }) {
+        Some(tau) => {
+            let sub = 20;
+            let h = dt / sub as f64;
+            let mut y = felt[0];
+            let mut out = vec![y];
+            for w in felt.windows(2) {
+                let du = (w[1] - w[0]) / dt;
+                for s in 0..sub {
+                    let u0 = w[0] + du * s as f64 * h;
+                    let f = |uu: f64, yy: f64| (uu - yy) / tau;
+                    let k1 = f(u0, y);
+                    let k2 = f(u0 + 0.5 * du * h, y + 0.5 * h * k1);
+                    let k3 = f(u0 + 0.5 * du * h, y + 0.5 * h * k2);
+                    let k4 = f(u0 + du * h, y + h * k3);
+                    y += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+                }
+                out.push(y);
+            }
+            out
+        }
+        None => felt,
     };
     let input = SampledInput::new(0.0, dt, vec![felt]).unwrap();
     let tr = Dopri5::default()
