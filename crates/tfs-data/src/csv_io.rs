@@ -126,6 +126,7 @@ fn parse<R: Read>(file: &str, reader: R, opts: &CsvOptions) -> Result<(Record, V
     let ncol = names.len();
     let mut cols: Vec<Vec<f64>> = vec![Vec::new(); ncol];
     let mut lines = Vec::new();
+    let mut time_resolution = f64::INFINITY;
     for rec in records {
         let rec = rec.map_err(|e| csv_error(file, &e))?;
         let line = rec.position().map_or(0, |p| p.line());
@@ -154,9 +155,10 @@ fn parse<R: Read>(file: &str, reader: R, opts: &CsvOptions) -> Result<(Record, V
             }
             cols[j].push(v);
         }
+        time_resolution = time_resolution.min(crate::validate::printed_resolution(&rec[ti]));
         lines.push(line);
     }
-    let t = cols.remove(ti);
+    let mut t = cols.remove(ti);
     let mut data_names = names.clone();
     data_names.remove(ti);
     let warnings = check_table(
@@ -166,9 +168,17 @@ fn parse<R: Read>(file: &str, reader: R, opts: &CsvOptions) -> Result<(Record, V
             names: &data_names,
             data: &cols,
             lines: &lines,
+            time_resolution,
         },
         opts,
     )?;
+    if let Some((t0, dt)) = warnings.iter().find_map(|w| match w {
+        DataError::TimeRounded { t0, dt, .. } => Some((*t0, *dt)),
+        _ => None,
+    }) {
+        // Rounded timestamps: use the uniform grid they round from.
+        t = (0..t.len()).map(|k| t0 + k as f64 * dt).collect();
+    }
     let record = Record::new(file, t, data_names.into_iter().zip(cols).collect())?;
     Ok((record, warnings))
 }

@@ -201,6 +201,24 @@ pub enum DataError {
         /// The tolerance used.
         tol: f64,
     },
+    /// Warning: the timestamps are printed with fewer decimals than the sampling interval needs
+    /// (e.g. 3 kHz written with 4 decimals); they lie on a uniform grid to within that rounding,
+    /// so the time axis was replaced by the grid `t0 + k·dt`.
+    #[error(
+        "{file}: column '{column}': timestamps are rounded to {resolution:e} s, coarser than the sampling interval {dt:.6e} s needs; they agree with a uniform grid to within the rounding, so the time axis was replaced by that grid t0 + k·dt (write more decimals to avoid this)"
+    )]
+    TimeRounded {
+        /// The file.
+        file: String,
+        /// The time column name.
+        column: String,
+        /// The printed resolution of the time column.
+        resolution: f64,
+        /// Start of the grid (least-squares fit to the timestamps).
+        t0: f64,
+        /// The sampling interval of the grid (least-squares fit to the timestamps).
+        dt: f64,
+    },
     /// Too few data rows.
     #[error(
         "{file}: row {last_row}: only {rows} data rows, at least {min} are needed; record longer or lower the minimum"
@@ -217,7 +235,7 @@ pub enum DataError {
     },
     /// A required column does not vary.
     #[error(
-        "{file}: row {row}, column '{column}': constant signal (every row is {value}); check the sensor channel or choose another column"
+        "{file}: row {row}, column '{column}': constant signal (every row is {value}), so nothing about its coefficient can be identified; check that the sensor or exciter channel was connected, or leave the column out"
     )]
     Constant {
         /// The file.
@@ -231,7 +249,7 @@ pub enum DataError {
     },
     /// A column sits at its extreme value too often (clipped sensor).
     #[error(
-        "{file}: row {row}, column '{column}': channel looks clipped: {count} samples ({percent:.1}%) sit exactly at the {which} {value}, with a run of {run} from this row; reduce the gain or allow it with the saturation option"
+        "{file}: row {row}, column '{column}': channel looks clipped: {count} samples ({percent:.1}%) sit exactly at the {which} {value}, with a run of {run} from this row; re-record with a lower gain or a wider input range, or accept the clipped samples knowingly (CLI: --clipped warn)"
     )]
     Saturated {
         /// The file.
@@ -291,6 +309,7 @@ impl DataError {
             | DataError::NonIncreasingTime { file, .. }
             | DataError::TimeGap { file, .. }
             | DataError::NonUniformTime { file, .. }
+            | DataError::TimeRounded { file, .. }
             | DataError::TooFewRows { file, .. }
             | DataError::Constant { file, .. }
             | DataError::Saturated { file, .. }
@@ -327,6 +346,7 @@ impl DataError {
             | DataError::NonIncreasingTime { column, .. }
             | DataError::TimeGap { column, .. }
             | DataError::NonUniformTime { column, .. }
+            | DataError::TimeRounded { column, .. }
             | DataError::Constant { column, .. }
             | DataError::Saturated { column, .. } => Some(column),
             _ => None,

@@ -2,9 +2,15 @@
 //!
 //! The rules, in the order they are checked (the first failure is returned):
 //! 1. time strictly increases (first offending row);
-//! 2. no gap: no step exceeds `gap_factor` (default 1.5) times the median step (first offending row);
+//! 2. no gap: no step exceeds `gap_factor` (default 1.5) times the median step (plus the printed
+//!    resolution `q` when the timestamps are rounded, see 3) (first offending row);
 //! 3. uniform sampling: every step is within `time_tolerance` (default 1 %) of the median step,
-//!    relative; the worst row is reported;
+//!    relative; the worst row is reported. Timestamps printed with fewer decimals than the
+//!    sampling interval needs (resolution `q` with `dt/q` not a whole number, e.g. 3 kHz written
+//!    with 4 decimals) are rounded, not jittered: steps may then differ by `q` more, and the file is
+//!    accepted when every timestamp is within `q/2 + time_tolerance·dt` (5 % slack on `q/2`) of
+//!    the uniform grid `t0 + k·dt` fitted by least squares; the time axis is then replaced by
+//!    that grid and a [`DataError::TimeRounded`] warning is returned;
 //! 4. at least `min_rows` (default 16) data rows;
 //! 5. no required column is constant (range ≤ 1e-12 relative to its largest magnitude);
 //! 6. no checked column is clipped: a column is *saturated* at its maximum (or minimum) when at
@@ -167,6 +173,34 @@ pub(crate) struct Table<'a> {
     pub data: &'a [Vec<f64>],
     /// 1-based line number of every data row.
     pub lines: &'a [u64],
+    /// Printed resolution of the time column (finest over its cells; 0 if unknown).
+    pub time_resolution: f64,
+}
+
+/// The resolution a decimal number is printed with: `"0.0003"` → 1e-4, `"1.5e-3"` → 1e-4,
+/// `"12"` → 1 (0 when the text is not a plain decimal number).
+pub(crate) fn printed_resolution(cell: &str) -> f64 {
+    let cell = cell.trim();
+    let (mant, exp) = match cell.find(['e', 'E']) {
+        Some(i) => match cell[i + 1..].parse::<i32>() {
+            Ok(e) => (&cell[..i], e),
+            Err(_) => return 0.0,
+        },
+        None => (cell, 0),
+    };
+    let decimals = mant.split_once('.').map_or(0, |(_, d)| d.len()) as i32;
+    10f64.powi(exp - decimals)
+}
+
+/// The step allowance for timestamps rounded to `q`: `q` when the sampling interval `dt` is not a
+/// whole multiple of `q` (the printed times are then rounded), else 0. Resolutions below
+/// 1e-6·dt (full-precision printing) never matter and give 0.
+fn rounding_allowance(q: f64, dt: f64) -> f64 {
+    if !(q > 0.0 && q.is_finite() && dt > 0.0) || q < 1e-6 * dt {
+        return 0.0;
+    }
+    let r = dt / q;
+    if (r - r.round()).abs() > 1e-3 { q } else { 0.0 }
 }
 
 /// Checks a parsed table; returns the warnings (errors downgraded by options) or the first error.
@@ -188,12 +222,21 @@ pub(crate) fn check_table(tab: &Table<'_>, opts: &CsvOptions) -> Result<Vec<Data
             });
         }
     }
+    let mut warnings = Vec::new();
     if n >= 3 {
         let dt = median_step(t);
+        // The sampling interval without gaps (mean of the steps that are not gaps): rounded
+        // timestamps have steps of ⌊dt/q⌋·q and ⌈dt/q⌉·q whose mean is dt.
+        let (sum, cnt) = t
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .filter(|&st| st <= opts.gap_factor * dt)
+            .fold((0.0, 0usize), |(s, c), st| (s + st, c + 1));
+        let allow = rounding_allowance(tab.time_resolution, sum / cnt.max(1) as f64);
         // 2. gaps
         for i in 1..n {
             let step = t[i] - t[i - 1];
-            if step > opts.gap_factor * dt {
+            if step > opts.gap_factor * dt + allow {
                 return Err(DataError::TimeGap {
                     file,
                     row: tab.lines[i],
@@ -205,20 +248,55 @@ pub(crate) fn check_table(tab: &Table<'_>, opts: &CsvOptions) -> Result<Vec<Data
                 });
             }
         }
-        // 3. uniform sampling: worst relative deviation
-        let (worst, rel) = (1..n)
-            .map(|i| (i, ((t[i] - t[i - 1]) - dt).abs() / dt))
-            .fold((0, 0.0_f64), |acc, x| if x.1 > acc.1 { x } else { acc });
-        if rel > opts.time_tolerance {
-            return Err(DataError::NonUniformTime {
-                file,
-                row: tab.lines[worst],
-                column: tcol,
-                step: t[worst] - t[worst - 1],
-                dt,
-                rel,
-                tol: opts.time_tolerance,
+        if allow > 0.0 {
+            // 3'. rounded timestamps: every one within q/2 + tol·dt of the uniform grid fitted
+            // by least squares (the endpoints themselves are rounded).
+            let kbar = 0.5 * (n - 1) as f64;
+            let tbar = t.iter().sum::<f64>() / n as f64;
+            let (sxy, sxx) = t.iter().enumerate().fold((0.0, 0.0), |(a, b), (k, &tk)| {
+                let dk = k as f64 - kbar;
+                (a + dk * (tk - tbar), b + dk * dk)
             });
+            let slope = sxy / sxx;
+            let t0 = tbar - slope * kbar;
+            let (worst, dev) = (0..n)
+                .map(|k| (k, (t[k] - (t0 + k as f64 * slope)).abs()))
+                .fold((0, 0.0_f64), |acc, x| if x.1 > acc.1 { x } else { acc });
+            if dev > 0.55 * allow + opts.time_tolerance * slope {
+                let k = worst.max(1);
+                return Err(DataError::NonUniformTime {
+                    file,
+                    row: tab.lines[k],
+                    column: tcol,
+                    step: t[k] - t[k - 1],
+                    dt: slope,
+                    rel: dev / slope,
+                    tol: opts.time_tolerance,
+                });
+            }
+            warnings.push(DataError::TimeRounded {
+                file: file.clone(),
+                column: tcol.clone(),
+                resolution: allow,
+                t0,
+                dt: slope,
+            });
+        } else {
+            // 3. uniform sampling: worst relative deviation
+            let (worst, rel) = (1..n)
+                .map(|i| (i, ((t[i] - t[i - 1]) - dt).abs() / dt))
+                .fold((0, 0.0_f64), |acc, x| if x.1 > acc.1 { x } else { acc });
+            if rel > opts.time_tolerance {
+                return Err(DataError::NonUniformTime {
+                    file,
+                    row: tab.lines[worst],
+                    column: tcol,
+                    step: t[worst] - t[worst - 1],
+                    dt,
+                    rel,
+                    tol: opts.time_tolerance,
+                });
+            }
         }
     }
     // 4. row count
@@ -258,7 +336,6 @@ pub(crate) fn check_table(tab: &Table<'_>, opts: &CsvOptions) -> Result<Vec<Data
         }
     }
     // 6. clipped channels
-    let mut warnings = Vec::new();
     if opts.saturation != Saturation::Allow {
         let checked: Vec<&String> = if opts.required.is_empty() {
             tab.names.iter().collect()
@@ -356,6 +433,19 @@ mod tests {
         assert_eq!(suggest("x", &av), Some("X"));
         assert_eq!(suggest("xb_ac", &av), Some("xb_acc"));
         assert_eq!(suggest("force", &av), None);
+    }
+
+    #[test]
+    fn printed_resolution_of_decimal_text() {
+        assert_eq!(printed_resolution("0.0003"), 1e-4);
+        assert_eq!(printed_resolution("12"), 1.0);
+        assert_eq!(printed_resolution(" 1.5e-3 "), 1e-4);
+        assert_eq!(printed_resolution("2E2"), 100.0);
+        assert_eq!(printed_resolution("1e"), 0.0);
+        assert_eq!(rounding_allowance(1e-4, 1.0 / 3000.0), 1e-4);
+        assert_eq!(rounding_allowance(1e-3, 1e-3), 0.0);
+        assert_eq!(rounding_allowance(1e-17, 1e-3), 0.0);
+        assert_eq!(rounding_allowance(1e-13, 1.37e-5), 0.0);
     }
 
     #[test]

@@ -461,3 +461,73 @@ proptest! {
         prop_assert_eq!(back.column("y"), r.column("y"));
     }
 }
+
+/// `t,x` at 3 kHz with the time printed with `decimals` decimals; `jitter(k)` is added to the
+/// true sampling time before printing.
+fn rounded_time_csv(n: usize, decimals: usize, jitter: impl Fn(usize) -> f64) -> String {
+    let mut s = String::from("t,x\n");
+    for k in 0..n {
+        let t = k as f64 / 3000.0 + jitter(k);
+        s.push_str(&format!("{t:.decimals$},{}\n", (0.37 * k as f64).sin()));
+    }
+    s
+}
+
+#[test]
+fn rounded_timestamps_are_accepted_and_regridded() {
+    // 3 kHz written with 4 decimals: steps are 0.0003 or 0.0004 (±15 % of dt), yet the samples
+    // are uniform; the reader puts them back on the grid and warns.
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("rounded.csv");
+    let n = 3001;
+    std::fs::write(&p, rounded_time_csv(n, 4, |_| 0.0)).unwrap();
+    let (r, w) = read_csv_checked(&p, &CsvOptions::default()).unwrap();
+    assert_eq!(w.len(), 1, "{w:?}");
+    let m = w[0].to_string();
+    assert!(
+        matches!(w[0], DataError::TimeRounded { .. })
+            && m.contains("rounded.csv")
+            && m.contains("column 't'"),
+        "{m}"
+    );
+    // The grid fitted to 3001 rounded stamps is k/3000 to far better than the rounding (1e-4,
+    // 30 % of a step): within 0.1 % of a step everywhere, dt within 1e-6 relative.
+    let dt = 1.0 / 3000.0;
+    for (k, t) in r.t().iter().enumerate() {
+        assert!((t - k as f64 * dt).abs() < 1e-3 * dt, "row {k}: {t}");
+    }
+    assert!((r.dt() - dt).abs() < 1e-6 * dt, "{}", r.dt());
+}
+
+#[test]
+fn rounded_timestamps_with_real_jitter_are_still_refused() {
+    // Same printing, but one sample was taken 30 % of a step late: beyond the rounding.
+    let text = rounded_time_csv(3001, 4, |k| if k == 1500 { 0.3 / 3000.0 } else { 0.0 });
+    let (e, m) = err(&text, &CsvOptions::default());
+    assert!(
+        matches!(e, DataError::NonUniformTime { row: 1502, .. }),
+        "{m}"
+    );
+}
+
+#[test]
+fn exactly_printed_coarse_timestamps_are_not_regridded() {
+    // 1 kHz written with 3 decimals is exact (dt is a whole multiple of the resolution).
+    let mut s = String::from("t,x\n");
+    for k in 0..200 {
+        s.push_str(&format!(
+            "{:.3},{}\n",
+            k as f64 * 1e-3,
+            (0.3 * k as f64).sin()
+        ));
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("exact.csv");
+    std::fs::write(&p, &s).unwrap();
+    let (_, w) = read_csv_checked(&p, &CsvOptions::default()).unwrap();
+    assert!(w.is_empty(), "{w:?}");
+    // and a missing sample is still a gap
+    let text = s.replace("0.100,", "#0.100,");
+    let (e, _) = err(&text, &CsvOptions::default());
+    assert!(matches!(e, DataError::TimeGap { .. }));
+}

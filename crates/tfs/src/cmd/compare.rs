@@ -8,7 +8,7 @@ use serde_json::json;
 use tfs::dynamics::{rms_error, rmse_ratio};
 use tfs::plot::{Figure, LineChart, Series};
 
-use super::{print_json, read_model, read_records};
+use super::{DataArgs, Offsets, offsets_for_model, print_json, read_model, read_records};
 
 /// Arguments of `tfs compare`.
 #[derive(Debug, clap::Args)]
@@ -25,6 +25,13 @@ pub struct Args {
     /// Print the scores as JSON on stdout.
     #[arg(long)]
     pub json: bool,
+    /// DC offsets of the DOF and input channels: `auto` (default) does what `tfs identify` did
+    /// for this model (its trace says so), `remove` subtracts each record's mean, `keep` uses
+    /// the records as they are.
+    #[arg(long, value_enum, default_value_t = Offsets::Auto)]
+    pub offsets: Offsets,
+    #[command(flatten)]
+    pub data_args: DataArgs,
 }
 
 /// Runs `tfs compare`.
@@ -32,7 +39,8 @@ pub fn run(args: Args) -> Result<()> {
     let model = read_model(&args.model)?;
     let mut required = model.dofs.clone();
     required.extend(model.inputs.iter().cloned());
-    let records = read_records(&args.data, &required)?;
+    let mut records = read_records(&args.data, &required, &args.data_args)?;
+    let offsets_report = offsets_for_model(&mut records, &model, &required, args.offsets)?;
     if let Some(dir) = &args.plots {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("--plots {}: cannot create the directory", dir.display()))?;
@@ -91,9 +99,21 @@ pub fn run(args: Args) -> Result<()> {
         files.push(json!({"path": path.display().to_string(), "r_mse": r_mse, "dofs": dofs}));
     }
     if args.json {
-        print_json(&json!({"model": args.model.display().to_string(), "files": files}))?;
+        print_json(&json!({
+            "model": args.model.display().to_string(),
+            "files": files,
+            "offsets": offsets_report,
+        }))?;
     } else {
-        println!("{:<40} {:>12} {:>14}", "file", "R-MSE", "RMS error");
+        println!(
+            "offsets: {} ({})",
+            offsets_report["mode"].as_str().unwrap_or("?"),
+            offsets_report["why"].as_str().unwrap_or("")
+        );
+        println!(
+            "{:<40} {:>12} {:>14}",
+            "file", "R-MSE", "RMS error (record units)"
+        );
         for f in &files {
             for d in f["dofs"].as_array().into_iter().flatten() {
                 println!(

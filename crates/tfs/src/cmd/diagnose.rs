@@ -8,7 +8,7 @@ use serde_json::json;
 use tfs::diagnose::{DiagnoseOptions, diagnose};
 use tfs::plot::{BarChart, Figure, LineChart, Series};
 
-use super::{print_json, read_model, read_records};
+use super::{DataArgs, Offsets, offsets_for_model, print_json, read_model, read_records};
 
 /// Arguments of `tfs diagnose`.
 #[derive(Debug, clap::Args)]
@@ -31,6 +31,13 @@ pub struct Args {
     /// Minimum effect size as a share of the force RMS.
     #[arg(long, default_value_t = 0.02)]
     pub min_share: f64,
+    /// DC offsets of the DOF and input channels: `auto` (default) does what `tfs identify` did
+    /// for this model (its trace says so), `remove` subtracts each record's mean, `keep` uses
+    /// the records as they are.
+    #[arg(long, value_enum, default_value_t = Offsets::Auto)]
+    pub offsets: Offsets,
+    #[command(flatten)]
+    pub data_args: DataArgs,
 }
 
 /// Runs `tfs diagnose`.
@@ -45,7 +52,8 @@ pub fn run(args: Args) -> Result<()> {
             .filter(|i| !computed.iter().any(|c| c.name() == **i))
             .cloned(),
     );
-    let records = read_records(&args.data, &required)?;
+    let mut records = read_records(&args.data, &required, &args.data_args)?;
+    let offsets_report = offsets_for_model(&mut records, &model, &required, args.offsets)?;
     let opts = DiagnoseOptions {
         alpha: args.alpha,
         min_share: args.min_share,
@@ -67,9 +75,15 @@ pub fn run(args: Args) -> Result<()> {
             "localisation": d.localisation,
             "tests": d.tests,
             "cutoff_hz": d.cutoff_hz,
+            "offsets": offsets_report,
         }))?;
     } else {
         println!("{}", d.verdict);
+        println!(
+            "offsets: {} ({})",
+            offsets_report["mode"].as_str().unwrap_or("?"),
+            offsets_report["why"].as_str().unwrap_or("")
+        );
         for s in &d.residual_summary {
             println!("residual: {s}");
         }

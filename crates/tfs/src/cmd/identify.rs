@@ -6,7 +6,10 @@ use anyhow::{Result, bail};
 use clap::ValueEnum;
 use tfs::criteria::{IdentifySpec, identify_sindy, identify_tfs};
 
-use super::{guess_dofs, guess_inputs, peek_columns, print_json, read_records};
+use super::{
+    DataArgs, Offsets, apply_offsets, guess_dofs, guess_inputs, peek_columns, print_json,
+    read_records,
+};
 
 /// Identification method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -50,6 +53,15 @@ pub struct Args {
     /// Print the model and trace as JSON on stdout.
     #[arg(long)]
     pub json: bool,
+    /// DC offsets of the DOF and input channels: `remove` subtracts each record's mean from
+    /// them, `keep` uses the records as they are, `constant-term` keeps them and adds the term
+    /// `1` to the library; `auto` (default) removes them when every input is force-like (`u`,
+    /// `force`, `voltage`: a rig in raw units) and keeps them otherwise (base excitation `xb_*`,
+    /// or no input). The choice and the offsets are in the trace and the model file.
+    #[arg(long, value_enum, default_value_t = Offsets::Auto)]
+    pub offsets: Offsets,
+    #[command(flatten)]
+    pub data_args: DataArgs,
 }
 
 /// The default library for the given DOFs and inputs: per DOF, the cell's own relative coordinate
@@ -112,14 +124,49 @@ pub fn run(args: Args) -> Result<()> {
     }
     // Every column the libraries name must be present in every file.
     let mut required: Vec<String> = dofs.clone();
-    for lib in spec_libraries(&spec)? {
+    let libs = spec_libraries(&spec)?;
+    for lib in &libs {
         for c in lib.required_columns() {
             if !c.ends_with('\'') && !required.contains(&c) {
                 required.push(c);
             }
         }
     }
-    let records = read_records(&args.data, &required)?;
+    let input_cols: Vec<String> = required
+        .iter()
+        .filter(|c| !dofs.contains(c))
+        .cloned()
+        .collect();
+    let (mode, why) = resolve_offsets(args.offsets, &input_cols);
+    let mut added_constant = false;
+    if mode == Offsets::ConstantTerm {
+        if spec.dof_libraries.is_empty() {
+            if !libs[0].terms().iter().any(|t| t.is_constant()) {
+                spec.library = format!("1, {}", spec.library);
+                added_constant = true;
+            }
+        } else {
+            for (s, lib) in spec.dof_libraries.iter_mut().zip(&libs) {
+                if !lib.terms().iter().any(|t| t.is_constant()) {
+                    *s = format!("1, {s}");
+                    added_constant = true;
+                }
+            }
+        }
+    }
+    let data_mode = if mode == Offsets::Remove {
+        Offsets::Remove
+    } else {
+        Offsets::Keep
+    };
+    let channels: Vec<String> = dofs.iter().chain(&input_cols).cloned().collect();
+    let mut records = read_records(&args.data, &required, &args.data_args)?;
+    let mut offsets_report = apply_offsets(&mut records, &channels, data_mode, &why)?;
+    offsets_report["requested"] = serde_json::json!(args.offsets.name());
+    if mode == Offsets::ConstantTerm {
+        offsets_report["mode"] = serde_json::json!(mode.name());
+        offsets_report["constant_term_added"] = serde_json::json!(added_constant);
+    }
     let mut identified = match args.method {
         Method::Tfs => identify_tfs(&records, &spec)?,
         Method::Sindy => identify_sindy(&records, &spec)?,
@@ -142,7 +189,8 @@ pub fn run(args: Args) -> Result<()> {
         if args.validate.is_empty() {
             identified.model = refined.model;
         } else {
-            let held_out = read_records(&args.validate, &required)?;
+            let mut held_out = read_records(&args.validate, &required, &args.data_args)?;
+            apply_offsets(&mut held_out, &channels, data_mode, &why)?;
             let (chosen, scores) =
                 tfs::refine::choose_by_validation(&identified.model, &refined.model, &held_out)?;
             refine_report["validation"] = serde_json::json!({
@@ -154,6 +202,11 @@ pub fn run(args: Args) -> Result<()> {
             identified.model = chosen;
         }
     }
+    if let Some(obj) = identified.model.trace.as_object_mut() {
+        obj.insert("offsets".into(), offsets_report.clone());
+    } else {
+        identified.model.trace = serde_json::json!({"offsets": offsets_report.clone()});
+    }
     if let Some(out) = &args.out {
         identified.model.write_path(out)?;
     }
@@ -162,10 +215,12 @@ pub fn run(args: Args) -> Result<()> {
             "model": identified.model.to_json_value()?,
             "trace": serde_json::to_value(&identified.trace)?,
             "refine": refine_report,
+            "offsets": offsets_report,
         }))?;
     } else {
         println!("{}", identified.model.equation_string());
         print_trace(&identified.trace);
+        print_offsets(&offsets_report);
         if !refine_report.is_null() {
             println!("refinement by simulation error: {refine_report}");
         }
@@ -174,6 +229,62 @@ pub fn run(args: Args) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// Resolves `--offsets auto` by the kind of the input columns; returns the mode and why.
+fn resolve_offsets(requested: Offsets, inputs: &[String]) -> (Offsets, String) {
+    if requested != Offsets::Auto {
+        return (requested, "given with --offsets".to_string());
+    }
+    if inputs.is_empty() {
+        (
+            Offsets::Keep,
+            "auto: no input column, records used as they are".to_string(),
+        )
+    } else if inputs.iter().any(|c| c.starts_with("xb")) {
+        (
+            Offsets::Keep,
+            "auto: base-motion input, displacements are geometric coordinates whose origin matters; records used as they are".to_string(),
+        )
+    } else {
+        (
+            Offsets::Remove,
+            format!(
+                "auto: force-like input(s) [{}] (a rig in raw units): each record's mean removed from every DOF and input channel",
+                inputs.join(", ")
+            ),
+        )
+    }
+}
+
+/// Prints what was done with the channel offsets, one line per record.
+fn print_offsets(report: &serde_json::Value) {
+    println!(
+        "offsets: {} ({})",
+        report["mode"].as_str().unwrap_or("?"),
+        report["why"].as_str().unwrap_or("")
+    );
+    if report["constant_term_added"] == serde_json::json!(true) {
+        println!("  constant term 1 added to the library");
+    }
+    for r in report["per_record"].as_array().into_iter().flatten() {
+        let (label, map) = match (r.get("removed"), r.get("mean")) {
+            (Some(m), _) => ("removed", m),
+            (_, Some(m)) => ("means kept", m),
+            _ => continue,
+        };
+        let list: Vec<String> = map
+            .as_object()
+            .into_iter()
+            .flatten()
+            .map(|(c, v)| format!("{c} = {:.6e}", v.as_f64().unwrap_or(f64::NAN)))
+            .collect();
+        println!(
+            "  {}: {label}: {}",
+            r["record"].as_str().unwrap_or(""),
+            list.join(", ")
+        );
+    }
 }
 
 fn spec_libraries(spec: &IdentifySpec) -> Result<Vec<tfs::library::Library>> {

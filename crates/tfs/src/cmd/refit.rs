@@ -7,7 +7,7 @@ use anyhow::{Context, Result, bail};
 use serde_json::json;
 use tfs::diagnose::{add_effect, error_ladder, ladder_table};
 
-use super::{print_json, read_model, read_records};
+use super::{DataArgs, Offsets, offsets_for_model, print_json, read_model, read_records};
 
 /// Arguments of `tfs refit`.
 #[derive(Debug, clap::Args)]
@@ -31,6 +31,13 @@ pub struct Args {
     /// Print the ladder and the model as JSON on stdout.
     #[arg(long)]
     pub json: bool,
+    /// DC offsets of the DOF and input channels: `auto` (default) does what `tfs identify` did
+    /// for this model (its trace says so), `remove` subtracts each record's mean, `keep` uses
+    /// the records as they are.
+    #[arg(long, value_enum, default_value_t = Offsets::Auto)]
+    pub offsets: Offsets,
+    #[command(flatten)]
+    pub data_args: DataArgs,
 }
 
 /// Runs `tfs refit`.
@@ -45,12 +52,20 @@ pub fn run(args: Args) -> Result<()> {
             .filter(|i| !computed.iter().any(|c| c.name() == **i))
             .cloned(),
     );
-    let records = read_records(&args.data, &required)?;
+    let mut records = read_records(&args.data, &required, &args.data_args)?;
+    let offsets_report = offsets_for_model(&mut records, &model, &required, args.offsets)?;
     if args.add.is_empty() {
         bail!("--add: give at least one effect name");
     }
     for name in &args.add {
         model = add_effect(&model, name, &records).with_context(|| format!("--add {name}"))?;
+    }
+    // The refitted model was fitted on records treated this way: say so in its trace, so that
+    // `compare` and `diagnose` treat them the same.
+    if let Some(obj) = model.trace.as_object_mut() {
+        obj.insert("offsets".into(), offsets_report.clone());
+    } else {
+        model.trace = json!({"offsets": offsets_report.clone()});
     }
     model
         .write_path(&args.out)
@@ -75,6 +90,7 @@ pub fn run(args: Args) -> Result<()> {
             "out": args.out.display().to_string(),
             "ladder": ladder,
             "model": model.to_json_value()?,
+            "offsets": offsets_report,
         }))?;
     } else {
         println!("{}", model.equation_string());
