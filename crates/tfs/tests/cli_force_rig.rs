@@ -214,26 +214,22 @@ fn rig_loop(offsets: &str) -> (f64, f64, f64) {
     let m1_model = Model::from_path(&m1).unwrap();
     println!("[{offsets}] refitted: {}", m1_model.equation_string());
 
-    // 4. Re-estimate that structure by simulation error (`identify --refine` on the refitted
-    // model's terms).
+    // 4. The same step with `--refine`: the structure after adding the cubic is re-estimated
+    // by simulation error on the training record.
     let m2 = dir.path().join("m2.json");
-    let lib: Vec<String> = m1_model.equations[0]
-        .terms
-        .iter()
-        .map(|t| t.term.to_string())
-        .collect();
-    run(&[
-        "identify",
+    let r = run(&[
+        "refit",
+        "--model",
+        &s(&m0),
+        "--add",
+        "stiffness-x^3",
         &s(&train),
-        "--library",
-        &lib.join(", "),
-        "--offsets",
-        offsets,
         "--refine",
         "--out",
         &s(&m2),
         "--json",
     ]);
+    println!("[{offsets}] refinement: {}", r["refine"]["message"]);
     let refined = validation_rms(&m2, &val);
     println!(
         "[{offsets}] validation RMS error [V]: linear {before:.4e}, + cubic stiffness {after:.4e} (factor {:.1}), refined {refined:.4e} (factor {:.1} over the linear model)",
@@ -257,9 +253,11 @@ fn force_driven_duffing_in_volts_diagnose_add_refine() {
 #[test]
 fn force_driven_duffing_in_volts_with_offsets_kept_as_a_constant() {
     // Raw units: the offsets stay in the records and the model's constant absorbs them; the
-    // catalogue offers stiffness powers about the mean position. (The refinement step goes
-    // through `identify --refine`, which re-identifies the structure; on raw offsets it is not
-    // asserted here — `tfs refit` has no `--refine` yet.)
-    let (before, after, _) = rig_loop("constant-term");
+    // catalogue offers stiffness powers about the mean position.
+    let (before, after, refined) = rig_loop("constant-term");
     assert!(before / after >= 10.0, "{before} -> {after}");
+    assert!(
+        refined < after,
+        "refined {refined} vs equation-error {after}"
+    );
 }

@@ -15,8 +15,9 @@ pub struct Args {
     /// The model (tfs-model/1 JSON).
     #[arg(long)]
     pub model: PathBuf,
-    /// An effect to add (catalogue name, e.g. dry-friction, quadratic-damping, stiffness-x^3,
-    /// offset, maxwell, input-delay; `name@dof` for one DOF of a chain). Repeat to add several.
+    /// An effect to add (catalogue name, e.g. dry-friction, quadratic-damping, cubic-damping,
+    /// stiffness-x^3, offset, maxwell, input-delay, input-gain, input-filter; `name@dof` for one
+    /// DOF of a chain; `tfs diagnose` lists them all). Repeat to add several.
     #[arg(long = "add", required = true)]
     pub add: Vec<String>,
     /// CSV records with the model's displacement and input columns.
@@ -36,8 +37,43 @@ pub struct Args {
     /// the records as they are.
     #[arg(long, value_enum, default_value_t = Offsets::Auto)]
     pub offsets: Offsets,
+    /// After adding the effects, re-estimate the coefficients of the resulting structure by
+    /// simulation error (Levenberg–Marquardt with multiple shooting) on the records.
+    #[arg(long)]
+    pub refine: bool,
+    /// Held-out records used with --refine: whichever fit (equation- or simulation-error)
+    /// predicts them better is kept.
+    #[arg(long = "validate", requires = "refine")]
+    pub validate: Vec<PathBuf>,
     #[command(flatten)]
     pub data_args: DataArgs,
+}
+
+/// Appends the model's input-derived computed columns (delayed or filtered inputs) to each
+/// record so the model can be simulated under them. State-dependent ones (Maxwell) cannot be
+/// precomputed from measurements: refinement refuses them with a clear error.
+fn with_computed_inputs(
+    model: &tfs::library::Model,
+    records: &mut [tfs::data::Record],
+) -> Result<()> {
+    for c in tfs::diagnose::effects::computed_columns(model) {
+        if !c.from_input() {
+            bail!(
+                "--refine: the model has the state-dependent column '{}' (a hidden Maxwell \
+                 element); simulation-error refinement supports input-derived columns only — \
+                 refine before adding it, or drop --refine",
+                c.name()
+            );
+        }
+        for r in records.iter_mut() {
+            let v = c
+                .compute(r, r.dt())
+                .with_context(|| format!("{}: computing '{}'", r.source(), c.name()))?;
+            r.set_column(c.name(), v)
+                .with_context(|| format!("{}: adding column '{}'", r.source(), c.name()))?;
+        }
+    }
+    Ok(())
 }
 
 /// Runs `tfs refit`.
@@ -59,6 +95,38 @@ pub fn run(args: Args) -> Result<()> {
     }
     for name in &args.add {
         model = add_effect(&model, name, &records).with_context(|| format!("--add {name}"))?;
+    }
+    let mut refine_report = serde_json::Value::Null;
+    if args.refine {
+        let mut train = records.clone();
+        with_computed_inputs(&model, &mut train)?;
+        let refined = tfs::refine::refine(&model, &train, &tfs::refine::RefineOptions::default())
+            .context("--refine")?;
+        refine_report = json!({
+            "initial_cost": refined.initial_cost,
+            "final_cost": refined.final_cost,
+            "iterations": refined.iterations,
+            "converged": refined.converged,
+            "message": refined.message,
+            "per_record": refined.per_record,
+        });
+        if args.validate.is_empty() {
+            model = refined.model;
+        } else {
+            let mut held_out = read_records(&args.validate, &required, &args.data_args)?;
+            offsets_for_model(&mut held_out, &model, &required, args.offsets)?;
+            with_computed_inputs(&model, &mut held_out)?;
+            let (chosen, scores) =
+                tfs::refine::choose_by_validation(&model, &refined.model, &held_out)
+                    .context("--validate")?;
+            refine_report["validation"] = json!({
+                "equation_error_fit": scores.eq_score,
+                "simulation_error_fit": scores.refined_score,
+                "chose_refined": scores.chose_refined,
+                "per_record": scores.per_record,
+            });
+            model = chosen;
+        }
     }
     // The refitted model was fitted on records treated this way: say so in its trace, so that
     // `compare` and `diagnose` treat them the same.
@@ -91,10 +159,14 @@ pub fn run(args: Args) -> Result<()> {
             "ladder": ladder,
             "model": model.to_json_value()?,
             "offsets": offsets_report,
+            "refine": refine_report,
         }))?;
     } else {
         println!("{}", model.equation_string());
         print!("{}", ladder_table(&ladder));
+        if !refine_report.is_null() {
+            println!("refinement by simulation error: {refine_report}");
+        }
         println!("wrote {}", args.out.display());
     }
     Ok(())
