@@ -205,6 +205,20 @@ pub struct Criterion1 {
     pub curve: Vec<CalibrationPoint>,
     /// The added-noise SNR at the knee of the curve, if calibrated.
     pub knee_snr_db: Option<f64>,
+    /// SNR (dB) of the displacement estimated from the fitted noise floors of the records.
+    #[serde(default)]
+    pub estimated_snr_db: Option<f64>,
+    /// False when the identified model shows the data cannot support the library (no terms, no
+    /// term in the DOF's own motion, or terms whose intervals include zero).
+    #[serde(default = "yes")]
+    pub supported: bool,
+    /// Why the data do or do not support the library, and what to do when they do not.
+    #[serde(default)]
+    pub support_note: String,
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// The knee of a κ-versus-added-SNR curve: `snr` strictly decreasing, `kappa` the matching κ, and

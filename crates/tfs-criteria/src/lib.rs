@@ -13,6 +13,12 @@
 //!   half of the spectrum, cut-off extended to harmonics that rise above the floor).
 //! * Criterion 4 ([`residual_stats`]) inside the record-by-record data assembly of
 //!   [`identify_tfs`]; [`identify_sindy`] is the classical baseline.
+//! * Every kept coefficient gets a 95 % interval (cluster-robust standard errors over groups of
+//!   neighbouring bins) and an inclusion probability (bootstrap over non-overlapping windows);
+//!   [`Criterion1::supported`] and [`Trace::warnings`] say when the data are too noisy for the
+//!   library instead of presenting a wrong model with confidence.
+//! * Chains ([`identify_tfs_tied`]): the same rows for every DOF stacked, with each element's
+//!   force law shared by the two DOFs it connects (Newton's third law, [`chain_ties`]).
 //!
 //! Architecture invariant: every m-row matrix is decomposed once; all selection runs on small
 //! factors ([`tfs_regress::Compressed`]).
@@ -41,6 +47,7 @@ mod prepare;
 mod prune;
 pub mod spectral;
 pub mod synthetic;
+mod tied;
 
 pub use error::{CriteriaError, Result};
 pub use kappa::{
@@ -53,3 +60,4 @@ pub use pipeline::{
 };
 pub use prepare::TransformForm;
 pub use prune::{Criterion2, PruneStep, prune_factor, prune_library};
+pub use tied::{MassChoice, Tie, TieOptions, chain_ties, identify_tfs_tied};

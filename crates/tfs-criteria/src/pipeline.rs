@@ -3,13 +3,14 @@
 use std::time::Instant;
 
 use faer::{Mat, MatRef};
+use rayon::prelude::*;
 use realfft::RealFftPlanner;
 use serde::{Deserialize, Serialize};
 use tfs_data::Record;
 use tfs_library::{Equation, Library, Model, ModelTerm};
 use tfs_regress::{
-    BagOptions, Compressed, Fit, InfoCriterion, PathOptions, Regressor, Stlsq, bagging,
-    lambda_path, lstsq_support,
+    BagOptions, Compressed, InfoCriterion, PathOptions, Regressor, Stlsq, bagging, lambda_path,
+    lstsq_support,
 };
 
 use crate::error::{CriteriaError, Result, invalid};
@@ -62,7 +63,9 @@ pub struct TfsOptions {
     pub mu0: Option<f64>,
     /// Criterion 4: bound on σ (relative to the spread of x''); `None` = automatic (σ converged).
     pub sigma0: Option<f64>,
-    /// Bootstrap draws for coefficient intervals (0 = off).
+    /// Bootstrap draws over non-overlapping windows for the inclusion probability of every term
+    /// (STLSQ at the chosen threshold in each draw); with ≥ 2 draws the kept coefficients also get
+    /// 95 % intervals from cluster-robust standard errors of the fit (0 = neither).
     pub bagging: usize,
     /// Savitzky–Golay (half window, order) for the `PlainSavitzkyGolay` form.
     pub savitzky_golay: (usize, usize),
@@ -93,7 +96,7 @@ impl Default for TfsOptions {
             n_thresholds: 40,
             mu0: None,
             sigma0: None,
-            bagging: 0,
+            bagging: 100,
             savitzky_golay: (12, 3),
             min_bin_snr: Some(10.0),
             debias: true,
@@ -152,7 +155,7 @@ impl IdentifySpec {
         }
     }
 
-    fn libraries(&self) -> Result<Vec<Library>> {
+    pub(crate) fn libraries(&self) -> Result<Vec<Library>> {
         if self.dofs.is_empty() {
             return invalid("spec.dofs is empty; name at least one displacement column");
         }
@@ -268,6 +271,22 @@ pub struct Trace {
     pub timing_ms: Vec<(String, f64)>,
 }
 
+impl Trace {
+    /// Warnings a user must see (one per DOF whose data cannot support its library, from the
+    /// Criterion 1 verdict of the identified model), each prefixed by the DOF name.
+    pub fn warnings(&self) -> Vec<String> {
+        self.dofs
+            .iter()
+            .filter_map(|d| {
+                d.criterion1
+                    .as_ref()
+                    .filter(|c| !c.supported)
+                    .map(|c| format!("{}: {}", d.dof, c.support_note))
+            })
+            .collect()
+    }
+}
+
 /// An identified model with its trace.
 #[derive(Debug, Clone)]
 pub struct Identified {
@@ -298,7 +317,7 @@ fn head(r: &Record, len: usize, name: String) -> Result<Record> {
 
 /// Records cut to a fast FFT length (at most a fraction of a percent of the samples dropped at
 /// the end); a single record is split into two halves so there is always held-out data.
-fn blocks_of(records: &[Record]) -> Result<Vec<Record>> {
+pub(crate) fn blocks_of(records: &[Record]) -> Result<Vec<Record>> {
     if records.is_empty() {
         return invalid("no records given; pass at least one measurement record");
     }
@@ -395,14 +414,6 @@ pub fn residual_stats(a: MatRef<'_, f64>, y: &[f64], coef: &[f64]) -> (f64, f64)
     (em.abs() / ysd, esd / ysd)
 }
 
-/// A regressor that is least squares on a fixed support (for bagging intervals).
-struct SupportLs(Vec<bool>);
-impl Regressor for SupportLs {
-    fn fit_compressed(&self, p: &Compressed) -> tfs_regress::Result<Fit> {
-        lstsq_support(p, &self.0)
-    }
-}
-
 fn path_opts(n: usize) -> PathOptions {
     PathOptions {
         stlsq: Stlsq::default(),
@@ -413,7 +424,7 @@ fn path_opts(n: usize) -> PathOptions {
 }
 
 /// Fits on `train`, choosing the support on the λ path scored on `val` (or with a fixed threshold).
-fn fit_select(
+pub(crate) fn fit_select(
     train: &Compressed,
     val: &Compressed,
     threshold: Option<f64>,
@@ -449,11 +460,10 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
     let libs = spec.libraries()?;
     let blocks = blocks_of(records)?;
     let mut timing = Vec::new();
-    let mut pl = RealFftPlanner::<f64>::new();
     let t0 = Instant::now();
     let preps: Vec<Prepared<'_>> = blocks
-        .iter()
-        .map(|r| prepare(r, &spec.dofs, opt.cutoff_hz, &mut pl))
+        .par_iter()
+        .map(|r| prepare(r, &spec.dofs, opt.cutoff_hz, &mut RealFftPlanner::new()))
         .collect::<Result<_>>()?;
     timing.push(("band-limited reconstruction".to_string(), ms(t0)));
     let nb = preps.len();
@@ -470,7 +480,7 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
         let t0 = Instant::now();
         let data = DofData {
             td: preps
-                .iter()
+                .par_iter()
                 .map(|p| time_domain(p, &spec.dofs, d, lib, trim(p), stride(p)))
                 .collect::<Result<_>>()?,
         };
@@ -481,12 +491,11 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
         let (kappa, factor) = criterion1_blocks(&data.td, &nonconst)?;
         let (kappa0, source, curve, knee) = match opt.kappa0 {
             Kappa0Choice::Fixed(k) => (k, "given by the user".to_string(), Vec::new(), None),
-            Kappa0Choice::Calibrate => {
-                calibrate(&blocks, spec, d, lib, &nonconst, kappa, opt, &mut pl)?
-            }
+            Kappa0Choice::Calibrate => calibrate(&blocks, spec, d, lib, &nonconst, kappa, opt)?,
         };
         let kv = kappa.get(opt.kappa_variant);
-        let c1 = Criterion1 {
+        let est_snr = estimated_snr_db(&preps, dof, d);
+        let mut c1 = Criterion1 {
             kappa,
             variant: opt.kappa_variant,
             kappa0,
@@ -494,6 +503,9 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
             high_snr: kv >= kappa0,
             curve,
             knee_snr_db: knee,
+            estimated_snr_db: est_snr,
+            supported: true,
+            support_note: String::new(),
         };
         timing.push((format!("{dof}: criterion 1"), ms(t0)));
         // ---- Criterion 2.
@@ -523,7 +535,7 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
         let dmin = opt.deltas.iter().cloned().fold(f64::INFINITY, f64::min);
         let qs: Vec<usize> = preps.iter().map(|p| decimation(p, lib, opt.form)).collect();
         let series: Vec<_> = preps
-            .iter()
+            .par_iter()
             .zip(&qs)
             .map(|(p, &q)| {
                 record_series(
@@ -538,14 +550,18 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
                 )
             })
             .collect::<Result<_>>()?;
-        let mut transforms = Vec::new();
-        for &wc in &opt.window_counts {
-            let per: Vec<_> = series
-                .iter()
-                .map(|s| window_transforms(s, wc, dmin, opt.min_bin_snr, &mut pl))
-                .collect();
-            transforms.push(per);
-        }
+        let transforms: Vec<Vec<_>> = opt
+            .window_counts
+            .par_iter()
+            .map(|&wc| {
+                series
+                    .par_iter()
+                    .map(|s| {
+                        window_transforms(s, wc, dmin, opt.min_bin_snr, &mut RealFftPlanner::new())
+                    })
+                    .collect()
+            })
+            .collect();
         timing.push((format!("{dof}: criterion 3 transforms"), ms(t0)));
         // Time-domain validation blocks restricted to kept columns.
         let t0 = Instant::now();
@@ -582,10 +598,12 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
                 .collect()
         };
         // ---- Settings by leave-one-block-out held-out error.
-        let mut candidates = Vec::new();
-        let mut best: Option<(f64, usize, f64)> = None;
-        for (wi, &wc) in opt.window_counts.iter().enumerate() {
-            for &delta in &opt.deltas {
+        let grid: Vec<(usize, f64)> = (0..opt.window_counts.len())
+            .flat_map(|wi| opt.deltas.iter().map(move |&delta| (wi, delta)))
+            .collect();
+        let scores: Vec<f64> = grid
+            .par_iter()
+            .map(|&(wi, delta)| -> Result<f64> {
                 let cb = compress_blocks(wi, delta)?;
                 let mut err = 0.0;
                 for f in 0..nb {
@@ -597,15 +615,19 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
                     let (coef, _) = fit_select(&train, &cb[f].0, opt.threshold, opt.n_thresholds)?;
                     err += val[f].rss(&coef)? / val[f].b_norm2().max(f64::MIN_POSITIVE);
                 }
-                err /= nb as f64;
-                candidates.push(SettingScore {
-                    delta,
-                    windows: wc,
-                    held_out_error: err,
-                });
-                if best.is_none_or(|b| err < b.0) {
-                    best = Some((err, wi, delta));
-                }
+                Ok(err / nb as f64)
+            })
+            .collect::<Result<_>>()?;
+        let mut candidates = Vec::new();
+        let mut best: Option<(f64, usize, f64)> = None;
+        for (&(wi, delta), &err) in grid.iter().zip(&scores) {
+            candidates.push(SettingScore {
+                delta,
+                windows: opt.window_counts[wi],
+                held_out_error: err,
+            });
+            if best.is_none_or(|b| err < b.0) {
+                best = Some((err, wi, delta));
             }
         }
         let (best_err, wi, delta) = best.expect("at least one setting");
@@ -633,17 +655,25 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
                 sigma,
             });
             fits.push((coef, thr));
-            let ok = match (opt.mu0, opt.sigma0) {
-                (Some(m0), Some(s0)) => mu <= m0 && sigma <= s0,
-                (m0, s0) => {
-                    let m_ok = mu <= m0.unwrap_or(0.05);
-                    let s_ok = match s0 {
-                        Some(s0) => sigma <= s0,
-                        None => k >= 2 && sigma >= 0.99 * steps[k - 2].sigma,
-                    };
-                    m_ok && s_ok
-                }
-            };
+            // An empty model explains nothing: it never meets Criterion 4, and a σ that stays
+            // at the spread of x'' because both steps are empty is not convergence.
+            let nonempty = |st: &AssemblyStep| st.n_terms > 0;
+            let ok = nonempty(&steps[k - 1])
+                && match (opt.mu0, opt.sigma0) {
+                    (Some(m0), Some(s0)) => mu <= m0 && sigma <= s0,
+                    (m0, s0) => {
+                        let m_ok = mu <= m0.unwrap_or(0.05);
+                        let s_ok = match s0 {
+                            Some(s0) => sigma <= s0,
+                            None => {
+                                k >= 2
+                                    && nonempty(&steps[k - 2])
+                                    && sigma >= 0.99 * steps[k - 2].sigma
+                            }
+                        };
+                        m_ok && s_ok
+                    }
+                };
             if ok {
                 stop = Some(k);
                 break;
@@ -683,29 +713,114 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
             }
         };
         timing.push((format!("{dof}: assembly and criterion 4"), ms(t0)));
-        // ---- Intervals by bagging over windows of the records used.
+        // ---- Intervals and inclusion probabilities by bagging over windows of the records used.
         let support: Vec<bool> = coef.iter().map(|v| *v != 0.0).collect();
         let mut intervals: Vec<Option<[f64; 2]>> = vec![None; keep.len()];
-        if opt.bagging >= 2 {
-            let parts: Vec<Compressed> = cb[..used]
-                .iter()
-                .flat_map(|c| c.1.iter().cloned())
-                .collect();
-            if parts.len() >= 2 {
+        let mut inclusion: Vec<Option<f64>> = vec![None; keep.len()];
+        let mut interval_note = "no coefficient intervals (tfs.bagging = 0)".to_string();
+        if opt.bagging >= 2 && support.iter().any(|&s| s) {
+            let parts = bag_blocks(&transforms, opt, delta, &keep, used)?;
+            if parts.len() >= 3 {
                 let s = bagging(
                     &parts,
-                    &SupportLs(support.clone()),
+                    &Stlsq {
+                        threshold: thr,
+                        ..Stlsq::default()
+                    },
                     &BagOptions {
                         n_boot: opt.bagging,
-                        level: 0.9,
+                        level: INTERVAL_LEVEL,
                         seed: 1,
                     },
                 )?;
-                for j in 0..keep.len() {
-                    if support[j] {
-                        intervals[j] = Some([s.lower[j], s.upper[j]]);
-                    }
+                for (inc, &p) in inclusion.iter_mut().zip(&s.inclusion) {
+                    *inc = Some(p);
                 }
+                let sel: Vec<usize> = (0..keep.len()).filter(|&j| support[j]).collect();
+                let rows: Vec<(usize, usize, &crate::prepare::WindowTransform)> = transforms[wi]
+                    .iter()
+                    .take(used)
+                    .enumerate()
+                    .flat_map(|(r, wins)| wins.iter().enumerate().map(move |(w, t)| (r, w, t)))
+                    .collect();
+                interval_note = match cluster_intervals(&rows, delta, &keep, &sel, &coef) {
+                    Some((half, g)) => {
+                        for (k, &j) in sel.iter().enumerate() {
+                            intervals[j] = Some([coef[j] - half[k], coef[j] + half[k]]);
+                        }
+                        format!(
+                            "coefficient intervals: {:.0}% (± t·SE), cluster-robust standard errors from the residuals of the fit ({g} clusters of {CLUSTER_BINS} neighbouring bins of one window pair, t on {} degrees of freedom); inclusion = share of {} bootstrap resamples of {} non-overlapping windows in which STLSQ at the chosen threshold keeps the term",
+                            100.0 * INTERVAL_LEVEL,
+                            g - 1,
+                            opt.bagging,
+                            parts.len()
+                        )
+                    }
+                    None => "no coefficient intervals: too few independent clusters of bins".into(),
+                };
+            } else {
+                interval_note = format!(
+                    "no coefficient intervals: only {} independent window(s) to resample",
+                    parts.len()
+                );
+            }
+        }
+        // ---- Does the data support the library? (the verdict the CLI prints)
+        let own = |col: usize| {
+            lib.terms()[col].vars().iter().any(|v| match v {
+                tfs_library::Var::Disp(n)
+                | tfs_library::Var::Vel(n)
+                | tfs_library::Var::RelDisp(n, _)
+                | tfs_library::Var::RelVel(n, _) => n == dof,
+                tfs_library::Var::Input(_) => false,
+            })
+        };
+        let excludes_zero = |j: usize| intervals[j].is_none_or(|[lo, hi]| lo > 0.0 || hi < 0.0);
+        let weak_terms: Vec<String> = (0..keep.len())
+            .filter(|&j| support[j] && !excludes_zero(j))
+            .map(|j| names[keep[j]].clone())
+            .collect();
+        let own_supported = (0..keep.len()).any(|j| support[j] && own(keep[j]) && excludes_zero(j));
+        let snr_txt = c1.estimated_snr_db.map_or(String::new(), |v| {
+            format!(" (estimated displacement SNR {v:.1} dB)")
+        });
+        let what_to_do = "the model below is not a reliable identification. What to do: measure longer or repeat the test (more records), raise the excitation level or lower the sensor noise, or use a smaller library (fewer high powers)";
+        // A displacement term of the DOF itself (restoring force) offered by the library.
+        let disp = |col: usize| {
+            lib.terms()[col].vars().iter().any(|v| match v {
+                tfs_library::Var::Disp(n) | tfs_library::Var::RelDisp(n, _) => n == dof,
+                _ => false,
+            })
+        };
+        let offers_disp = keep.iter().any(|&c| disp(c));
+        let keeps_disp = (0..keep.len()).any(|j| support[j] && disp(keep[j]));
+        let problem = if !support.iter().any(|&s| s) {
+            Some("no term survives selection".to_string())
+        } else if offers_disp && !keeps_disp {
+            Some(format!(
+                "no displacement (restoring-force) term of '{dof}' survives selection, so the model has no stiffness and no equilibria"
+            ))
+        } else if !own_supported {
+            Some(format!(
+                "no term in the motion of '{dof}' itself is distinguishable from zero"
+            ))
+        } else if !weak_terms.is_empty() {
+            Some(format!(
+                "the {:.0}% intervals of {} include 0, so the data cannot pin these terms down",
+                100.0 * INTERVAL_LEVEL,
+                weak_terms.join(", ")
+            ))
+        } else {
+            None
+        };
+        match problem {
+            Some(p) => {
+                c1.supported = false;
+                c1.support_note = format!("too noisy for this library{snr_txt}: {p}; {what_to_do}");
+            }
+            None => {
+                c1.support_note =
+                    format!("supported{snr_txt}: every kept term is distinguishable from zero");
             }
         }
         let terms = keep
@@ -715,6 +830,7 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
             .map(|(j, &col)| {
                 let mut mt = ModelTerm::new(lib.terms()[col].clone(), coef[j]);
                 mt.interval = intervals[j];
+                mt.inclusion = inclusion[j];
                 mt
             })
             .collect();
@@ -740,7 +856,7 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
                 }
             })
             .collect();
-        let why = vec![
+        let mut why = vec![
             format!(
                 "δ = {delta} and {windows} window(s) per record: lowest mean held-out residual ({best_err:.3e}) when each record in turn is left out (time-domain residual on its band-limited reconstruction)"
             ),
@@ -763,6 +879,12 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
                 None => "no per-bin noise gate".to_string(),
             },
         ];
+        why.push(interval_note);
+        let verdict = if c1.supported {
+            verdict
+        } else {
+            format!("{}. {verdict}", c1.support_note)
+        };
         dof_traces.push(DofTrace {
             dof: dof.clone(),
             library: names.clone(),
@@ -795,7 +917,7 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
     Ok(Identified { model, trace })
 }
 
-fn validate_tfs(o: &TfsOptions) -> Result<()> {
+pub(crate) fn validate_tfs(o: &TfsOptions) -> Result<()> {
     if o.deltas.is_empty() || o.deltas.iter().any(|d| !(*d > 0.0 && *d <= 1.0)) {
         return invalid(format!(
             "tfs.deltas = {:?}: give at least one δ in (0, 1]",
@@ -826,6 +948,158 @@ fn validate_tfs(o: &TfsOptions) -> Result<()> {
     Ok(())
 }
 
+/// The SNR (dB) of DOF `d`'s displacement over all records, estimated from the fitted noise
+/// floors: total signal power over total noise power (`None` without a noise estimate).
+fn estimated_snr_db(preps: &[Prepared<'_>], dof: &str, d: usize) -> Option<f64> {
+    let (mut sig, mut noise) = (0.0, 0.0);
+    for p in preps {
+        let x = p.rec.column(dof)?;
+        let n = x.len() as f64;
+        let mean = x.iter().sum::<f64>() / n;
+        let var = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
+        let nv = p.smooth[d].band.total_noise_var();
+        sig += n * (var - nv).max(0.0);
+        noise += n * nv;
+    }
+    (noise > 0.0 && sig > 0.0).then(|| 10.0 * (sig / noise).log10())
+}
+
+/// Level of the coefficient intervals.
+const INTERVAL_LEVEL: f64 = 0.95;
+
+/// The two-sided [`INTERVAL_LEVEL`] (95 %) quantile of Student's t with `nu` degrees of freedom:
+/// the Cornish–Fisher expansion around the normal quantile z = 1.959964 (error < 1e-3 for ν ≥ 3,
+/// conservative below).
+fn student_t_quantile(nu: f64) -> f64 {
+    let z = 1.959_963_984_540_054_f64;
+    let nu = nu.max(1.0);
+    let z3 = z * z * z;
+    let z5 = z3 * z * z;
+    let z7 = z5 * z * z;
+    z + (z3 + z) / (4.0 * nu)
+        + (5.0 * z5 + 16.0 * z3 + 3.0 * z) / (96.0 * nu * nu)
+        + (3.0 * z7 + 19.0 * z5 + 17.0 * z3 - 15.0 * z) / (384.0 * nu * nu * nu)
+}
+
+/// Neighbouring bins per cluster of the interval estimate: the sin⁴ window's transform has a
+/// main lobe of ±3 bins, so bins further apart than this are nearly uncorrelated.
+const CLUSTER_BINS: usize = 8;
+
+/// Rows (A row, residual) of one cluster of bins.
+type ClusterRows = Vec<(Vec<f64>, f64)>;
+
+/// Half-widths (level [`INTERVAL_LEVEL`]) of the coefficients `sel` of `coef` (over `keep`) from a
+/// cluster-robust sandwich on the frequency-domain rows of `rows` (record, window, transform):
+/// `V = G⁻¹ (Σ_g s_g s_gᵀ) G⁻¹` with `G = AᵀA` and `s_g = A_gᵀ e_g` over clusters of neighbouring
+/// bins (windows paired so overlapping windows share a cluster), scaled by `C/(C−1)`, with a
+/// Student-t quantile on `C − 1` degrees of freedom. Returns the half-widths and `C`.
+fn cluster_intervals(
+    rows: &[(usize, usize, &crate::prepare::WindowTransform)],
+    delta: f64,
+    keep: &[usize],
+    sel: &[usize],
+    coef: &[f64],
+) -> Option<(Vec<f64>, usize)> {
+    use faer::linalg::solvers::Solve;
+    use std::collections::BTreeMap;
+    let k = sel.len();
+    let cols: Vec<usize> = sel.iter().map(|&j| keep[j]).collect();
+    // (A row, residual) per cluster.
+    let mut clusters: BTreeMap<(usize, usize, usize), ClusterRows> = BTreeMap::new();
+    let mut norms = vec![0.0; k];
+    for &(r, w, t) in rows {
+        let (a, y, f) = rows_for(t, delta, &cols);
+        if a.nrows() == 0 {
+            continue;
+        }
+        let df = t.freq.iter().cloned().fold(f64::INFINITY, f64::min);
+        let step = t
+            .freq
+            .windows(2)
+            .map(|p| p[1] - p[0])
+            .filter(|d| *d > 0.0)
+            .fold(f64::INFINITY, f64::min);
+        let mut i = 0;
+        for (b, &fb) in f.iter().enumerate() {
+            let bin = if step.is_finite() && step > 0.0 {
+                ((fb - df) / step).round() as usize
+            } else {
+                b
+            };
+            let nrow = if fb > 0.0 { 2 } else { 1 };
+            for _ in 0..nrow {
+                let row: Vec<f64> = (0..k).map(|c| a[(i, c)]).collect();
+                let e = y[i] - (0..k).map(|c| row[c] * coef[sel[c]]).sum::<f64>();
+                for c in 0..k {
+                    norms[c] += row[c] * row[c];
+                }
+                clusters
+                    .entry((r, w / 2, bin / CLUSTER_BINS))
+                    .or_default()
+                    .push((row, e));
+                i += 1;
+            }
+        }
+    }
+    let g = clusters.len();
+    if g < 3 || k == 0 {
+        return None;
+    }
+    let d: Vec<f64> = norms
+        .iter()
+        .map(|v| if *v > 0.0 { 1.0 / v.sqrt() } else { 0.0 })
+        .collect();
+    let mut gram = Mat::<f64>::zeros(k, k);
+    let mut s = Mat::<f64>::zeros(k, g);
+    for (gi, rows) in clusters.values().enumerate() {
+        for (row, e) in rows {
+            for p in 0..k {
+                s[(p, gi)] += row[p] * d[p] * e;
+                for q in 0..k {
+                    gram[(p, q)] += row[p] * d[p] * row[q] * d[q];
+                }
+            }
+        }
+    }
+    let llt = gram.llt(faer::Side::Lower).ok()?;
+    let z = llt.solve(&s);
+    let gf = g as f64;
+    let tq = student_t_quantile(gf - 1.0);
+    let half = (0..k)
+        .map(|p| {
+            let v: f64 = (0..g).map(|c| z[(p, c)] * z[(p, c)]).sum::<f64>() * gf / (gf - 1.0);
+            tq * v.sqrt() * d[p]
+        })
+        .collect();
+    Some((half, g))
+}
+
+/// Blocks for bagging: the frequency-domain rows (bins with relative amplitude ≥ `delta`,
+/// columns `keep`) of non-overlapping windows (every other window of the largest window count)
+/// of the first `used` records. Rows of different blocks share no samples, so resampling blocks
+/// does not understate the variance the way overlapping windows would.
+fn bag_blocks(
+    transforms: &[Vec<Vec<crate::prepare::WindowTransform>>],
+    opt: &TfsOptions,
+    delta: f64,
+    keep: &[usize],
+    used: usize,
+) -> Result<Vec<Compressed>> {
+    let wmax = (0..opt.window_counts.len())
+        .max_by_key(|&i| opt.window_counts[i])
+        .unwrap_or(0);
+    let mut out = Vec::new();
+    for wins in transforms[wmax].iter().take(used) {
+        for w in wins.iter().step_by(2) {
+            let (a, y, _) = rows_for(w, delta, keep);
+            if a.nrows() > 0 {
+                out.push(Compressed::from_rows(a.as_ref(), &y)?);
+            }
+        }
+    }
+    Ok(out)
+}
+
 /// Most samples the κ0 calibration looks at (a central segment of the longest record).
 const CALIBRATION_SAMPLES: usize = 20_000;
 
@@ -840,7 +1114,6 @@ fn calibrate(
     nonconst: &[usize],
     kappa: crate::Kappa,
     opt: &TfsOptions,
-    pl: &mut RealFftPlanner<f64>,
 ) -> Result<(f64, String, Vec<CalibrationPoint>, Option<f64>)> {
     let mut curve = vec![CalibrationPoint {
         added_snr_db: None,
@@ -880,40 +1153,46 @@ fn calibrate(
         .collect();
     let segment = Record::new(src.source(), src.t()[a..b].to_vec(), cols)?;
     let blocks = std::slice::from_ref(&segment);
-    for (si, &snr) in opt.calibration_snrs_db.iter().enumerate() {
-        let mut noisy = Vec::new();
-        for (bi, r) in blocks.iter().enumerate() {
-            let mut r2 = r.clone();
-            for (ci, c) in noisy_cols.iter().enumerate() {
-                if let Some(v) = r.column(c) {
-                    let seed = 1000 * si as u64 + 31 * bi as u64 + ci as u64;
-                    let n =
-                        tfs_signal::noise::noise_for(v, snr, tfs_signal::NoiseKind::White, seed)?;
-                    let nv: Vec<f64> = v.iter().zip(n).map(|(a, b)| a + b).collect();
-                    r2.set_column(c.clone(), nv)?;
+    let points: Vec<CalibrationPoint> = opt
+        .calibration_snrs_db
+        .par_iter()
+        .enumerate()
+        .map(|(si, &snr)| -> Result<CalibrationPoint> {
+            let mut td = Vec::new();
+            for (bi, r) in blocks.iter().enumerate() {
+                let mut r2 = r.clone();
+                for (ci, c) in noisy_cols.iter().enumerate() {
+                    if let Some(v) = r.column(c) {
+                        let seed = 1000 * si as u64 + 31 * bi as u64 + ci as u64;
+                        let n = tfs_signal::noise::noise_for(
+                            v,
+                            snr,
+                            tfs_signal::NoiseKind::White,
+                            seed,
+                        )?;
+                        let nv: Vec<f64> = v.iter().zip(n).map(|(a, b)| a + b).collect();
+                        r2.set_column(c.clone(), nv)?;
+                    }
                 }
+                let p = prepare(&r2, &spec.dofs, opt.cutoff_hz, &mut RealFftPlanner::new())?;
+                let trim = (r2.len() / 50).max(4);
+                td.push(time_domain(
+                    &p,
+                    &spec.dofs,
+                    d,
+                    lib,
+                    trim,
+                    (r2.len() / 4000).max(1),
+                )?);
             }
-            noisy.push(r2);
-        }
-        let mut td = Vec::new();
-        for r in &noisy {
-            let p = prepare(r, &spec.dofs, opt.cutoff_hz, pl)?;
-            let trim = (r.len() / 50).max(4);
-            td.push(time_domain(
-                &p,
-                &spec.dofs,
-                d,
-                lib,
-                trim,
-                (r.len() / 4000).max(1),
-            )?);
-        }
-        let (k, _) = criterion1_blocks(&td, nonconst)?;
-        curve.push(CalibrationPoint {
-            added_snr_db: Some(snr),
-            kappa: k,
-        });
-    }
+            let (k, _) = criterion1_blocks(&td, nonconst)?;
+            Ok(CalibrationPoint {
+                added_snr_db: Some(snr),
+                kappa: k,
+            })
+        })
+        .collect::<Result<_>>()?;
+    curve.extend(points);
     match kappa0_from_curve(&curve, opt.kappa_variant) {
         Some((k0, snr)) => Ok((
             k0,

@@ -9,7 +9,7 @@ use tfs_library::{ColumnSet, Factor, Library, Term, Var, evaluate_term};
 
 use crate::error::{CriteriaError, Result, invalid};
 use crate::spectral::{
-    Band, Smoothed, band_limit, bin_omegas, hermite_power, weak_first_derivative,
+    Band, Smoothed, band_limit, bin_omegas, hermite_power, low_pass, weak_first_derivative,
     weak_second_derivative, window, window_layout, windowed_fft,
 };
 
@@ -69,16 +69,18 @@ pub(crate) struct Prepared<'a> {
     pub smooth: Vec<Smoothed>,
 }
 
+/// Validates a record and reconstructs every DOF. (`_planner` is unused — FFT plans come from
+/// the process-wide cache of [`crate::spectral`] — and kept so existing callers compile.)
 pub(crate) fn prepare<'a>(
     rec: &'a Record,
     dofs: &[String],
     cutoff_hz: Option<f64>,
-    pl: &mut RealFftPlanner<f64>,
+    _planner: &mut RealFftPlanner<f64>,
 ) -> Result<Prepared<'a>> {
     let dt = check_record(rec, dofs)?;
     let smooth = dofs
         .iter()
-        .map(|d| band_limit(rec.column(d).expect("checked"), dt, cutoff_hz, pl))
+        .map(|d| band_limit(rec.column(d).expect("checked"), dt, cutoff_hz))
         .collect();
     Ok(Prepared { rec, dt, smooth })
 }
@@ -124,26 +126,109 @@ pub(crate) fn record_series(
     q: usize,
     debias: bool,
 ) -> Result<RecordSeries> {
-    let mut s = record_series_full(p, dofs, dof, lib, form, sg, debias)?;
-    if q > 1 {
-        // Inputs are broadband: low-pass them below the new Nyquist before decimating (the DOF
-        // signals are already band-limited below it).
-        let nyq = 0.5 / (p.dt * q as f64);
-        let mut pl = RealFftPlanner::new();
-        let dec = |v: &[f64]| v.iter().step_by(q).copied().collect::<Vec<f64>>();
-        for (t, ser) in lib.terms().iter().zip(s.terms.iter_mut()) {
-            let v = match ser {
-                Series::Plain(v) | Series::Transfer(v) => v,
-            };
-            if t.uses_input() {
-                *v = band_limit(v, p.dt, Some(0.8 * nyq), &mut pl).x;
-            }
-            *v = dec(v);
-        }
-        s.lhs = dec(&s.lhs);
-        s.dt = p.dt * q as f64;
+    if q <= 1 || form == TransformForm::PlainSavitzkyGolay {
+        return record_series_full(p, dofs, dof, lib, form, sg, debias);
     }
-    Ok(s)
+    // Decimated: terms built only from the band-limited DOF signals are pointwise functions of
+    // them, so evaluating them on every q-th sample equals decimating the full-rate series.
+    // Inputs are broadband: a term that uses one is evaluated at the full rate and low-passed
+    // below the new Nyquist before decimating.
+    let dec = |v: &[f64]| v.iter().step_by(q).copied().collect::<Vec<f64>>();
+    let rows = p.rec.len().div_ceil(q);
+    let base = OwnedColumns {
+        rows,
+        cols: lib
+            .required_columns()
+            .into_iter()
+            .filter_map(|c| p.rec.column(&c).map(|v| (c.clone(), dec(v))))
+            .collect(),
+    };
+    let smooth: Vec<Smoothed> = p
+        .smooth
+        .iter()
+        .map(|s| Smoothed {
+            x: dec(&s.x),
+            v: dec(&s.v),
+            a: dec(&s.a),
+            band: s.band,
+        })
+        .collect();
+    let mut cs = ColumnSet::new(&base as &dyn Columns);
+    for (d, s) in dofs.iter().zip(&smooth) {
+        cs.insert(d.clone(), s.x.clone())?;
+        cs.insert(format!("{d}'"), s.v.clone())?;
+    }
+    let weak = form == TransformForm::Weak;
+    let nyq = 0.5 / (p.dt * q as f64);
+    let mut full_cs = None;
+    let mut terms = Vec::with_capacity(lib.len());
+    for t in lib.terms() {
+        if t.uses_input() {
+            if full_cs.is_none() {
+                full_cs = Some(smoothed_columns(p, dofs)?);
+            }
+            let fcs = full_cs.as_ref().expect("just set");
+            let ser = term_series(t, fcs, &p.smooth, dofs, weak, debias)?;
+            let lp = |v: &[f64]| dec(&low_pass(v, p.dt, 0.8 * nyq));
+            terms.push(match ser {
+                Series::Plain(v) => Series::Plain(lp(&v)),
+                Series::Transfer(v) => Series::Transfer(lp(&v)),
+            });
+        } else {
+            terms.push(term_series(t, &cs, &smooth, dofs, weak, debias)?);
+        }
+    }
+    let lhs = if weak {
+        smooth[dof].x.clone()
+    } else {
+        smooth[dof].a.clone()
+    };
+    Ok(RecordSeries {
+        dt: p.dt * q as f64,
+        lhs,
+        weak_lhs: weak,
+        terms,
+        // The noise model stays tied to the step it was estimated at.
+        noise: Some((p.smooth[dof].band, p.dt)),
+    })
+}
+
+/// One library term as it enters the transform (weak: `G'` terms by derivative transfer; single
+/// displacement powers noise-debiased when asked), from columns `cs` and reconstructions `smooth`.
+fn term_series(
+    t: &Term,
+    cs: &ColumnSet<'_>,
+    smooth: &[Smoothed],
+    dofs: &[String],
+    weak: bool,
+    debias: bool,
+) -> Result<Series> {
+    // A single power of one DOF's displacement, evaluated without the noise bias.
+    let debiased = |t: &Term| -> Option<Vec<f64>> {
+        if !debias {
+            return None;
+        }
+        match t.factors() {
+            [Factor::Pow(Var::Disp(d), k)] => {
+                let i = dofs.iter().position(|n| n == d)?;
+                Some(hermite_power(&smooth[i].x, *k, smooth[i].band.noise_var))
+            }
+            _ => None,
+        }
+    };
+    if weak && let Some(ed) = t.exact_derivative() {
+        let anti = ed.antiderivative();
+        let mut g = match debiased(&anti) {
+            Some(g) => g,
+            None => evaluate_term(&anti, cs)?,
+        };
+        g.iter_mut().for_each(|v| *v *= ed.scale);
+        Ok(Series::Transfer(g))
+    } else if let Some(v) = debiased(t) {
+        Ok(Series::Plain(v))
+    } else {
+        Ok(Series::Plain(evaluate_term(t, cs)?))
+    }
 }
 
 /// The decimation factor that keeps every windowed integral exact: the integrand of a polynomial
@@ -186,39 +271,11 @@ fn record_series_full(
         TransformForm::Weak | TransformForm::PlainSpectral => {
             let cs = smoothed_columns(p, dofs)?;
             let weak = form == TransformForm::Weak;
-            let mut terms = Vec::with_capacity(lib.len());
-            // A single power of one DOF's displacement, evaluated without the noise bias.
-            let debiased = |t: &Term| -> Option<Vec<f64>> {
-                if !debias {
-                    return None;
-                }
-                match t.factors() {
-                    [Factor::Pow(Var::Disp(d), k)] => {
-                        let i = dofs.iter().position(|n| n == d)?;
-                        Some(hermite_power(
-                            &p.smooth[i].x,
-                            *k,
-                            p.smooth[i].band.noise_var,
-                        ))
-                    }
-                    _ => None,
-                }
-            };
-            for t in lib.terms() {
-                if weak && let Some(ed) = t.exact_derivative() {
-                    let anti = ed.antiderivative();
-                    let mut g = match debiased(&anti) {
-                        Some(g) => g,
-                        None => evaluate_term(&anti, &cs)?,
-                    };
-                    g.iter_mut().for_each(|v| *v *= ed.scale);
-                    terms.push(Series::Transfer(g));
-                } else if let Some(v) = debiased(t) {
-                    terms.push(Series::Plain(v));
-                } else {
-                    terms.push(Series::Plain(evaluate_term(t, &cs)?));
-                }
-            }
+            let terms = lib
+                .terms()
+                .iter()
+                .map(|t| term_series(t, &cs, &p.smooth, dofs, weak, debias))
+                .collect::<Result<Vec<_>>>()?;
             let lhs = if weak {
                 p.smooth[dof].x.clone()
             } else {
@@ -316,7 +373,7 @@ pub(crate) fn window_transforms(
     count: usize,
     delta_min: f64,
     min_bin_snr: Option<f64>,
-    pl: &mut RealFftPlanner<f64>,
+    _planner: &mut RealFftPlanner<f64>,
 ) -> Vec<WindowTransform> {
     let dt = s.dt;
     let n = s.lhs.len();
@@ -338,9 +395,9 @@ pub(crate) fn window_transforms(
         .map(|&st| {
             let sl = |v: &[f64]| v[st..st + len].to_vec();
             let lhs_full = if s.weak_lhs {
-                weak_second_derivative(&sl(&s.lhs), &win, &om, dt, pl)
+                weak_second_derivative(&sl(&s.lhs), &win, &om, dt)
             } else {
-                windowed_fft(&sl(&s.lhs), &win.0, dt, pl)
+                windowed_fft(&sl(&s.lhs), &win.0, dt)
             };
             let max = lhs_full.iter().fold(0.0f64, |a, c| a.max(c.norm()));
             // The strongest bin is always kept so no window is left without rows.
@@ -358,8 +415,8 @@ pub(crate) fn window_transforms(
                 .iter()
                 .map(|t| {
                     let full = match t {
-                        Series::Plain(v) => windowed_fft(&sl(v), &win.0, dt, pl),
-                        Series::Transfer(g) => weak_first_derivative(&sl(g), &win, &om, dt, pl),
+                        Series::Plain(v) => windowed_fft(&sl(v), &win.0, dt),
+                        Series::Transfer(g) => weak_first_derivative(&sl(g), &win, &om, dt),
                     };
                     bins.iter().map(|&k| full[k]).collect()
                 })
@@ -403,7 +460,26 @@ pub(crate) fn rows_for(
     (a, y, sel.iter().map(|&b| w.freq[b]).collect())
 }
 
-/// Time-domain library matrix and target on the band-limited reconstruction (ends trimmed).
+/// Owned columns of equal length (a strided subsample of a [`ColumnSet`]).
+struct OwnedColumns {
+    rows: usize,
+    cols: Vec<(String, Vec<f64>)>,
+}
+
+impl Columns for OwnedColumns {
+    fn column(&self, name: &str) -> Option<&[f64]> {
+        self.cols
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.as_slice())
+    }
+    fn rows(&self) -> usize {
+        self.rows
+    }
+}
+
+/// Time-domain library matrix and target on the band-limited reconstruction (ends trimmed, every
+/// `stride`-th sample). Only the sampled rows are evaluated.
 pub(crate) fn time_domain(
     p: &Prepared<'_>,
     dofs: &[String],
@@ -413,8 +489,7 @@ pub(crate) fn time_domain(
     stride: usize,
 ) -> Result<(Mat<f64>, Vec<f64>)> {
     let cs = smoothed_columns(p, dofs)?;
-    let full = lib.evaluate(&cs)?;
-    let n = full.nrows();
+    let n = p.rec.len();
     if n <= 2 * trim + lib.len() + 2 {
         return Err(CriteriaError::Invalid(format!(
             "record '{}' is too short ({n} samples) for a library of {} terms",
@@ -423,12 +498,16 @@ pub(crate) fn time_domain(
         )));
     }
     let stride = stride.max(1);
+    let sub =
+        |v: &[f64]| -> Vec<f64> { v[trim..n - trim].iter().step_by(stride).copied().collect() };
     let rows = (n - 2 * trim).div_ceil(stride);
-    let a = Mat::<f64>::from_fn(rows, lib.len(), |i, j| full[(trim + i * stride, j)]);
-    let y = p.smooth[dof].a[trim..n - trim]
-        .iter()
-        .step_by(stride)
-        .copied()
+    // Columns the library needs; a missing one is left out so the evaluation names it.
+    let cols = lib
+        .required_columns()
+        .into_iter()
+        .filter_map(|c| cs.column(&c).map(|v| (c.clone(), sub(v))))
         .collect();
+    let a = lib.evaluate(&OwnedColumns { rows, cols })?;
+    let y = sub(&p.smooth[dof].a);
     Ok((a, y))
 }

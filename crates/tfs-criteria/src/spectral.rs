@@ -2,9 +2,32 @@
 //! data), windows with analytic derivatives, windowed Fourier transforms in the plain and the
 //! derivative-transfer (weak) form, and the bin selection `|ẍ̂_k| ≥ δ·max`.
 
-use realfft::RealFftPlanner;
+use std::sync::{Arc, Mutex, OnceLock};
+
 use realfft::num_complex::Complex;
+use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use serde::{Deserialize, Serialize};
+
+/// Process-wide cache of FFT plans: planning a length costs several transforms of it, and the
+/// pipeline transforms the same lengths many times (records, windows, calibration draws), from
+/// several threads.
+fn planner() -> &'static Mutex<RealFftPlanner<f64>> {
+    static PLANNER: OnceLock<Mutex<RealFftPlanner<f64>>> = OnceLock::new();
+    PLANNER.get_or_init(|| Mutex::new(RealFftPlanner::new()))
+}
+
+/// The (cached) forward real FFT of length `n`.
+pub(crate) fn fft_forward(n: usize) -> Arc<dyn RealToComplex<f64>> {
+    // A poisoned lock only means another thread panicked while planning; the cache is still valid.
+    let mut pl = planner().lock().unwrap_or_else(|e| e.into_inner());
+    pl.plan_fft_forward(n)
+}
+
+/// The (cached) inverse real FFT of length `n`.
+pub(crate) fn fft_inverse(n: usize) -> Arc<dyn ComplexToReal<f64>> {
+    let mut pl = planner().lock().unwrap_or_else(|e| e.into_inner());
+    pl.plan_fft_inverse(n)
+}
 
 /// The band chosen for one signal's reconstruction.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -37,6 +60,19 @@ impl Band {
         }
         let k = (f_hz / self.bin_hz).max(1.0);
         (self.floor_log_a + self.floor_beta * k.ln()).exp() / self.mirror_len as f64 * dt
+    }
+
+    /// Estimated variance of the whole-band noise of the raw signal: the fitted floor summed over
+    /// every bin (Parseval on the 2N-point extension, `σ² = 2·Σ_k N̂_k / (2N)²`).
+    pub fn total_noise_var(&self) -> f64 {
+        if !self.floor_log_a.is_finite() || self.mirror_len == 0 {
+            return 0.0;
+        }
+        let nn = self.mirror_len as f64;
+        let sum: f64 = (1..=self.mirror_len / 2)
+            .map(|k| (self.floor_log_a + self.floor_beta * (k as f64).ln()).exp())
+            .sum();
+        2.0 * sum / (nn * nn)
     }
 }
 
@@ -74,9 +110,9 @@ pub struct Smoothed {
 }
 
 /// Mirror-extended spectrum of `x` (length 2N, continuous at both ends).
-fn mirror_spectrum(x: &[f64], planner: &mut RealFftPlanner<f64>) -> Vec<Complex<f64>> {
+fn mirror_spectrum(x: &[f64]) -> Vec<Complex<f64>> {
     let n = x.len();
-    let fft = planner.plan_fft_forward(2 * n);
+    let fft = fft_forward(2 * n);
     let mut buf = fft.make_input_vec();
     buf[..n].copy_from_slice(x);
     for i in 0..n {
@@ -104,7 +140,15 @@ const FLOOR_SUBBANDS: usize = 16;
 pub fn choose_cutoff(p: &[f64], min_bin: usize) -> (usize, f64, f64) {
     let k = p.len();
     let (alpha, beta) = fit_floor(p);
-    let floor = |i: usize| (alpha + beta * (i.max(1) as f64).ln()).exp();
+    // The floor at every bin, computed once (flat floors need no logarithms).
+    let fl: Vec<f64> = if beta == 0.0 {
+        vec![alpha.exp(); k]
+    } else {
+        (0..k)
+            .map(|i| (alpha + beta * (i.max(1) as f64).ln()).exp())
+            .collect()
+    };
+    let floor = |i: usize| fl[i];
     let mut tail = vec![0.0; k + 1];
     for i in (0..k).rev() {
         tail[i] = tail[i + 1] + (p[i] - floor(i)).max(0.0);
@@ -159,8 +203,8 @@ pub fn fit_floor(p: &[f64]) -> (f64, f64) {
         let a0 = lo + b * (k - lo) / nsub;
         let a1 = (lo + (b + 1) * (k - lo) / nsub).max(a0 + 1).min(k);
         let mut band: Vec<f64> = p[a0..a1].to_vec();
-        band.sort_by(f64::total_cmp);
-        let med = band[band.len() / 2] / 0.454_936_4;
+        let mid = band.len() / 2;
+        let med = *band.select_nth_unstable_by(mid, f64::total_cmp).1 / 0.454_936_4;
         if med > 0.0 {
             pts.push(((0.5 * (a0 + a1) as f64).ln(), med.ln()));
         }
@@ -194,16 +238,34 @@ pub fn fit_floor(p: &[f64]) -> (f64, f64) {
     (alpha, beta)
 }
 
+/// `x` (sampled at `dt`) with every mirror-spectrum bin above `cutoff_hz` removed: the
+/// reconstruction of [`band_limit`] with a given cut-off, without derivatives or noise estimates.
+pub fn low_pass(x: &[f64], dt: f64, cutoff_hz: f64) -> Vec<f64> {
+    let n = x.len();
+    let mut spec = mirror_spectrum(x);
+    let nn = 2 * n;
+    let df = 1.0 / (nn as f64 * dt);
+    let kc = ((cutoff_hz / df).round().max(0.0) as usize).min(spec.len() - 1);
+    for c in spec.iter_mut().skip(kc + 1) {
+        *c = Complex::new(0.0, 0.0);
+    }
+    spec[0].im = 0.0;
+    let last = spec.len() - 1;
+    spec[last].im = 0.0;
+    let inv = fft_inverse(nn);
+    let mut buf = inv.make_output_vec();
+    inv.process(&mut spec, &mut buf)
+        .expect("buffer sizes come from the plan");
+    buf.truncate(n);
+    buf.iter_mut().for_each(|v| *v /= nn as f64);
+    buf
+}
+
 /// Band-limited reconstruction of `x` sampled at `dt`, with spectral derivatives; the band is
 /// chosen by [`choose_cutoff`] (or given by `cutoff_hz`).
-pub fn band_limit(
-    x: &[f64],
-    dt: f64,
-    cutoff_hz: Option<f64>,
-    planner: &mut RealFftPlanner<f64>,
-) -> Smoothed {
+pub fn band_limit(x: &[f64], dt: f64, cutoff_hz: Option<f64>) -> Smoothed {
     let n = x.len();
-    let spec = mirror_spectrum(x, planner);
+    let spec = mirror_spectrum(x);
     let nn = 2 * n;
     let df = 1.0 / (nn as f64 * dt);
     let power: Vec<f64> = spec.iter().map(|c| c.norm_sqr()).collect();
@@ -220,7 +282,7 @@ pub fn band_limit(
     let share = (noise_sum / total).min(1.0);
     // Parseval on the 2N-point extension: variance = 2·Σ_{1≤k≤kc} N̂_k / (2N)².
     let noise_var = 2.0 * noise_sum / (nn as f64 * nn as f64);
-    let inv = planner.plan_fft_inverse(nn);
+    let inv = fft_inverse(nn);
     let mut outs = [Vec::new(), Vec::new(), Vec::new()];
     for (d, out) in outs.iter_mut().enumerate() {
         let mut s = spec.clone();
@@ -316,13 +378,8 @@ pub fn window_layout(n: usize, count: usize) -> (Vec<usize>, usize) {
 }
 
 /// FFT (bins 0..=len/2) of `f ⊙ w` over one window, scaled by `dt` (a Riemann sum of the integral).
-pub(crate) fn windowed_fft(
-    f: &[f64],
-    w: &[f64],
-    dt: f64,
-    planner: &mut RealFftPlanner<f64>,
-) -> Vec<Complex<f64>> {
-    let fft = planner.plan_fft_forward(w.len());
+pub(crate) fn windowed_fft(f: &[f64], w: &[f64], dt: f64) -> Vec<Complex<f64>> {
+    let fft = fft_forward(w.len());
     let mut buf = fft.make_input_vec();
     for i in 0..w.len() {
         buf[i] = f[i] * w[i] * dt;
@@ -347,11 +404,10 @@ pub(crate) fn weak_second_derivative(
     win: &(Vec<f64>, Vec<f64>, Vec<f64>),
     om: &[f64],
     dt: f64,
-    planner: &mut RealFftPlanner<f64>,
 ) -> Vec<Complex<f64>> {
-    let f0 = windowed_fft(x, &win.0, dt, planner);
-    let f1 = windowed_fft(x, &win.1, dt, planner);
-    let f2 = windowed_fft(x, &win.2, dt, planner);
+    let f0 = windowed_fft(x, &win.0, dt);
+    let f1 = windowed_fft(x, &win.1, dt);
+    let f2 = windowed_fft(x, &win.2, dt);
     (0..om.len())
         .map(|k| f2[k] - Complex::new(0.0, 2.0 * om[k]) * f1[k] - om[k] * om[k] * f0[k])
         .collect()
@@ -363,10 +419,9 @@ pub(crate) fn weak_first_derivative(
     win: &(Vec<f64>, Vec<f64>, Vec<f64>),
     om: &[f64],
     dt: f64,
-    planner: &mut RealFftPlanner<f64>,
 ) -> Vec<Complex<f64>> {
-    let f0 = windowed_fft(g, &win.0, dt, planner);
-    let f1 = windowed_fft(g, &win.1, dt, planner);
+    let f0 = windowed_fft(g, &win.0, dt);
+    let f1 = windowed_fft(g, &win.1, dt);
     (0..om.len())
         .map(|k| -(f1[k] - Complex::new(0.0, om[k]) * f0[k]))
         .collect()
@@ -407,11 +462,11 @@ mod tests {
             .collect();
         let win = window(n, dt);
         let om = bin_omegas(n, dt);
-        let mut pl = RealFftPlanner::new();
-        let wa = weak_second_derivative(&x, &win, &om, dt, &mut pl);
-        let fa = windowed_fft(&a, &win.0, dt, &mut pl);
-        let wv = weak_first_derivative(&x, &win, &om, dt, &mut pl);
-        let fv = windowed_fft(&v, &win.0, dt, &mut pl);
+
+        let wa = weak_second_derivative(&x, &win, &om, dt);
+        let fa = windowed_fft(&a, &win.0, dt);
+        let wv = weak_first_derivative(&x, &win, &om, dt);
+        let fv = windowed_fft(&v, &win.0, dt);
         let scale = fa.iter().fold(0.0f64, |m, c| m.max(c.norm()));
         for k in 0..40 {
             assert!(
@@ -444,7 +499,7 @@ mod tests {
         let x: Vec<f64> = (0..n)
             .map(|i| (w * i as f64 * dt).sin() + 0.03 * gauss())
             .collect();
-        let sm = band_limit(&x, dt, None, &mut RealFftPlanner::new());
+        let sm = band_limit(&x, dt, None);
         assert!(
             sm.band.cutoff_hz > 0.69 && sm.band.cutoff_hz < 5.0,
             "{:?}",
@@ -494,7 +549,7 @@ mod tests {
                     0.5 * (acc - 6.0)
                 })
                 .collect();
-            let sm = band_limit(&x, dt, None, &mut RealFftPlanner::new());
+            let sm = band_limit(&x, dt, None);
             let want = 0.25 * dt;
             for f in [0.5, 5.0, 40.0] {
                 let got = sm.band.noise_psd(f, dt);

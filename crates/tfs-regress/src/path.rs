@@ -2,7 +2,7 @@
 
 use crate::compress::Compressed;
 use crate::error::{RegressError, Result, check_param};
-use crate::fit::{Regressor, lstsq_support};
+use crate::fit::lstsq_support;
 use crate::stlsq::Stlsq;
 use std::collections::HashMap;
 
@@ -152,6 +152,7 @@ pub fn lambda_path(train: &Compressed, val: &Compressed, opts: &PathOptions) -> 
     }
     let nt = opts.n_thresholds;
     let mut seen: HashMap<Vec<bool>, (Vec<f64>, f64, f64)> = HashMap::new();
+    let mut cache = crate::stlsq::SolveCache::new();
     let mut points = Vec::with_capacity(nt);
     for i in 0..nt {
         let frac = if nt == 1 {
@@ -160,7 +161,7 @@ pub fn lambda_path(train: &Compressed, val: &Compressed, opts: &PathOptions) -> 
             i as f64 / (nt - 1) as f64
         };
         let threshold = top * opts.min_ratio.powf(frac);
-        let fit = Stlsq { threshold, ..base }.fit_compressed(train)?;
+        let fit = Stlsq { threshold, ..base }.fit_cached(train, &mut cache)?;
         let support = fit.support.clone();
         let (coef, rss_train, rss_val) = match seen.get(&support) {
             Some(v) => v.clone(),

@@ -3,6 +3,7 @@
 use crate::compress::Compressed;
 use crate::error::{RegressError, Result, check_param};
 use crate::fit::{Fit, Regressor, subset_solve};
+use std::collections::HashMap;
 
 /// STLSQ: fit, zero every coefficient whose scaled magnitude is below `threshold`, refit on
 /// the remaining columns, repeat until the support stops changing.
@@ -92,11 +93,27 @@ impl Stlsq {
     }
 }
 
-impl Regressor for Stlsq {
-    fn fit_compressed(&self, p: &Compressed) -> Result<Fit> {
+/// Memo of subset solves keyed by (columns, ridge used): STLSQ on one problem at many thresholds
+/// revisits the same supports (every threshold starts from the full one), so a λ path solves each
+/// distinct support once.
+pub(crate) type SolveCache = HashMap<(Vec<usize>, bool), (Vec<f64>, Vec<usize>)>;
+
+impl Stlsq {
+    /// [`Regressor::fit_compressed`] with a memo of subset solves shared across calls on the same
+    /// problem `p` (same scaling); results are identical to an uncached fit.
+    pub(crate) fn fit_cached(&self, p: &Compressed, cache: &mut SolveCache) -> Result<Fit> {
         self.validate()?;
         let n = p.ncols();
         let (cs, bs) = scales(p, self.scale_columns);
+        let solve = |cols: &[usize], ridge: f64, cache: &mut SolveCache| {
+            let key = (cols.to_vec(), ridge > 0.0);
+            if let Some(v) = cache.get(&key) {
+                return v.clone();
+            }
+            let v = subset_solve(p, cols, &cs, bs, ridge);
+            cache.insert(key, v.clone());
+            v
+        };
         let mut dependent: Vec<usize> = (0..n).filter(|&j| cs[j] == 0.0).collect();
         let mut cols: Vec<usize> = (0..n).filter(|&j| cs[j] != 0.0).collect();
         let mut x = vec![0.0; n];
@@ -104,7 +121,7 @@ impl Regressor for Stlsq {
         let mut iterations = 0;
         while iterations < self.max_iter {
             iterations += 1;
-            let (xs, dep) = subset_solve(p, &cols, &cs, bs, self.ridge);
+            let (xs, dep) = solve(&cols, self.ridge, cache);
             x = xs;
             let keep: Vec<usize> = cols
                 .iter()
@@ -125,11 +142,11 @@ impl Regressor for Stlsq {
         if !converged {
             // Out of iterations: x is the fit on the support before the last thresholding.
             // Honour the threshold on the returned model by fitting on the last support.
-            let (xs, _) = subset_solve(p, &cols, &cs, bs, self.ridge);
+            let (xs, _) = solve(&cols, self.ridge, cache);
             x = xs;
         }
         if self.unbiased_refit {
-            let (xs, dep) = subset_solve(p, &cols, &cs, bs, 0.0);
+            let (xs, dep) = solve(&cols, 0.0, cache);
             x = xs;
             for j in dep {
                 if !dependent.contains(&j) {
@@ -146,5 +163,11 @@ impl Regressor for Stlsq {
         }
         dependent.sort_unstable();
         Fit::from_coef(p, x, dependent, iterations, converged)
+    }
+}
+
+impl Regressor for Stlsq {
+    fn fit_compressed(&self, p: &Compressed) -> Result<Fit> {
+        self.fit_cached(p, &mut SolveCache::new())
     }
 }
