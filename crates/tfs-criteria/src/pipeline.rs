@@ -392,6 +392,56 @@ fn criterion1_blocks(
     Ok((noise_level_index_factor(f.as_ref())?, f))
 }
 
+/// The constant term's coefficient, from time-domain blocks `(Θ, x'')`: the frequency-domain rows
+/// leave out DC (bins are kept where the acceleration is strong), so a constant column is all but
+/// zero there. The constant is the mean equation residual of the other terms, kept only where it
+/// stands out from the spread of the residual means of 16 contiguous chunks per block (more than
+/// 4 standard errors); otherwise 0, so a library offering `1` does not gain a noise constant.
+fn fill_constant<'a>(
+    coef: &mut [f64],
+    cj: usize,
+    blocks: impl IntoIterator<Item = &'a (Mat<f64>, Vec<f64>)>,
+    keep: &[usize],
+) {
+    let mut chunk_means = Vec::new();
+    let (mut total, mut n) = (0.0, 0usize);
+    for (a, y) in blocks {
+        let m = y.len();
+        if m == 0 {
+            continue;
+        }
+        let g = m.clamp(1, 16);
+        let len = m / g;
+        for c in 0..g {
+            let (s, e) = (c * len, if c + 1 == g { m } else { (c + 1) * len });
+            let mut sum = 0.0;
+            for i in s..e {
+                let mut r = y[i];
+                for (j, &cf) in coef.iter().enumerate() {
+                    if j != cj && cf != 0.0 {
+                        r -= cf * a[(i, keep[j])];
+                    }
+                }
+                sum += r;
+            }
+            total += sum;
+            n += e - s;
+            chunk_means.push(sum / (e - s) as f64);
+        }
+    }
+    coef[cj] = 0.0;
+    let g = chunk_means.len();
+    if g < 3 || n == 0 {
+        return;
+    }
+    let mean = total / n as f64;
+    let cm = chunk_means.iter().sum::<f64>() / g as f64;
+    let sd = (chunk_means.iter().map(|v| (v - cm).powi(2)).sum::<f64>() / (g - 1) as f64).sqrt();
+    if mean.is_finite() && mean.abs() > 4.0 * sd / (g as f64).sqrt() {
+        coef[cj] = mean;
+    }
+}
+
 /// Criterion 4 statistics of a model on time-domain data: (μ, σ) relative to the spread of y.
 pub fn residual_stats(a: MatRef<'_, f64>, y: &[f64], coef: &[f64]) -> (f64, f64) {
     let m = y.len() as f64;
@@ -573,6 +623,8 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
                 Compressed::from_rows(ak.as_ref(), y)
             })
             .collect::<std::result::Result<_, _>>()?;
+        // The constant term (if offered) is estimated in the time domain: see `fill_constant`.
+        let const_j = (0..keep.len()).find(|&j| lib.terms()[keep[j]].is_constant());
         // Compressed rows per (window count, delta, block).
         let compress_blocks = |wi: usize, delta: f64| -> Result<Vec<BlockRows>> {
             transforms[wi]
@@ -612,7 +664,12 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
                         .map(|k| cb[k].0.clone())
                         .collect();
                     let train = Compressed::merge(&train)?;
-                    let (coef, _) = fit_select(&train, &cb[f].0, opt.threshold, opt.n_thresholds)?;
+                    let (mut coef, _) =
+                        fit_select(&train, &cb[f].0, opt.threshold, opt.n_thresholds)?;
+                    if let Some(cj) = const_j {
+                        let td = (0..nb).filter(|&k| k != f).map(|k| &data.td[k]);
+                        fill_constant(&mut coef, cj, td, &keep);
+                    }
                     err += val[f].rss(&coef)? / val[f].b_norm2().max(f64::MIN_POSITIVE);
                 }
                 Ok(err / nb as f64)
@@ -645,7 +702,10 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
         for k in 1..=hold {
             let train =
                 Compressed::merge(&cb[..k].iter().map(|c| c.0.clone()).collect::<Vec<_>>())?;
-            let (coef, thr) = fit_select(&train, &cb[hold].0, opt.threshold, opt.n_thresholds)?;
+            let (mut coef, thr) = fit_select(&train, &cb[hold].0, opt.threshold, opt.n_thresholds)?;
+            if let Some(cj) = const_j {
+                fill_constant(&mut coef, cj, &data.td[..k], &keep);
+            }
             let (mu, sigma) = residual_stats(hak.as_ref(), hy, &coef);
             steps.push(AssemblyStep {
                 records: blocks[..k].iter().map(|r| r.source().to_string()).collect(),
@@ -699,7 +759,10 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
                 let (c, t) = fits.last().cloned().unwrap_or((vec![0.0; keep.len()], 0.0));
                 let support: Vec<bool> = c.iter().map(|v| *v != 0.0).collect();
                 let all = Compressed::merge(&cb.iter().map(|c| c.0.clone()).collect::<Vec<_>>())?;
-                let f = lstsq_support(&all, &support)?;
+                let mut f = lstsq_support(&all, &support)?;
+                if let Some(cj) = const_j {
+                    fill_constant(&mut f.coef, cj, &data.td, &keep);
+                }
                 (
                     f.coef,
                     t,
@@ -736,7 +799,13 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
                 for (inc, &p) in inclusion.iter_mut().zip(&s.inclusion) {
                     *inc = Some(p);
                 }
-                let sel: Vec<usize> = (0..keep.len()).filter(|&j| support[j]).collect();
+                // The constant is estimated in the time domain, not from the bins: no interval.
+                let sel: Vec<usize> = (0..keep.len())
+                    .filter(|&j| support[j] && Some(j) != const_j)
+                    .collect();
+                if let Some(cj) = const_j {
+                    inclusion[cj] = None;
+                }
                 let rows: Vec<(usize, usize, &crate::prepare::WindowTransform)> = transforms[wi]
                     .iter()
                     .take(used)

@@ -216,8 +216,14 @@ pub fn run(args: Args) -> Result<()> {
             "trace": serde_json::to_value(&identified.trace)?,
             "refine": refine_report,
             "offsets": offsets_report,
+            "warnings": identified.trace.warnings(),
         }))?;
     } else {
+        // The data cannot support the library: say so before anything else, on stderr too.
+        for w in identified.trace.warnings() {
+            eprintln!("warning: {w}");
+            println!("WARNING {w}");
+        }
         println!("{}", identified.model.equation_string());
         print_trace(&identified.trace);
         print_offsets(&offsets_report);
