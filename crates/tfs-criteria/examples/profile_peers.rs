@@ -1,28 +1,339 @@
-//! Times `identify_tfs` on the records written by `cargo xtask peers` (profiling aid).
+//! Times `identify_tfs` on the records written by `cargo xtask peers` (profiling aid), or scores
+//! it on every peers case.
 //!
 //! `cargo run --release -p tfs-criteria --example profile_peers -- target/peers/data/white30 [reps] [classical]`
+//!
+//! `cargo run --release -p tfs-criteria --example profile_peers -- score [target/peers/data]`
+//! prints, per noise case and library, the x^5..7 coefficients and the restoring-force relative
+//! RMS error over 0 ≤ h ≤ 1.8 against the surrogate truth 12.145h⁵ − 18.0618h⁶ + 6.5625h⁷.
 
 use std::time::Instant;
 
 use tfs_criteria::{IdentifySpec, identify_sindy, identify_tfs};
+use tfs_data::Record;
+use tfs_library::{Model, Term};
+
+/// The surrogate restoring force (per unit mass) of the peers records.
+fn truth(h: f64) -> f64 {
+    12.145 * h.powi(5) - 18.0618 * h.powi(6) + 6.5625 * h.powi(7)
+}
+
+/// Relative RMS error of the model's restoring force over 0 ≤ h ≤ 1.8.
+fn force_error(m: &Model) -> f64 {
+    let Ok(r) = m.restoring("x") else {
+        return f64::NAN;
+    };
+    let (mut num, mut den) = (0.0, 0.0);
+    for i in 0..361 {
+        let h = 1.8 * i as f64 / 360.0;
+        num += (r.force(h) - truth(h)).powi(2);
+        den += truth(h).powi(2);
+    }
+    (num / den).sqrt()
+}
+
+/// Option overrides from the environment (`TFS_REWEIGHT=passes`).
+fn tweak(spec: &mut IdentifySpec) {
+    if let Some(v) = std::env::var("TFS_REWEIGHT")
+        .ok()
+        .and_then(|s| s.parse().ok())
+    {
+        spec.tfs.reweight = v;
+    }
+    let list = |k: &str| -> Option<Vec<f64>> {
+        std::env::var(k)
+            .ok()
+            .map(|s| s.split(',').filter_map(|v| v.parse().ok()).collect())
+    };
+    if let Some(d) = list("TFS_DELTAS") {
+        spec.tfs.deltas = d;
+    }
+    if let Some(w) = list("TFS_WINDOWS") {
+        spec.tfs.window_counts = w.into_iter().map(|v| v as usize).collect();
+    }
+    if std::env::var("TFS_NODEBIAS").is_ok() {
+        spec.tfs.debias = false;
+    }
+    if let Some(c) = list("TFS_CUTOFF") {
+        spec.tfs.cutoff_hz = c.first().copied();
+    }
+    if let Some(g) = list("TFS_GATE") {
+        spec.tfs.min_bin_snr = g.first().copied().filter(|v| *v > 0.0);
+    }
+}
+
+fn read(dir: &str) -> Result<Vec<Record>, Box<dyn std::error::Error>> {
+    Ok((1..=4)
+        .map(|i| tfs_data::read_csv(format!("{dir}/train{i}.csv")))
+        .collect::<Result<Vec<_>, _>>()?)
+}
+
+fn score(root: &str) -> Result<(), Box<dyn std::error::Error>> {
+    let dofs = ["x".to_string()];
+    let coef = |m: &Model, t: &str| {
+        Term::parse(t, &dofs)
+            .ok()
+            .and_then(|t| m.coef("x", &t).ok())
+            .unwrap_or(0.0)
+    };
+    println!("| case | library | x^5 | x^6 | x^7 | x' | xb_acc | force err | ms |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for case in ["white60", "white30", "white20", "pink30", "white10"] {
+        let recs = read(&format!("{root}/{case}"))?;
+        for (lname, lib) in [
+            ("5..7", "x^5..7, x', xb_acc"),
+            ("1..7", "x^1..7, x', xb_acc"),
+        ] {
+            let mut spec = IdentifySpec::new(&["x"], lib);
+            tweak(&mut spec);
+            let t = Instant::now();
+            let id = identify_tfs(&recs, &spec)?;
+            let el = t.elapsed().as_secs_f64() * 1e3;
+            let m = &id.model;
+            println!(
+                "| {case} | {lname} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2}% | {el:.0} |",
+                coef(m, "x^5"),
+                coef(m, "x^6"),
+                coef(m, "x^7"),
+                coef(m, "x'"),
+                coef(m, "xb_acc"),
+                100.0 * force_error(m)
+            );
+            if std::env::var("TFS_VERBOSE").is_ok() {
+                println!("    {}", m.equation_string());
+                for d in &id.trace.dofs {
+                    if let Some(c1) = &d.criterion1 {
+                        println!("    est SNR {:?}", c1.estimated_snr_db);
+                    }
+                    println!("    δ {} w {}", d.settings.delta, d.settings.windows);
+                    for b in &d.bins {
+                        println!(
+                            "    bins {} cutoff {:.2} band {:?} noise share {:.3}",
+                            b.kept_bins, b.cutoff_hz, b.band_hz, b.in_band_noise_share
+                        );
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Monte Carlo over noise seeds on the four peers sweeps simulated afresh: mean and spread of
+/// the coefficients (bias against variance). `which` = "both", "x" or "acc" (where noise goes).
+fn monte_carlo(
+    kind: &str,
+    snr: f64,
+    seeds: u64,
+    which: &str,
+) -> Result<(), Box<dyn std::error::Error>> {
+    use tfs_criteria::synthetic::{NoiseSpec, Surrogate, SweepSpec, surrogate_record};
+    let sys = Surrogate {
+        c: 2.0,
+        a: [12.145, -18.0618, 6.5625],
+    };
+    let sweeps = [
+        (0.05, 1.5, 100.0, 3.0),
+        (0.05, 1.5, 60.0, 4.0),
+        (0.1, 1.2, 80.0, 5.0),
+        (0.05, 2.0, 120.0, 6.0),
+    ];
+    let nk = if kind == "pink" {
+        tfs_signal::NoiseKind::Pink
+    } else {
+        tfs_signal::NoiseKind::White
+    };
+    let dofs = ["x".to_string()];
+    let mut spec = IdentifySpec::new(&["x"], "x^5..7, x', xb_acc");
+    tweak(&mut spec);
+    let names = ["x^5", "x^6", "x^7", "x'", "xb_acc"];
+    let mut all = Vec::new();
+    for seed in 0..seeds {
+        let mut recs = Vec::new();
+        for (i, &(f0, f1, duration, amplitude)) in sweeps.iter().enumerate() {
+            let sw = SweepSpec {
+                f0,
+                f1,
+                duration,
+                amplitude,
+            };
+            let ns = NoiseSpec {
+                snr_db: snr,
+                kind: nk,
+                seed: 1000 * seed + 17 * i as u64,
+            };
+            let noisy = surrogate_record(&format!("r{i}"), &sys, sw, 200.0, Some(ns))?;
+            let r = if which == "both" {
+                noisy
+            } else if let Some(spec) = which.strip_prefix("band") {
+                // "band<lo>-<hi>": only the x noise between lo and hi Hz (acc noise kept).
+                let (lo, hi) = spec.split_once('-').unwrap();
+                let (lo, hi): (f64, f64) = (lo.parse()?, hi.parse()?);
+                let clean = surrogate_record(&format!("r{i}"), &sys, sw, 200.0, None)?;
+                let cx = clean.column("x").unwrap();
+                let n: Vec<f64> = noisy
+                    .column("x")
+                    .unwrap()
+                    .iter()
+                    .zip(cx)
+                    .map(|(a, b)| a - b)
+                    .collect();
+                let lp = |f: f64| tfs_criteria::spectral::low_pass(&n, 0.005, f);
+                let (nh, nl) = (lp(hi), lp(lo));
+                let x: Vec<f64> = (0..n.len()).map(|k| cx[k] + nh[k] - nl[k]).collect();
+                Record::new(
+                    format!("r{i}"),
+                    clean.t().to_vec(),
+                    vec![
+                        ("x".into(), x),
+                        ("xb_acc".into(), noisy.column("xb_acc").unwrap().to_vec()),
+                    ],
+                )?
+            } else {
+                let clean = surrogate_record(&format!("r{i}"), &sys, sw, 200.0, None)?;
+                let (xs, acs) = if which == "x" {
+                    (&noisy, &clean)
+                } else {
+                    (&clean, &noisy)
+                };
+                Record::new(
+                    format!("r{i}"),
+                    clean.t().to_vec(),
+                    vec![
+                        ("x".into(), xs.column("x").unwrap().to_vec()),
+                        ("xb_acc".into(), acs.column("xb_acc").unwrap().to_vec()),
+                    ],
+                )?
+            };
+            recs.push(r);
+        }
+        let id = identify_tfs(&recs, &spec)?;
+        let c: Vec<f64> = names
+            .iter()
+            .map(|t| {
+                Term::parse(t, &dofs)
+                    .ok()
+                    .and_then(|t| id.model.coef("x", &t).ok())
+                    .unwrap_or(0.0)
+            })
+            .collect();
+        let fe = force_error(&id.model);
+        let st = &id.trace.dofs[0].settings;
+        let cuts: Vec<String> = id.trace.dofs[0]
+            .bins
+            .iter()
+            .map(|b| format!("{:.1}", b.cutoff_hz))
+            .collect();
+        println!(
+            "seed {seed}: {c:.3?} force err {:.2}% (δ {} w {}; cut-offs {})",
+            100.0 * fe,
+            st.delta,
+            st.windows,
+            cuts.join(" ")
+        );
+        all.push((c, fe));
+    }
+    let n = all.len() as f64;
+    for (j, nm) in names.iter().enumerate() {
+        let m = all.iter().map(|a| a.0[j]).sum::<f64>() / n;
+        let sd = (all.iter().map(|a| (a.0[j] - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+        println!("{nm}: mean {m:.4} sd {sd:.4}");
+    }
+    let fe: Vec<f64> = all.iter().map(|a| a.1).collect();
+    let rms = (fe.iter().map(|v| v * v).sum::<f64>() / n).sqrt();
+    println!(
+        "force err rms {:.2}%  mean {:.2}%",
+        100.0 * rms,
+        100.0 * fe.iter().sum::<f64>() / n
+    );
+    Ok(())
+}
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
+    if args.get(1).is_some_and(|s| s == "spec") {
+        let dir = args.get(2).cloned().unwrap_or_default();
+        for r in read(&dir)? {
+            let x = r.column("x").unwrap();
+            let n = x.len();
+            let mut pl = realfft::RealFftPlanner::<f64>::new();
+            let f = pl.plan_fft_forward(2 * n);
+            let mut buf = f.make_input_vec();
+            buf[..n].copy_from_slice(x);
+            for i in 0..n {
+                buf[2 * n - 1 - i] = x[i];
+            }
+            let mut sp = f.make_output_vec();
+            f.process(&mut buf, &mut sp).unwrap();
+            let p: Vec<f64> = sp.iter().map(|c| c.norm_sqr()).collect();
+            let (a, b) = tfs_criteria::spectral::fit_floor(&p);
+            let (kc, _, _) = tfs_criteria::spectral::choose_cutoff(&p, 1);
+            let df = 1.0 / (2.0 * n as f64 * r.dt());
+            println!(
+                "{}: beta {b:.3} kc {kc} ({:.2} Hz)",
+                r.source(),
+                kc as f64 * df
+            );
+            let m = 128;
+            let mut line = String::new();
+            let mut k0 = (0.5 / df) as usize;
+            while (k0 as f64) * df < 20.0 {
+                let mean = p[k0..k0 + m].iter().sum::<f64>() / m as f64;
+                let fl = (k0..k0 + m)
+                    .map(|i| (a + b * (i as f64).ln()).exp())
+                    .sum::<f64>()
+                    / m as f64;
+                line += &format!(" {:.1}:{:.2}", k0 as f64 * df, mean / fl);
+                k0 += m;
+            }
+            println!("  {line}");
+        }
+        return Ok(());
+    }
+    if args.get(1).is_some_and(|s| s == "bands") {
+        let dir = args.get(2).cloned().unwrap_or_default();
+        for r in read(&dir)? {
+            let b = tfs_criteria::spectral::band_limit(r.column("x").unwrap(), r.dt(), None).band;
+            println!(
+                "{}: cutoff {:.2} beta {:.3} noise_var {:.3e} total {:.3e} share {:.4}",
+                r.source(),
+                b.cutoff_hz,
+                b.floor_beta,
+                b.noise_var,
+                b.total_noise_var(),
+                b.in_band_noise_share
+            );
+        }
+        return Ok(());
+    }
+    if args.get(1).is_some_and(|s| s == "mc") {
+        let kind = args.get(2).cloned().unwrap_or_else(|| "pink".into());
+        let snr: f64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(30.0);
+        let seeds: u64 = args.get(4).and_then(|s| s.parse().ok()).unwrap_or(8);
+        let which = args.get(5).cloned().unwrap_or_else(|| "both".into());
+        return monte_carlo(&kind, snr, seeds, &which);
+    }
+    if args.get(1).is_some_and(|s| s == "score") {
+        let root = args
+            .get(2)
+            .cloned()
+            .unwrap_or_else(|| "target/peers/data".into());
+        return score(&root);
+    }
     let dir = args
         .get(1)
         .cloned()
         .unwrap_or_else(|| "target/peers/data/white30".into());
     let reps: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(3);
     let classical = args.get(3).is_some_and(|s| s == "classical");
-    let recs = (1..=4)
-        .map(|i| tfs_data::read_csv(format!("{dir}/train{i}.csv")))
-        .collect::<Result<Vec<_>, _>>()?;
+    let recs = read(&dir)?;
     let lib = if classical {
         "poly(x, x'; 1..7), xb_acc"
     } else {
         "x^1..7, x', xb_acc"
     };
-    let spec = IdentifySpec::new(&["x"], lib);
+    let mut spec = IdentifySpec::new(&["x"], lib);
+    tweak(&mut spec);
     for _ in 0..reps {
         let t = Instant::now();
         let id = identify_tfs(&recs, &spec)?;

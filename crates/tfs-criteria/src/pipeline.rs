@@ -19,7 +19,7 @@ use crate::kappa::{
 };
 use crate::prepare::{
     Prepared, TransformForm, check_record, decimation, prepare, raw_columns_sg, record_series,
-    rows_for, time_domain, window_transforms,
+    reweight, rows_for, time_domain, window_transforms,
 };
 use crate::prune::{Criterion2, prune_factor};
 
@@ -77,6 +77,11 @@ pub struct TfsOptions {
     /// Evaluate single powers `x^k` as noise-debiased Hermite polynomials of the reconstruction,
     /// using its estimated in-band noise variance.
     pub debias: bool,
+    /// Passes of feasible generalised least squares over the frequency-domain rows: each bin's
+    /// rows are weighted by `1/√(local residual power)` of a full-library fit (0 = equal weights,
+    /// the default; 2 is a good choice under white noise, see `reweight` in the crate source).
+    #[serde(default)]
+    pub reweight: usize,
 }
 
 impl Default for TfsOptions {
@@ -100,6 +105,7 @@ impl Default for TfsOptions {
             savitzky_golay: (12, 3),
             min_bin_snr: Some(10.0),
             debias: true,
+            reweight: 0,
         }
     }
 }
@@ -600,7 +606,7 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
                 )
             })
             .collect::<Result<_>>()?;
-        let transforms: Vec<Vec<_>> = opt
+        let mut transforms: Vec<Vec<_>> = opt
             .window_counts
             .par_iter()
             .map(|&wc| {
@@ -612,6 +618,11 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
                     .collect()
             })
             .collect();
+        if opt.reweight > 0 {
+            transforms
+                .par_iter_mut()
+                .try_for_each(|t| reweight(t, dmin, &keep, opt.reweight))?;
+        }
         timing.push((format!("{dof}: criterion 3 transforms"), ms(t0)));
         // Time-domain validation blocks restricted to kept columns.
         let t0 = Instant::now();

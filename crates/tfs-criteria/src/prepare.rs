@@ -338,6 +338,8 @@ pub(crate) struct WindowTransform {
     pub lhs: Vec<Complex<f64>>,
     /// Term transforms at the stored bins (`cols[j][b]`).
     pub cols: Vec<Vec<Complex<f64>>>,
+    /// Row weight of each stored bin (1 = unweighted; see [`reweight`]).
+    pub weight: Vec<f64>,
 }
 
 /// Variance of the weak-form (or plain) transform of `x''` at each bin that the displacement
@@ -426,13 +428,15 @@ pub(crate) fn window_transforms(
                 rel_amp: bins.iter().map(|&k| lhs_full[k].norm() / max).collect(),
                 lhs: bins.iter().map(|&k| lhs_full[k]).collect(),
                 cols,
+                weight: vec![1.0; bins.len()],
             }
         })
         .collect()
 }
 
 /// Real rows (real and imaginary parts stacked) of the bins with relative amplitude ≥ `delta`,
-/// restricted to the columns `keep`. Returns (A, b, kept bin frequencies).
+/// restricted to the columns `keep`, each bin's rows multiplied by its weight. Returns (A, b,
+/// kept bin frequencies).
 pub(crate) fn rows_for(
     w: &WindowTransform,
     delta: f64,
@@ -450,12 +454,15 @@ pub(crate) fn rows_for(
     }
     let a = Mat::<f64>::from_fn(rows.len(), keep.len(), |i, j| {
         let (b, im) = rows[i];
-        let c = w.cols[keep[j]][b];
+        let c = w.cols[keep[j]][b] * w.weight[b];
         if im { c.im } else { c.re }
     });
     let y = rows
         .iter()
-        .map(|&(b, im)| if im { w.lhs[b].im } else { w.lhs[b].re })
+        .map(|&(b, im)| {
+            let v = w.lhs[b] * w.weight[b];
+            if im { v.im } else { v.re }
+        })
         .collect();
     (a, y, sel.iter().map(|&b| w.freq[b]).collect())
 }
@@ -510,4 +517,198 @@ pub(crate) fn time_domain(
     let a = lib.evaluate(&OwnedColumns { rows, cols })?;
     let y = sub(&p.smooth[dof].a);
     Ok((a, y))
+}
+
+/// Stored bins on each side of a bin whose residual powers are averaged by [`reweight`].
+const REWEIGHT_HALF: usize = 16;
+
+/// Feasible generalised least squares on the frequency-domain rows of one window layout (`recs`:
+/// the windows of every record). The rows of different bins carry very different noise — the
+/// weak-form `x''` row carries `ω²` times the displacement noise, and coloured (e.g. pink) noise
+/// has a density that changes by orders of magnitude across the band — so equal weights let the
+/// noisiest bins dominate. Each pass fits every column of `keep` by least squares on the bins with
+/// relative amplitude ≥ `delta`, takes the residual power `|ê_b|²` of every stored bin, averages
+/// it over the `2·REWEIGHT_HALF + 1` neighbouring stored bins of the same window (a local noise
+/// level that does not follow one bin's chance residual), and sets the bin's weight to
+/// `1/√(that power)`. Weights are normalised to unit mean square; a fit that fails leaves the
+/// weights as they were.
+pub(crate) fn reweight(
+    recs: &mut [Vec<WindowTransform>],
+    delta: f64,
+    keep: &[usize],
+    passes: usize,
+) -> Result<()> {
+    use tfs_regress::{Compressed, lstsq_support};
+    if keep.is_empty() {
+        return Ok(());
+    }
+    for _ in 0..passes {
+        let mut parts = Vec::new();
+        for w in recs.iter().flatten() {
+            let (a, y, _) = rows_for(w, delta, keep);
+            if a.nrows() > 0 {
+                parts.push(Compressed::from_rows(a.as_ref(), &y)?);
+            }
+        }
+        if parts.is_empty() {
+            return Ok(());
+        }
+        let all = Compressed::merge(&parts)?;
+        let Ok(fit) = lstsq_support(&all, &vec![true; keep.len()]) else {
+            return Ok(());
+        };
+        if fit.coef.iter().any(|c| !c.is_finite()) {
+            return Ok(());
+        }
+        let mut power: Vec<Vec<f64>> = Vec::new();
+        for w in recs.iter().flatten() {
+            let e: Vec<f64> = (0..w.lhs.len())
+                .map(|b| {
+                    let mut r = w.lhs[b];
+                    for (j, &c) in keep.iter().zip(&fit.coef) {
+                        r -= w.cols[*j][b] * c;
+                    }
+                    r.norm_sqr()
+                })
+                .collect();
+            let n = e.len();
+            power.push(
+                (0..n)
+                    .map(|b| {
+                        let lo = b.saturating_sub(REWEIGHT_HALF);
+                        let hi = (b + REWEIGHT_HALF + 1).min(n);
+                        e[lo..hi].iter().sum::<f64>() / (hi - lo) as f64
+                    })
+                    .collect(),
+            );
+        }
+        let mut all_p: Vec<f64> = power.iter().flatten().copied().collect();
+        if all_p.is_empty() {
+            return Ok(());
+        }
+        let mid = all_p.len() / 2;
+        let med = *all_p.select_nth_unstable_by(mid, f64::total_cmp).1;
+        if !(med.is_finite() && med > 0.0) {
+            return Ok(());
+        }
+        // A floor keeps a bin the fit happens to match exactly from taking all the weight.
+        let floor = 1e-6 * med;
+        for (w, p) in recs.iter_mut().flatten().zip(&power) {
+            w.weight = p.iter().map(|v| 1.0 / v.max(floor).sqrt()).collect();
+        }
+    }
+    // Unit mean square over the stored bins (the scale does not change any fit; it keeps the
+    // rows' magnitudes comparable with the unweighted ones in traces).
+    let (ss, n) = recs
+        .iter()
+        .flatten()
+        .flat_map(|w| w.weight.iter())
+        .fold((0.0, 0usize), |(s, n), v| (s + v * v, n + 1));
+    if n > 0 && ss > 0.0 {
+        let k = (n as f64 / ss).sqrt();
+        recs.iter_mut()
+            .flatten()
+            .for_each(|w| w.weight.iter_mut().for_each(|v| *v *= k));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tfs_regress::{Compressed, lstsq_support};
+    use tfs_signal::NoiseKind;
+    use tfs_signal::noise::noise_for;
+
+    /// Unit-variance white noise (seeded).
+    fn gauss(n: usize, seed: u64) -> Vec<f64> {
+        noise_for(&vec![1.0; n], 0.0, NoiseKind::White, seed).expect("noise")
+    }
+
+    /// Two windows of 200 bins, `y = 1.5·θ0 − 0.7·θ1 + e` with noise sd 1 in the lower half of
+    /// the bins and 10 in the upper half.
+    fn windows() -> Vec<Vec<WindowTransform>> {
+        let nb = 200;
+        (0..2u64)
+            .map(|w| {
+                let g: Vec<Vec<f64>> = (0..6).map(|k| gauss(nb, 10 * w + k)).collect();
+                let c = |a: usize, b: usize| -> Vec<Complex<f64>> {
+                    (0..nb).map(|i| Complex::new(g[a][i], g[b][i])).collect()
+                };
+                let cols = vec![c(0, 1), c(2, 3)];
+                let lhs = (0..nb)
+                    .map(|i| {
+                        let s = if i < nb / 2 { 1.0 } else { 10.0 };
+                        cols[0][i] * 1.5 - cols[1][i] * 0.7 + Complex::new(g[4][i], g[5][i]) * s
+                    })
+                    .collect();
+                vec![WindowTransform {
+                    freq: (1..=nb).map(|k| k as f64 * 0.1).collect(),
+                    rel_amp: vec![1.0; nb],
+                    lhs,
+                    cols,
+                    weight: vec![1.0; nb],
+                }]
+            })
+            .collect()
+    }
+
+    fn fit(recs: &[Vec<WindowTransform>]) -> Vec<f64> {
+        let parts: Vec<Compressed> = recs
+            .iter()
+            .flatten()
+            .map(|w| {
+                let (a, y, _) = rows_for(w, 0.5, &[0, 1]);
+                Compressed::from_rows(a.as_ref(), &y).expect("rows")
+            })
+            .collect();
+        let all = Compressed::merge(&parts).expect("merge");
+        lstsq_support(&all, &[true, true]).expect("fit").coef
+    }
+
+    #[test]
+    fn reweight_follows_the_noise_level_and_sharpens_the_fit() {
+        let mut recs = windows();
+        let plain = fit(&recs);
+        reweight(&mut recs, 0.5, &[0, 1], 2).expect("reweight");
+        // Weights ≈ 1/noise sd: the noisy half gets about a tenth of the weight (away from the
+        // boundary, where the smoothing mixes the halves).
+        let w = &recs[0][0].weight;
+        let lo = w[10..90].iter().sum::<f64>() / 80.0;
+        let hi = w[110..190].iter().sum::<f64>() / 80.0;
+        let ratio = hi / lo;
+        assert!((0.05..0.2).contains(&ratio), "weight ratio {ratio}");
+        // Unit mean square.
+        let ms = recs
+            .iter()
+            .flatten()
+            .flat_map(|t| t.weight.iter())
+            .map(|v| v * v)
+            .sum::<f64>()
+            / 400.0;
+        assert!((ms - 1.0).abs() < 1e-9, "mean square weight {ms}");
+        let gls = fit(&recs);
+        let err = |c: &[f64]| ((c[0] - 1.5).powi(2) + (c[1] + 0.7).powi(2)).sqrt();
+        assert!(
+            err(&gls) < err(&plain),
+            "weighted error {} vs equal weights {}",
+            err(&gls),
+            err(&plain)
+        );
+    }
+
+    #[test]
+    fn rows_scale_with_the_bin_weight() {
+        let mut recs = windows();
+        let (a1, y1, _) = rows_for(&recs[0][0], 0.5, &[0, 1]);
+        recs[0][0].weight = (0..200).map(|i| 1.0 + i as f64).collect();
+        let (a2, y2, _) = rows_for(&recs[0][0], 0.5, &[0, 1]);
+        for i in 0..a1.nrows() {
+            let wt = 1.0 + (i / 2) as f64;
+            assert!((y2[i] - wt * y1[i]).abs() <= 1e-12 * (1.0 + y2[i].abs()));
+            for j in 0..2 {
+                assert!((a2[(i, j)] - wt * a1[(i, j)]).abs() <= 1e-12 * (1.0 + a2[(i, j)].abs()));
+            }
+        }
+    }
 }

@@ -273,7 +273,11 @@ pub fn band_limit(x: &[f64], dt: f64, cutoff_hz: Option<f64>) -> Smoothed {
         Some(f) => {
             let (_, floor, _) = choose_cutoff(&power, 0);
             let kc = ((f / df).round() as usize).min(spec.len() - 1);
-            (kc, floor, kc as f64 * floor)
+            // The noise let in is the fitted floor summed over the kept bins (for a coloured
+            // floor the level at one bin times the bin count would misstate it).
+            let (a, b) = fit_floor(&power);
+            let ns: f64 = (1..=kc).map(|k| (a + b * (k as f64).ln()).exp()).sum();
+            (kc, floor, if ns.is_finite() { ns } else { 0.0 })
         }
         None => choose_cutoff(&power, 1),
     };

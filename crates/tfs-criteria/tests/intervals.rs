@@ -65,9 +65,21 @@ fn record(sys: &Linear, f0: f64, f1: f64, dur: f64, amp: f64, snr: f64, seed: u6
 
 #[test]
 fn intervals_cover_the_truth_at_about_the_stated_rate() {
+    coverage(0);
+}
+
+/// The same with weighted frequency-domain rows (feasible GLS): the cluster-robust intervals
+/// must stay honest when the weights come from the data.
+#[test]
+fn weighted_rows_keep_the_intervals_honest() {
+    coverage(2);
+}
+
+fn coverage(reweight: usize) {
     let sys = Linear { k: 4.0, c: 0.4 };
     let truth = [("x", -4.0), ("x'", -0.4), ("xb_acc", -1.0)];
-    let spec = IdentifySpec::new(&["x"], "x, x', xb_acc");
+    let mut spec = IdentifySpec::new(&["x"], "x, x', xb_acc");
+    spec.tfs.reweight = reweight;
     let (mut covered, mut total, mut rel_width) = (0, 0, 0.0);
     let draws = 20;
     for seed in 0..draws {
