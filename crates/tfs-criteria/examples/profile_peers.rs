@@ -144,7 +144,8 @@ fn monte_carlo(
         tfs_signal::NoiseKind::White
     };
     let dofs = ["x".to_string()];
-    let mut spec = IdentifySpec::new(&["x"], "x^5..7, x', xb_acc");
+    let lib = std::env::var("TFS_LIB").unwrap_or_else(|_| "x^5..7, x', xb_acc".into());
+    let mut spec = IdentifySpec::new(&["x"], &lib);
     tweak(&mut spec);
     let names = ["x^5", "x^6", "x^7", "x'", "xb_acc"];
     let mut all = Vec::new();

@@ -72,14 +72,17 @@ pub struct TfsOptions {
     /// Criterion 3 noise gate: a bin is used only if its |ẍ̂|² is at least this many times the
     /// variance the estimated displacement noise gives at that bin (`None` = no gate). Bins
     /// below it are dominated by the noise of `x`, which enters both sides of the regression and
-    /// biases every coefficient.
+    /// biases every coefficient. Default 1: signal above noise; how much each kept bin counts
+    /// is left to [`TfsOptions::reweight`].
     pub min_bin_snr: Option<f64>,
     /// Evaluate single powers `x^k` as noise-debiased Hermite polynomials of the reconstruction,
     /// using its estimated in-band noise variance.
     pub debias: bool,
     /// Passes of feasible generalised least squares over the frequency-domain rows: each bin's
-    /// rows are weighted by `1/√(local residual power)` of a full-library fit (0 = equal weights,
-    /// the default; 2 is a good choice under white noise, see `reweight` in the crate source).
+    /// rows are weighted by `1/√(local residual power)` of a full-library fit (0 = equal weights;
+    /// default 2). Bins differ in noise level by orders of magnitude (the weak-form `x''` row
+    /// carries `ω²` times the displacement noise; pink noise adds `1/f`), so equal weights let
+    /// the noisiest bins dominate.
     #[serde(default)]
     pub reweight: usize,
 }
@@ -103,9 +106,9 @@ impl Default for TfsOptions {
             sigma0: None,
             bagging: 100,
             savitzky_golay: (12, 3),
-            min_bin_snr: Some(10.0),
+            min_bin_snr: Some(1.0),
             debias: true,
-            reweight: 0,
+            reweight: 2,
         }
     }
 }

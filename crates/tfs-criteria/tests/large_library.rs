@@ -1,6 +1,6 @@
 //! The paper's classical library (every monomial x^i·x'^j of degree 0–7, 36 columns, plus the
-//! input) gives the same terms as the 9-column library on the surrogate at 30 dB: no spurious
-//! term survives the larger search.
+//! input) gives the same terms and the same accuracy as the 9-column library on the surrogate at
+//! 30 dB: no spurious term survives the larger search.
 
 mod common;
 
@@ -41,9 +41,18 @@ fn classical_library_recovers_the_same_terms_as_the_small_one() {
         ["x'", "x^5", "x^6", "x^7", "xb_acc"],
         "support of the small library"
     );
-    let e = common::errors(&large.model);
+    // The same accuracy as the small library (the larger search costs nothing), and a sane
+    // absolute level on these half-length records (one noise draw; the absolute targets are
+    // tested on full-length records in surrogate.rs).
+    let (e, es) = (common::errors(&large.model), common::errors(&small.model));
     assert!(e.damping_rel < 0.03, "damping error {}", e.damping_rel);
-    assert!(e.force_rel_rms < 0.05, "force error {}", e.force_rel_rms);
+    assert!(
+        (e.force_rel_rms - es.force_rel_rms).abs() < 0.005,
+        "force error: large library {}, small library {}",
+        e.force_rel_rms,
+        es.force_rel_rms
+    );
+    assert!(e.force_rel_rms < 0.10, "force error {}", e.force_rel_rms);
 }
 
 fn spec_columns(spec: &IdentifySpec) -> usize {

@@ -151,8 +151,9 @@ fn base_identification_recovers_the_duffing_coefficients() {
     }
 }
 
-/// Relative change allowed in the non-constant coefficients when an input offset is kept.
-const OFFSET_TOL: f64 = 1e-6;
+/// Relative change allowed in the non-constant coefficients when an input offset is kept (rounding:
+/// an offset of 10 standard deviations costs about one significant digit of the input).
+const OFFSET_TOL: f64 = 1e-5;
 
 proptest! {
     // A fixed seed: the cases are the same on every run (no flaky CI), still drawn at random.
