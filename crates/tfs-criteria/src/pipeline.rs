@@ -85,6 +85,13 @@ pub struct TfsOptions {
     /// the noisiest bins dominate.
     #[serde(default)]
     pub reweight: usize,
+    /// Rounds of backward elimination by significance: terms whose 95% interval includes 0 are
+    /// removed from the library and the whole selection re-run on what remains, until every kept
+    /// term is distinguishable from zero (0 = off; default 3). Under coloured noise a poorly
+    /// determined high power lets spurious low powers in beside it; once it is gone the
+    /// selection on the reduced library drops them by itself.
+    #[serde(default)]
+    pub prune_insignificant: usize,
 }
 
 impl Default for TfsOptions {
@@ -109,6 +116,7 @@ impl Default for TfsOptions {
             min_bin_snr: Some(1.0),
             debias: true,
             reweight: 2,
+            prune_insignificant: 3,
         }
     }
 }
@@ -511,8 +519,130 @@ struct DofData {
     td: Vec<(Mat<f64>, Vec<f64>)>,
 }
 
-/// T-F-S SINDy (criteria 1–4 with data assembly). See the crate documentation.
+/// T-F-S SINDy (criteria 1–4 with data assembly), then backward elimination by significance
+/// ([`TfsOptions::prune_insignificant`]). See the crate documentation.
 pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identified> {
+    let mut id = identify_tfs_once(records, spec)?;
+    if spec.tfs.prune_insignificant == 0 {
+        return Ok(id);
+    }
+    let support = |id: &Identified, dof: &str| -> Result<Vec<String>> {
+        Ok(id
+            .model
+            .equation(dof)?
+            .terms
+            .iter()
+            .map(|t| t.term.to_string())
+            .collect())
+    };
+    let first: Vec<Vec<String>> = spec
+        .dofs
+        .iter()
+        .map(|d| support(&id, d))
+        .collect::<Result<_>>()?;
+    let first_note: Vec<Option<String>> = id
+        .trace
+        .dofs
+        .iter()
+        .map(|d| {
+            d.criterion1
+                .as_ref()
+                .filter(|c| !c.supported)
+                .map(|c| c.support_note.clone())
+        })
+        .collect();
+    let mut current = spec.clone();
+    let mut notes: Vec<Vec<String>> = vec![Vec::new(); spec.dofs.len()];
+    for round in 1..=spec.tfs.prune_insignificant {
+        let libs = current.libraries()?;
+        let mut changed = false;
+        let mut reduced = Vec::with_capacity(libs.len());
+        for (i, dof) in current.dofs.iter().enumerate() {
+            let eq = id.model.equation(dof)?;
+            let weak: Vec<String> = eq
+                .terms
+                .iter()
+                .filter(|t| t.interval.is_some_and(|[lo, hi]| lo <= 0.0 && hi >= 0.0))
+                .map(|t| t.term.to_string())
+                .collect();
+            let keep: Vec<String> = libs[i]
+                .terms()
+                .iter()
+                .map(|t| t.to_string())
+                .filter(|t| !weak.contains(t))
+                .collect();
+            if !weak.is_empty() && !keep.is_empty() {
+                changed = true;
+                notes[i].push(format!(
+                    "round {round} of backward elimination by significance: removed {} from the library (95% interval includes 0) and re-ran the selection",
+                    weak.join(", ")
+                ));
+            }
+            reduced.push(if keep.is_empty() {
+                libs[i]
+                    .terms()
+                    .iter()
+                    .map(|t| t.to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            } else {
+                keep.join(", ")
+            });
+        }
+        if !changed {
+            break;
+        }
+        current.dof_libraries = reduced;
+        id = identify_tfs_once(records, &current)?;
+    }
+    let finals: Vec<Vec<String>> = spec
+        .dofs
+        .iter()
+        .map(|d| support(&id, d))
+        .collect::<Result<_>>()?;
+    for (((d, n), first), fin) in id.trace.dofs.iter_mut().zip(notes).zip(&first).zip(finals) {
+        // Removing insignificant terms may only shrink the structure. Terms the first pass did
+        // not select appearing afterwards mean the data do not pin the structure down: the
+        // first pass's "too noisy" verdict stands.
+        let new_terms: Vec<String> = fin.into_iter().filter(|t| !first.contains(t)).collect();
+        let why_not = if !new_terms.is_empty() {
+            Some(format!(
+                "removing the insignificant terms changed the selected structure (new terms {} appeared), so the data do not pin the structure down",
+                new_terms.join(", ")
+            ))
+        } else {
+            first_note[i_of(&spec.dofs, &d.dof)].as_ref().map(|note| {
+                format!(
+                    "the full library was not supported ({note}); the reduced model was found by removing terms one significance test at a time, so check it against held-out records (`tfs compare`) before relying on it"
+                )
+            })
+        };
+        if !n.is_empty()
+            && let Some(reason) = why_not
+            && let Some(c1) = d.criterion1.as_mut()
+        {
+            c1.supported = false;
+            c1.support_note = format!(
+                "too noisy for this library: {reason}; the model below is not a reliable identification. What to do: measure longer or repeat the test (more records), raise the excitation level or lower the sensor noise, or use a smaller library (fewer high powers)"
+            );
+            d.assembly_verdict = format!("{}. {}", c1.support_note, d.assembly_verdict);
+        }
+        let mut n = n;
+        n.append(&mut d.settings.why);
+        d.settings.why = n;
+    }
+    id.model.trace =
+        serde_json::to_value(&id.trace).map_err(|e| CriteriaError::Invalid(e.to_string()))?;
+    Ok(id)
+}
+
+/// Index of `dof` in `dofs` (0 if absent).
+fn i_of(dofs: &[String], dof: &str) -> usize {
+    dofs.iter().position(|d| d == dof).unwrap_or(0)
+}
+
+/// One pass of the T-F-S pipeline on a fixed library (see [`identify_tfs`]).
+fn identify_tfs_once(records: &[Record], spec: &IdentifySpec) -> Result<Identified> {
     let t_all = Instant::now();
     let opt = &spec.tfs;
     validate_tfs(opt)?;
