@@ -32,7 +32,7 @@ fn force_error(m: &Model) -> f64 {
     (num / den).sqrt()
 }
 
-/// Option overrides from the environment (`TFS_REWEIGHT=passes`).
+/// Option overrides from the environment (`TFS_REWEIGHT=passes`, `TFS_PRUNE=rounds`, …).
 fn tweak(spec: &mut IdentifySpec) {
     if let Some(v) = std::env::var("TFS_REWEIGHT")
         .ok()
@@ -59,6 +59,9 @@ fn tweak(spec: &mut IdentifySpec) {
     }
     if let Some(g) = list("TFS_GATE") {
         spec.tfs.min_bin_snr = g.first().copied().filter(|v| *v > 0.0);
+    }
+    if let Some(p) = list("TFS_PRUNE") {
+        spec.tfs.prune_insignificant = p.first().map_or(0, |v| *v as usize);
     }
 }
 

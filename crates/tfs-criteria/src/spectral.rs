@@ -139,7 +139,8 @@ const FLOOR_SUBBANDS: usize = 16;
 /// above it), with `k_c ≥ min_bin`. Returns `k_c`, the floor at `k_c` and `Σ_{1≤k≤k_c} N̂_k`.
 pub fn choose_cutoff(p: &[f64], min_bin: usize) -> (usize, f64, f64) {
     let k = p.len();
-    let (alpha, beta) = fit_floor(p);
+    let ff = floor_fit(p);
+    let (alpha, beta) = (ff.alpha, ff.beta);
     // The floor at every bin, computed once (flat floors need no logarithms).
     let fl: Vec<f64> = if beta == 0.0 {
         vec![alpha.exp(); k]
@@ -166,9 +167,13 @@ pub fn choose_cutoff(p: &[f64], min_bin: usize) -> (usize, f64, f64) {
     // Harmonics: a nonlinear response has energy at multiples of the drive band that may be
     // worth less than the noise between them in total, yet each rises clearly above the local
     // floor. Extend the cut-off to the last block of bins whose mean power exceeds the floor by
-    // `HARMONIC_EXCESS` (for noise alone the block mean is a χ²/m average: exceeding 2.5× its mean
-    // with m = 32 has probability ~1e-6). Noise-dominated bins inside the band are excluded
-    // later, in the regression, by the per-bin noise gate.
+    // `HARMONIC_EXCESS` (for noise alone a block mean of m = 128 χ²₁ bins has a relative spread
+    // of √(2/m) ≈ 0.125, so 1.5× its floor is four spreads out) — and by twice the standard
+    // error of the floor itself there: the floor is a power law fitted to the upper half of the
+    // spectrum, and extrapolated a decade lower its slope's uncertainty (±0.2 for pink noise
+    // over one octave) misplaces it by 20–40 %, enough for plain noise blocks to pass as
+    // harmonics. Noise-dominated bins inside the band are excluded later, in the regression, by
+    // the per-bin noise gate.
     let mut kc = best.0;
     let mut noise = best.2;
     let m = HARMONIC_BLOCK;
@@ -176,7 +181,8 @@ pub fn choose_cutoff(p: &[f64], min_bin: usize) -> (usize, f64, f64) {
     while a0 + m <= k / 2 {
         let mean = p[a0..a0 + m].iter().sum::<f64>() / m as f64;
         let fl = (a0..a0 + m).map(floor).sum::<f64>() / m as f64;
-        if mean > HARMONIC_EXCESS * fl {
+        let widen = (2.0 * ff.log_se(a0 + m / 2)).exp();
+        if mean > HARMONIC_EXCESS * widen * fl {
             for i in kc + 1..a0 + m {
                 noise += floor(i);
             }
@@ -195,6 +201,37 @@ const HARMONIC_EXCESS: f64 = 1.5;
 /// The power-law noise floor `ln N̂_k = α + β ln k` of a mirror power spectrum (see
 /// [`choose_cutoff`]); returns (α, β), α = −∞ when the spectrum is zero.
 pub fn fit_floor(p: &[f64]) -> (f64, f64) {
+    let f = floor_fit(p);
+    (f.alpha, f.beta)
+}
+
+/// The floor fit of [`fit_floor`] with what its extrapolation error needs.
+struct FloorFit {
+    alpha: f64,
+    beta: f64,
+    /// Residual standard deviation of the sub-band log medians about the unconstrained line.
+    s: f64,
+    /// Number of sub-bands.
+    n: f64,
+    /// Mean log bin of the sub-bands.
+    mx: f64,
+    /// Σ (ln k − mx)².
+    sxx: f64,
+}
+
+impl FloorFit {
+    /// Standard error of the fitted log floor at bin `k` (a prediction far below the fitted
+    /// band carries the slope's uncertainty times the log distance).
+    fn log_se(&self, k: usize) -> f64 {
+        if self.n < 3.0 || self.sxx <= 0.0 {
+            return 0.0;
+        }
+        let d = (k.max(1) as f64).ln() - self.mx;
+        self.s * (1.0 / self.n + d * d / self.sxx).sqrt()
+    }
+}
+
+fn floor_fit(p: &[f64]) -> FloorFit {
     let k = p.len();
     let lo = (k / 2).max(1);
     let nsub = FLOOR_SUBBANDS.min(k - lo).max(1);
@@ -211,14 +248,28 @@ pub fn fit_floor(p: &[f64]) -> (f64, f64) {
     }
     let cnt = pts.len() as f64;
     if pts.is_empty() {
-        return (f64::NEG_INFINITY, 0.0);
+        return FloorFit {
+            alpha: f64::NEG_INFINITY,
+            beta: 0.0,
+            s: 0.0,
+            n: 0.0,
+            mx: 0.0,
+            sxx: 0.0,
+        };
     }
     let mx = pts.iter().map(|p| p.0).sum::<f64>() / cnt;
     let my = pts.iter().map(|p| p.1).sum::<f64>() / cnt;
     let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
     let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
     if pts.len() < 3 || sxx <= 0.0 {
-        return (my, 0.0);
+        return FloorFit {
+            alpha: my,
+            beta: 0.0,
+            s: 0.0,
+            n: cnt,
+            mx,
+            sxx,
+        };
     }
     let b = sxy / sxx;
     // Keep the slope only if it is significant (|β| > 2 standard errors): over the short
@@ -228,14 +279,21 @@ pub fn fit_floor(p: &[f64]) -> (f64, f64) {
         .iter()
         .map(|p| (p.1 - my - b * (p.0 - mx)).powi(2))
         .sum();
-    let se = (rss / (cnt - 2.0) / sxx).sqrt();
+    let s = (rss / (cnt - 2.0)).sqrt();
+    let se = s / sxx.sqrt();
     let beta = if b.abs() > 2.0 * se {
         b.clamp(-2.0, 0.5)
     } else {
         0.0
     };
-    let alpha = my - beta * mx;
-    (alpha, beta)
+    FloorFit {
+        alpha: my - beta * mx,
+        beta,
+        s,
+        n: cnt,
+        mx,
+        sxx,
+    }
 }
 
 /// `x` (sampled at `dt`) with every mirror-spectrum bin above `cutoff_hz` removed: the
@@ -563,6 +621,38 @@ mod tests {
                     sm.band
                 );
             }
+        }
+    }
+
+    /// Under pink noise the harmonic search allows for the uncertainty of the power law
+    /// extrapolated from the upper half: noise alone above a 1 Hz sine does
+    /// not drag the cut-off out to 10 Hz (without that allowance it reached 15.6 Hz on one of
+    /// these draws), while a narrow harmonic at 20.3 Hz still extends it, on every draw.
+    #[test]
+    fn harmonic_search_ignores_pink_noise_but_finds_a_harmonic() {
+        use tfs_signal::noise::{NoiseKind, noise_for};
+        let dt = 0.01;
+        let n = 20_000;
+        let tw = 2.0 * std::f64::consts::PI;
+        let sig: Vec<f64> = (0..n).map(|k| (tw * k as f64 * dt).sin()).collect();
+        for seed in 0..12u64 {
+            let noise = noise_for(&sig, 40.0, NoiseKind::Pink, seed).unwrap();
+            let plain: Vec<f64> = sig.iter().zip(&noise).map(|(a, b)| a + b).collect();
+            let with_h: Vec<f64> = plain
+                .iter()
+                .enumerate()
+                .map(|(k, v)| v + 0.01 * (tw * 20.3 * k as f64 * dt).sin())
+                .collect();
+            let c0 = band_limit(&plain, dt, None).band.cutoff_hz;
+            let c1 = band_limit(&with_h, dt, None).band.cutoff_hz;
+            assert!(
+                c0 < 10.0,
+                "seed {seed}: noise alone moved the cut-off to {c0} Hz"
+            );
+            assert!(
+                c1 > 20.3,
+                "seed {seed}: the 20.3 Hz harmonic was cut at {c1} Hz"
+            );
         }
     }
 
