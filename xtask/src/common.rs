@@ -9,10 +9,12 @@ use tfs::library::Model;
 use tfs::plot::BasinMap as BasinFigure;
 
 /// Run-size options shared by every study.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct Opts {
     /// Smaller grids and shorter records.
     pub quick: bool,
+    /// Folder of a `cargo xtask peers` run whose table and figures the report includes.
+    pub peers: std::path::PathBuf,
 }
 
 impl Opts {

@@ -8,6 +8,7 @@ mod chain;
 mod common;
 mod experiment;
 mod peers;
+mod peers_study;
 mod report;
 mod sdof;
 
@@ -38,9 +39,13 @@ enum Cmd {
         /// Output folder.
         #[arg(long, default_value = "target/paper")]
         out: PathBuf,
-        /// Run only these studies (keys: s1_white, s2_pink, s3_chain, s4_table_b1, s5_experiment).
+        /// Run only these studies (keys: s1_white, s2_pink, s3_chain, s4_table_b1, s5_experiment,
+        /// s6_peers).
         #[arg(long, value_delimiter = ',')]
         only: Vec<String>,
+        /// Folder of a `cargo xtask peers` run to include (study 6); skipped with a note if absent.
+        #[arg(long, default_value = "target/peers")]
+        peers: PathBuf,
     },
     /// tfs vs PySINDy (weak and classical) on the same CSVs, scored by one code path (a
     /// benchmark: creates a Python virtual environment; CI does not run it).
@@ -49,7 +54,7 @@ enum Cmd {
 
 type StudyFn = fn(&mut Study, &Opts) -> Result<()>;
 
-const STUDIES: [(&str, &str, StudyFn); 5] = [
+const STUDIES: [(&str, &str, StudyFn); 6] = [
     (
         "s1_white",
         "1. §3.1 bistable cell, white noise 60/30 dB (Table 1, Figs 3–4)",
@@ -75,6 +80,11 @@ const STUDIES: [(&str, &str, StudyFn); 5] = [
         "5. §4 experiment-like study (Table 3, Figs 9–10, MED)",
         experiment::study_experiment,
     ),
+    (
+        "s6_peers",
+        "6. tfs vs PySINDy on the same records (from `cargo xtask peers`)",
+        |st, o| peers_study::study_peers(st, &o.peers),
+    ),
 ];
 
 const PREAMBLE: &str = "Every number below is recomputed by the tfs crates (tfs-origami simulators, tfs-criteria identification, tfs-dynamics simulation, tfs-basin basins and MED); the paper's values are shown beside ours. Tolerances: Table 1 coefficients within 2% (60 dB) and 5% (30 dB) of the paper's; BOA errors at or below the paper's; T-F-S beats classical SINDy in test R-MSE and time; all eight deployment tests predicted correctly. Where the paper gives no number, the row is informational (n/a).";
@@ -82,7 +92,12 @@ const PREAMBLE: &str = "Every number below is recomputed by the tfs crates (tfs-
 fn main() {
     let cli = Cli::parse();
     match cli.cmd {
-        Cmd::ReproducePaper { quick, out, only } => match reproduce(quick, &out, &only) {
+        Cmd::ReproducePaper {
+            quick,
+            out,
+            only,
+            peers,
+        } => match reproduce(Opts { quick, peers }, &out, &only) {
             Ok(0) => {}
             Ok(failed) => {
                 eprintln!(
@@ -107,7 +122,7 @@ fn main() {
 }
 
 /// Runs the studies; returns the number that failed (their errors are in the report).
-fn reproduce(quick: bool, out: &std::path::Path, only: &[String]) -> Result<usize> {
+fn reproduce(opts: Opts, out: &std::path::Path, only: &[String]) -> Result<usize> {
     for k in only {
         if !STUDIES.iter().any(|s| s.0 == k) {
             anyhow::bail!(
@@ -118,9 +133,8 @@ fn reproduce(quick: bool, out: &std::path::Path, only: &[String]) -> Result<usiz
     }
     std::fs::create_dir_all(out)
         .with_context(|| format!("creating the output folder {}", out.display()))?;
-    let opts = Opts { quick };
     let start = Instant::now();
-    let mut report = Report::new(out, quick);
+    let mut report = Report::new(out, opts.quick);
     for (key, title, f) in STUDIES {
         if !only.is_empty() && !only.iter().any(|k| k == key) {
             continue;

@@ -181,9 +181,32 @@ impl Study {
         Ok(())
     }
 
+    /// Copies an existing figure `<dir>/<stem>.svg` and `.png` into `figures/` and adds it to the
+    /// section.
+    pub fn copied_figure(&mut self, dir: &Path, stem: &str, caption: &str) -> Result<()> {
+        let to = self.out.join("figures");
+        std::fs::create_dir_all(&to).with_context(|| format!("creating {}", to.display()))?;
+        for ext in ["svg", "png"] {
+            let from = dir.join(format!("{stem}.{ext}"));
+            std::fs::copy(&from, to.join(format!("{stem}.{ext}")))
+                .with_context(|| format!("copying {}", from.display()))?;
+        }
+        self.blocks.push(Block::Figure {
+            stem: stem.to_string(),
+            caption: caption.to_string(),
+        });
+        Ok(())
+    }
+
     /// Stores a value in the study's results.
     pub fn set(&mut self, key: &str, v: Value) {
         self.results.insert(key.to_string(), v);
+    }
+
+    /// The summary rows added so far.
+    #[cfg(test)]
+    pub fn summary_rows(&self) -> &[SummaryRow] {
+        &self.summary
     }
 
     /// Adds a summary row.

@@ -40,6 +40,8 @@ fn quick_reproduction_writes_every_output() {
     let status = Command::new(env!("CARGO_BIN_EXE_xtask"))
         .args(["reproduce-paper", "--quick", "--out"])
         .arg(&out)
+        .arg("--peers")
+        .arg(dir.path().join("no-peers-run"))
         .status()
         .expect("xtask runs");
     let text = std::fs::read_to_string(out.join("results.json")).expect("results.json written");
@@ -64,6 +66,12 @@ fn quick_reproduction_writes_every_output() {
         );
         finite_nonneg(get(s, "seconds"), &format!("{key}.seconds"));
     }
+    // Study 6 is a note until `cargo xtask peers` has been run.
+    assert_eq!(
+        get(&r, "studies.s6_peers.available"),
+        &Value::Bool(false),
+        "no peers run was given"
+    );
     // Study 1: Table 1 and BOA errors.
     for snr in ["60db", "30db"] {
         for c in ["zeta", "alpha", "beta", "gamma"] {
