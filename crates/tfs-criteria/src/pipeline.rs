@@ -18,8 +18,8 @@ use crate::kappa::{
     CalibrationPoint, Criterion1, KappaVariant, kappa0_from_curve, noise_level_index_factor,
 };
 use crate::prepare::{
-    Prepared, TransformForm, check_record, decimation, prepare, raw_columns_sg, record_series,
-    reweight, rows_for, time_domain, window_transforms,
+    Prepared, TransformForm, WindowTransform, check_record, decimation, prepare, raw_columns_sg,
+    record_series, reweight, rows_for, time_domain, window_transforms,
 };
 use crate::prune::{Criterion2, prune_factor};
 
@@ -400,6 +400,94 @@ fn centred_factor(blocks: &[(Mat<f64>, Vec<f64>)], cols: &[usize]) -> Result<Mat
     }))
 }
 
+/// Criterion 1 for DOF `d`: κ of the time-domain blocks `(Θ, x'')` of every record (constant
+/// columns excluded), κ0 (given or calibrated) and the verdict, with the centred factor Criterion 2
+/// prunes on and the non-constant columns. Shared by [`identify_tfs`] and the tied chain fit.
+pub(crate) fn criterion1_dof(
+    blocks: &[Record],
+    preps: &[Prepared<'_>],
+    td: &[(Mat<f64>, Vec<f64>)],
+    spec: &IdentifySpec,
+    d: usize,
+    lib: &Library,
+) -> Result<(Criterion1, Mat<f64>, Vec<usize>)> {
+    let opt = &spec.tfs;
+    let nonconst: Vec<usize> = (0..lib.len())
+        .filter(|&j| !lib.terms()[j].is_constant())
+        .collect();
+    let (kappa, factor) = criterion1_blocks(td, &nonconst)?;
+    let (kappa0, source, curve, knee) = match opt.kappa0 {
+        Kappa0Choice::Fixed(k) => (k, "given by the user".to_string(), Vec::new(), None),
+        Kappa0Choice::Calibrate => calibrate(blocks, spec, d, lib, &nonconst, kappa, opt)?,
+    };
+    let kv = kappa.get(opt.kappa_variant);
+    let c1 = Criterion1 {
+        kappa,
+        variant: opt.kappa_variant,
+        kappa0,
+        kappa0_source: source,
+        high_snr: kv >= kappa0,
+        curve,
+        knee_snr_db: knee,
+        estimated_snr_db: estimated_snr_db(preps, &spec.dofs[d], d),
+        supported: true,
+        support_note: String::new(),
+    };
+    Ok((c1, factor, nonconst))
+}
+
+/// Criterion 3 transforms of DOF `d`: per record the decimation and the series of `x''` and of
+/// every library column, then per candidate window count the windowed transforms of every record
+/// (gated by `min_bin_snr`), reweighted by `reweight` passes of feasible GLS over the columns
+/// `keep`. Returns (decimation per record, transforms per window count and record). Shared by
+/// [`identify_tfs`] and the tied chain fit.
+#[allow(clippy::type_complexity)]
+pub(crate) fn dof_transforms(
+    preps: &[Prepared<'_>],
+    spec: &IdentifySpec,
+    d: usize,
+    lib: &Library,
+    keep: &[usize],
+) -> Result<(Vec<usize>, Vec<Vec<Vec<WindowTransform>>>)> {
+    let opt = &spec.tfs;
+    let dmin = opt.deltas.iter().cloned().fold(f64::INFINITY, f64::min);
+    let qs: Vec<usize> = preps.iter().map(|p| decimation(p, lib, opt.form)).collect();
+    let series: Vec<_> = preps
+        .par_iter()
+        .zip(&qs)
+        .map(|(p, &q)| {
+            record_series(
+                p,
+                &spec.dofs,
+                d,
+                lib,
+                opt.form,
+                opt.savitzky_golay,
+                q,
+                opt.debias,
+            )
+        })
+        .collect::<Result<_>>()?;
+    let mut transforms: Vec<Vec<_>> = opt
+        .window_counts
+        .par_iter()
+        .map(|&wc| {
+            series
+                .par_iter()
+                .map(|s| {
+                    window_transforms(s, wc, dmin, opt.min_bin_snr, &mut RealFftPlanner::new())
+                })
+                .collect()
+        })
+        .collect();
+    if opt.reweight > 0 {
+        transforms
+            .par_iter_mut()
+            .try_for_each(|t| reweight(t, dmin, keep, opt.reweight))?;
+    }
+    Ok((qs, transforms))
+}
+
 /// Criterion 1 on time-domain blocks `(Θ, x'')` (constant columns excluded).
 fn criterion1_blocks(
     blocks: &[(Mat<f64>, Vec<f64>)],
@@ -673,29 +761,8 @@ fn identify_tfs_once(records: &[Record], spec: &IdentifySpec) -> Result<Identifi
                 .map(|p| time_domain(p, &spec.dofs, d, lib, trim(p), stride(p)))
                 .collect::<Result<_>>()?,
         };
-        let nonconst: Vec<usize> = (0..lib.len())
-            .filter(|&j| !lib.terms()[j].is_constant())
-            .collect();
         // ---- Criterion 1.
-        let (kappa, factor) = criterion1_blocks(&data.td, &nonconst)?;
-        let (kappa0, source, curve, knee) = match opt.kappa0 {
-            Kappa0Choice::Fixed(k) => (k, "given by the user".to_string(), Vec::new(), None),
-            Kappa0Choice::Calibrate => calibrate(&blocks, spec, d, lib, &nonconst, kappa, opt)?,
-        };
-        let kv = kappa.get(opt.kappa_variant);
-        let est_snr = estimated_snr_db(&preps, dof, d);
-        let mut c1 = Criterion1 {
-            kappa,
-            variant: opt.kappa_variant,
-            kappa0,
-            kappa0_source: source,
-            high_snr: kv >= kappa0,
-            curve,
-            knee_snr_db: knee,
-            estimated_snr_db: est_snr,
-            supported: true,
-            support_note: String::new(),
-        };
+        let (mut c1, factor, nonconst) = criterion1_dof(&blocks, &preps, &data.td, spec, d, lib)?;
         timing.push((format!("{dof}: criterion 1"), ms(t0)));
         // ---- Criterion 2.
         let t0 = Instant::now();
@@ -721,41 +788,7 @@ fn identify_tfs_once(records: &[Record], spec: &IdentifySpec) -> Result<Identifi
         timing.push((format!("{dof}: criterion 2"), ms(t0)));
         // ---- Criterion 3: transforms for each window count.
         let t0 = Instant::now();
-        let dmin = opt.deltas.iter().cloned().fold(f64::INFINITY, f64::min);
-        let qs: Vec<usize> = preps.iter().map(|p| decimation(p, lib, opt.form)).collect();
-        let series: Vec<_> = preps
-            .par_iter()
-            .zip(&qs)
-            .map(|(p, &q)| {
-                record_series(
-                    p,
-                    &spec.dofs,
-                    d,
-                    lib,
-                    opt.form,
-                    opt.savitzky_golay,
-                    q,
-                    opt.debias,
-                )
-            })
-            .collect::<Result<_>>()?;
-        let mut transforms: Vec<Vec<_>> = opt
-            .window_counts
-            .par_iter()
-            .map(|&wc| {
-                series
-                    .par_iter()
-                    .map(|s| {
-                        window_transforms(s, wc, dmin, opt.min_bin_snr, &mut RealFftPlanner::new())
-                    })
-                    .collect()
-            })
-            .collect();
-        if opt.reweight > 0 {
-            transforms
-                .par_iter_mut()
-                .try_for_each(|t| reweight(t, dmin, &keep, opt.reweight))?;
-        }
+        let (qs, transforms) = dof_transforms(&preps, spec, d, lib, &keep)?;
         timing.push((format!("{dof}: criterion 3 transforms"), ms(t0)));
         // Time-domain validation blocks restricted to kept columns.
         let t0 = Instant::now();

@@ -23,11 +23,9 @@ use tfs_regress::{Compressed, lstsq_support};
 use crate::error::{CriteriaError, Result, invalid};
 use crate::pipeline::{
     AssemblyStep, ChosenSettings, DofTrace, Identified, IdentifySpec, RecordBins, SettingScore,
-    Trace, blocks_of, fit_select, residual_stats, validate_tfs,
+    Trace, blocks_of, criterion1_dof, dof_transforms, fit_select, residual_stats, validate_tfs,
 };
-use crate::prepare::{
-    Prepared, decimation, prepare, record_series, rows_for, time_domain, window_transforms,
-};
+use crate::prepare::{Prepared, prepare, rows_for, time_domain};
 
 /// One tied term: a function of `x_owner − x_partner` in both DOFs' libraries.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -299,7 +297,6 @@ pub fn identify_tfs_tied(
         .collect::<Result<_>>()?;
     timing.push(("band-limited reconstruction".to_string(), ms(t0)));
     // ---- Time-domain validation rows per block and DOF.
-    let t0 = Instant::now();
     let td: Vec<Vec<(Mat<f64>, Vec<f64>)>> = preps
         .iter()
         .map(|p| {
@@ -310,61 +307,39 @@ pub fn identify_tfs_tied(
                 .collect::<Result<Vec<_>>>()
         })
         .collect::<Result<_>>()?;
-    // ---- Criterion 3: transforms per window count, block and DOF.
-    let dmin = opt.deltas.iter().cloned().fold(f64::INFINITY, f64::min);
+    // ---- Criterion 1 per DOF (κ, κ0 and the verdict of the untied library).
+    let t0 = Instant::now();
+    let mut c1s = Vec::with_capacity(nd);
+    for (d, lib) in libs.iter().enumerate() {
+        let td_d: Vec<(Mat<f64>, Vec<f64>)> = td.iter().map(|per| per[d].clone()).collect();
+        c1s.push(criterion1_dof(&blocks, &preps, &td_d, spec, d, lib)?.0);
+    }
+    timing.push(("criterion 1".to_string(), ms(t0)));
+    // ---- Criterion 3: transforms per DOF, window count and block (reweighted per DOF by its
+    // own untied full-library fit, as in the single-DOF pipeline).
+    let t0 = Instant::now();
     let mut qs = vec![vec![1usize; nd]; nb];
-    let mut transforms = Vec::new();
-    {
-        let mut series = Vec::new();
-        for (b, p) in preps.iter().enumerate() {
-            let mut per = Vec::new();
-            for (d, lib) in libs.iter().enumerate() {
-                let q = decimation(p, lib, opt.form);
-                qs[b][d] = q;
-                per.push(record_series(
-                    p,
-                    &spec.dofs,
-                    d,
-                    lib,
-                    opt.form,
-                    opt.savitzky_golay,
-                    q,
-                    opt.debias,
-                )?);
-            }
-            series.push(per);
+    let mut transforms = Vec::with_capacity(nd);
+    for (d, lib) in libs.iter().enumerate() {
+        let all: Vec<usize> = (0..lib.len()).collect();
+        let (q, t) = dof_transforms(&preps, spec, d, lib, &all)?;
+        for (b, qb) in q.into_iter().enumerate() {
+            qs[b][d] = qb;
         }
-        for &wc in &opt.window_counts {
-            let per: Vec<Vec<_>> = series
-                .iter()
-                .map(|sb| {
-                    sb.iter()
-                        .map(|s| {
-                            window_transforms(
-                                s,
-                                wc,
-                                dmin,
-                                opt.min_bin_snr,
-                                &mut RealFftPlanner::new(),
-                            )
-                        })
-                        .collect()
-                })
-                .collect();
-            transforms.push(per);
-        }
+        transforms.push(t);
     }
     timing.push(("criterion 3 transforms".to_string(), ms(t0)));
     // Frequency rows per block and DOF for one (window count, δ).
     let fd_rows = |wi: usize, delta: f64| -> Vec<Vec<DofRows>> {
-        transforms[wi]
-            .iter()
-            .map(|per| {
-                per.iter()
-                    .enumerate()
-                    .map(|(d, wins)| {
+        (0..nb)
+            .map(|b| {
+                (0..nd)
+                    .map(|d| {
                         let all: Vec<usize> = (0..libs[d].len()).collect();
-                        let parts = wins.iter().map(|w| rows_for(w, delta, &all)).collect();
+                        let parts = transforms[d][wi][b]
+                            .iter()
+                            .map(|w| rows_for(w, delta, &all))
+                            .collect();
                         stack(parts, libs[d].len())
                     })
                     .collect()
@@ -603,10 +578,51 @@ pub fn identify_tfs_tied(
                 tied_here.join("; ")
             ));
         }
+        // Does the data support the library? The tied fit has no per-term intervals, so the
+        // verdict rests on the structure: something must survive, and a library that offers a
+        // displacement term of this DOF (or of its elements) must keep one.
+        let mut c1 = c1s[d].clone();
+        let dof = &spec.dofs[d];
+        let disp = |t: &Term| {
+            t.vars().iter().any(|v| match v {
+                Var::Disp(n) => n == dof,
+                Var::RelDisp(a, b) => a == dof || matches!(b, Coord::Dof(m) if m == dof),
+                _ => false,
+            })
+        };
+        let kept: Vec<&Term> = lib
+            .terms()
+            .iter()
+            .zip(&coefs[d])
+            .filter(|(_, c)| **c != 0.0)
+            .map(|(t, _)| t)
+            .collect();
+        let problem = if kept.is_empty() {
+            Some("no term survives selection".to_string())
+        } else if lib.terms().iter().any(disp) && !kept.iter().any(|t| disp(t)) {
+            Some(format!(
+                "no displacement (restoring-force) term of '{dof}' survives selection, so the model has no stiffness and no equilibria"
+            ))
+        } else {
+            None
+        };
+        let verdict_d = match problem {
+            Some(p) => {
+                c1.supported = false;
+                c1.support_note = format!(
+                    "too noisy for this library: {p}; the model below is not a reliable identification. What to do: measure longer or repeat the test (more records), raise the excitation level or lower the sensor noise, or use a smaller library (fewer high powers)"
+                );
+                format!("{}. {verdict}", c1.support_note)
+            }
+            None => {
+                c1.support_note = "supported: every DOF keeps a restoring-force term (the tied fit gives no per-term intervals; check the model against held-out records with `tfs compare`)".to_string();
+                verdict.clone()
+            }
+        };
         dof_traces.push(DofTrace {
             dof: spec.dofs[d].clone(),
             library: lib.names(),
-            criterion1: None,
+            criterion1: Some(c1),
             criterion2: None,
             regression_library: lib.names(),
             bins,
@@ -619,7 +635,7 @@ pub fn identify_tfs_tied(
                 why,
             },
             assembly: steps[d].clone(),
-            assembly_verdict: verdict.clone(),
+            assembly_verdict: verdict_d,
             held_out_record: blocks[hold].source().to_string(),
         });
     }

@@ -136,6 +136,13 @@ fn check(snr: f64, seed: u64) {
     let id = identify_tfs_tied(&recs, &sp, &TieOptions::default()).unwrap();
     let m = &id.model;
     eprintln!("{snr} dB:\n{}", m.equation_string());
+    // The tied fit reports Criterion 1 per DOF, like the single-DOF pipeline, and finds the data
+    // sufficient for the library at these noise levels.
+    for d in &id.trace.dofs {
+        let c1 = d.criterion1.as_ref().expect("criterion 1 in the tied trace");
+        assert!(c1.kappa0 > 0.0 && c1.kappa.get(c1.variant) > 0.0);
+        assert!(c1.supported, "{}: {}", d.dof, c1.support_note);
+    }
     // Tied: every (x2-x1) term of x1'' is minus its coefficient in x2''.
     for t in &ties {
         let (a, b) = (coef(m, "x1", &t.term), coef(m, "x2", &t.term));
