@@ -77,10 +77,12 @@ fn weighted_rows_keep_the_intervals_honest() {
 
 fn coverage(reweight: usize) {
     let sys = Linear { k: 4.0, c: 0.4 };
-    let truth = [("x", -4.0), ("x'", -0.4), ("xb_acc", -1.0)];
+    let truth: [(&str, f64); 3] = [("x", -4.0), ("x'", -0.4), ("xb_acc", -1.0)];
     let mut spec = IdentifySpec::new(&["x"], "x, x', xb_acc");
     spec.tfs.reweight = reweight;
     let (mut covered, mut total, mut rel_width) = (0, 0, 0.0);
+    // Lowest bootstrap inclusion of a true term pinned down to better than ±25 %.
+    let mut min_incl: f64 = 1.0;
     let draws = 20;
     for seed in 0..draws {
         let recs: Vec<Record> = [
@@ -108,6 +110,9 @@ fn coverage(reweight: usize) {
             let [lo, hi] = t.interval.expect("interval");
             let p = t.inclusion.expect("inclusion");
             assert!((0.0..=1.0).contains(&p));
+            if (hi - lo) / 2.0 < 0.25 * want.abs() {
+                min_incl = min_incl.min(p);
+            }
             total += 1;
             if lo <= want && want <= hi {
                 covered += 1;
@@ -121,6 +126,12 @@ fn coverage(reweight: usize) {
     assert!(
         rate >= 0.8,
         "95% intervals covered the truth in only {covered}/{total}"
+    );
+    // A term the intervals pin down is one that resampling keeps.
+    eprintln!("lowest inclusion of a well-determined true term {min_incl:.2}");
+    assert!(
+        min_incl >= 0.9,
+        "a well-determined true term was kept in only {min_incl} of the bootstrap resamples"
     );
     // Informative: much narrower than the coefficients themselves.
     assert!(
