@@ -139,7 +139,10 @@ fn check(snr: f64, seed: u64) {
     // The tied fit reports Criterion 1 per DOF, like the single-DOF pipeline, and finds the data
     // sufficient for the library at these noise levels.
     for d in &id.trace.dofs {
-        let c1 = d.criterion1.as_ref().expect("criterion 1 in the tied trace");
+        let c1 = d
+            .criterion1
+            .as_ref()
+            .expect("criterion 1 in the tied trace");
         assert!(c1.kappa0 > 0.0 && c1.kappa.get(c1.variant) > 0.0);
         assert!(c1.supported, "{}: {}", d.dof, c1.support_note);
     }
