@@ -49,6 +49,9 @@ const FORCE_RANGE: (f64, f64) = (0.0, 1.8);
 /// Equilibrium search range.
 const SEARCH: (f64, f64) = (-0.6, 2.6);
 
+/// Smallest error (percent) drawn on the log-scale figures.
+const LOG_FLOOR_PCT: f64 = 0.001;
+
 /// Arguments of `cargo xtask peers`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct PeersArgs {
@@ -67,6 +70,10 @@ pub struct PeersArgs {
     /// Python used to create the virtual environment.
     #[arg(long, default_value = "python3")]
     pub python: String,
+    /// Only redraw the table and figures from an existing `<out>/peers.json` (no simulation,
+    /// no fitting).
+    #[arg(long)]
+    pub replot: bool,
 }
 
 /// One noise case.
@@ -122,6 +129,28 @@ struct Score {
 /// Entry point of `cargo xtask peers`.
 pub fn run(args: PeersArgs) -> Result<()> {
     let t_all = Instant::now();
+    if args.replot {
+        let file = args.out.join("peers.json");
+        let text = std::fs::read_to_string(&file).with_context(|| {
+            format!(
+                "--replot: reading {}; run `cargo xtask peers` first",
+                file.display()
+            )
+        })?;
+        let v: Value = serde_json::from_str(&text)
+            .with_context(|| format!("--replot: {} is not JSON", file.display()))?;
+        let rows = v["rows"]
+            .as_array()
+            .with_context(|| format!("--replot: {} has no 'rows' array", file.display()))?;
+        write_outputs(
+            &args.out,
+            rows,
+            v["quick"].as_bool().unwrap_or(false),
+            v["total_seconds"].as_f64().unwrap_or(f64::NAN),
+        )?;
+        eprintln!("redrew {}/peers.md and the figures", args.out.display());
+        return Ok(());
+    }
     let cases = args
         .snr
         .iter()
@@ -593,6 +622,7 @@ fn write_outputs(out: &Path, rows: &[Value], quick: bool, total: f64) -> Result<
     // Figure: errors against SNR for the white-noise cases.
     let methods = [
         "tfs",
+        "tfs (classical library)",
         "tfs (plain FFT, paper)",
         "SINDy (tfs, classical)",
         "PySINDy weak",
@@ -602,11 +632,13 @@ fn write_outputs(out: &Path, rows: &[Value], quick: bool, total: f64) -> Result<
         ("force_error", "force error", "peers_force_error"),
         ("boa_error", "BOA error", "peers_boa_error"),
     ] {
+        // Log scale: the errors span 0.01 % to 10⁵ %. Exact zeros are drawn at the floor.
         let mut ch = LineChart::new(
             format!("{what} vs SNR (white noise)"),
             "SNR [dB]",
-            format!("{what} [%]"),
-        );
+            format!("{what} [%, log; < {LOG_FLOOR_PCT}% drawn at {LOG_FLOOR_PCT}%]"),
+        )
+        .log_y(true);
         for m in methods {
             let mut pts: Vec<(f64, f64)> = rows
                 .iter()
@@ -614,7 +646,12 @@ fn write_outputs(out: &Path, rows: &[Value], quick: bool, total: f64) -> Result<
                     r.get("method").and_then(Value::as_str) == Some(m)
                         && r.get("pink") == Some(&Value::Bool(false))
                 })
-                .filter_map(|r| Some((r.get("snr_db")?.as_f64()?, 100.0 * r.get(key)?.as_f64()?)))
+                .filter_map(|r| {
+                    Some((
+                        r.get("snr_db")?.as_f64()?,
+                        (100.0 * r.get(key)?.as_f64()?).max(LOG_FLOOR_PCT),
+                    ))
+                })
                 .collect();
             pts.sort_by(|a, b| a.0.total_cmp(&b.0));
             if !pts.is_empty() {
