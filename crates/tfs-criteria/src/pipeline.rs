@@ -19,7 +19,7 @@ use crate::kappa::{
 };
 use crate::prepare::{
     Prepared, TransformForm, WindowTransform, check_record, decimation, prepare, raw_columns_sg,
-    record_series, reweight, rows_for, time_domain, window_transforms,
+    raw_time_domain, record_series, reweight, rows_for, time_domain, window_transforms,
 };
 use crate::prune::{Criterion2, prune_factor};
 
@@ -400,13 +400,14 @@ fn centred_factor(blocks: &[(Mat<f64>, Vec<f64>)], cols: &[usize]) -> Result<Mat
     }))
 }
 
-/// Criterion 1 for DOF `d`: κ of the time-domain blocks `(Θ, x'')` of every record (constant
-/// columns excluded), κ0 (given or calibrated) and the verdict, with the centred factor Criterion 2
-/// prunes on and the non-constant columns. Shared by [`identify_tfs`] and the tied chain fit.
+/// Criterion 1 for DOF `d`: κ of the time-domain blocks `(Θ, x'')` of every record built from
+/// the measured data (see [`raw_time_domain`]; constant columns excluded), κ0 (given or
+/// calibrated by adding noise to the same kind of block) and the verdict, with the centred factor
+/// Criterion 2 prunes on and the non-constant columns. Shared by [`identify_tfs`] and the tied
+/// chain fit.
 pub(crate) fn criterion1_dof(
     blocks: &[Record],
     preps: &[Prepared<'_>],
-    td: &[(Mat<f64>, Vec<f64>)],
     spec: &IdentifySpec,
     d: usize,
     lib: &Library,
@@ -415,7 +416,21 @@ pub(crate) fn criterion1_dof(
     let nonconst: Vec<usize> = (0..lib.len())
         .filter(|&j| !lib.terms()[j].is_constant())
         .collect();
-    let (kappa, factor) = criterion1_blocks(td, &nonconst)?;
+    let td: Vec<(Mat<f64>, Vec<f64>)> = blocks
+        .par_iter()
+        .map(|r| {
+            raw_time_domain(
+                r,
+                &spec.dofs,
+                d,
+                lib,
+                opt.savitzky_golay,
+                (r.len() / 50).max(4),
+                (r.len() / 4000).max(1),
+            )
+        })
+        .collect::<Result<_>>()?;
+    let (kappa, factor) = criterion1_blocks(&td, &nonconst)?;
     let (kappa0, source, curve, knee) = match opt.kappa0 {
         Kappa0Choice::Fixed(k) => (k, "given by the user".to_string(), Vec::new(), None),
         Kappa0Choice::Calibrate => calibrate(blocks, spec, d, lib, &nonconst, kappa, opt)?,
@@ -791,7 +806,7 @@ fn identify_tfs_once(records: &[Record], spec: &IdentifySpec) -> Result<Identifi
                 .collect::<Result<_>>()?,
         };
         // ---- Criterion 1.
-        let (mut c1, factor, nonconst) = criterion1_dof(&blocks, &preps, &data.td, spec, d, lib)?;
+        let (mut c1, factor, nonconst) = criterion1_dof(&blocks, &preps, spec, d, lib)?;
         timing.push((format!("{dof}: criterion 1"), ms(t0)));
         // ---- Criterion 2.
         let t0 = Instant::now();
@@ -1383,6 +1398,12 @@ fn bin_clusters(
     clusters
 }
 
+/// Least fall of κ (decades) over the whole calibration for the data to count as cleaner than the
+/// noise added, and the margin by which κ must exceed the κ at the knee: κ of clean data falls by
+/// a decade or more when 10 dB noise is added (x'' by differentiation becomes noise), while its
+/// scatter between noise draws is a few hundredths.
+const MIN_CALIBRATION_DROP: f64 = 0.25;
+
 /// Most samples the κ0 calibration looks at (a central segment of the longest record).
 const CALIBRATION_SAMPLES: usize = 20_000;
 
@@ -1457,14 +1478,13 @@ fn calibrate(
                         r2.set_column(c.clone(), nv)?;
                     }
                 }
-                let p = prepare(&r2, &spec.dofs, opt.cutoff_hz, &mut RealFftPlanner::new())?;
-                let trim = (r2.len() / 50).max(4);
-                td.push(time_domain(
-                    &p,
+                td.push(raw_time_domain(
+                    &r2,
                     &spec.dofs,
                     d,
                     lib,
-                    trim,
+                    opt.savitzky_golay,
+                    (r2.len() / 50).max(4),
                     (r2.len() / 4000).max(1),
                 )?);
             }
@@ -1476,10 +1496,56 @@ fn calibrate(
         })
         .collect::<Result<_>>()?;
     curve.extend(points);
-    match kappa0_from_curve(&curve, opt.kappa_variant) {
+    // The knee is found on the segment's own curve (the data point of `curve` is κ of every
+    // record, a slightly different quantity).
+    let seg_td = raw_time_domain(
+        &segment,
+        &spec.dofs,
+        d,
+        lib,
+        opt.savitzky_golay,
+        (segment.len() / 50).max(4),
+        (segment.len() / 4000).max(1),
+    )?;
+    let seg_kappa = criterion1_blocks(std::slice::from_ref(&seg_td), nonconst)?.0;
+    let seg_top = seg_kappa.get(opt.kappa_variant);
+    let mut seg_curve = vec![CalibrationPoint {
+        added_snr_db: None,
+        kappa: seg_kappa,
+    }];
+    seg_curve.extend(curve[1..].iter().cloned());
+    let lowest = curve[1..]
+        .iter()
+        .map(|p| p.kappa.get(opt.kappa_variant))
+        .fold(f64::INFINITY, f64::min);
+    let drop = seg_top - lowest;
+    if drop < MIN_CALIBRATION_DROP {
+        // Adding noise of every calibration level leaves κ where it was: the data already carry
+        // at least that much noise. Clean data always lose κ when noise this strong is added
+        // (x'' by differentiation becomes noise), so this is the low-SNR case, not a flat
+        // high-SNR plateau.
+        let weakest = opt
+            .calibration_snrs_db
+            .iter()
+            .cloned()
+            .fold(f64::INFINITY, f64::min);
+        return Ok((
+            seg_top + MIN_CALIBRATION_DROP,
+            format!(
+                "calibrated: κ fell by only {drop:.2} decades when noise down to {weakest} dB SNR was added, so the data are already about as noisy as that (low SNR); κ0 set {MIN_CALIBRATION_DROP} decades above the data's κ"
+            ),
+            curve,
+            None,
+        ));
+    }
+    match kappa0_from_curve(&seg_curve, opt.kappa_variant) {
+        // Data whose own noise already sits at the knee give a knee κ equal to their own κ; the
+        // margin keeps such data on the low side instead of deciding by the scatter of κ.
         Some((k0, snr)) => Ok((
-            k0,
-            format!("calibrated: κ at the knee of κ vs added-noise SNR (knee at {snr} dB)"),
+            k0 + MIN_CALIBRATION_DROP,
+            format!(
+                "calibrated: κ at the knee of κ vs added-noise SNR (knee at {snr} dB, κ there {k0:.3}) plus a {MIN_CALIBRATION_DROP}-decade margin"
+            ),
             curve,
             Some(snr),
         )),

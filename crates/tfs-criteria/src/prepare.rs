@@ -519,6 +519,45 @@ pub(crate) fn time_domain(
     Ok((a, y))
 }
 
+/// Criterion 1's time-domain block `(Θ, x'')` of DOF `dof` on the *measured* data, as the
+/// paper builds it: the library evaluated on the recorded displacements and inputs, velocities
+/// and `x''` by Savitzky–Golay differentiation (`sg` = half window, order), `trim` samples cut at
+/// both ends and every `stride`-th row kept. The noise of the measurement (amplified by the
+/// differentiation) is what κ is meant to see; the band-limited reconstruction removes most of
+/// it, so κ on the reconstruction hardly moves when noise is added and cannot calibrate κ0.
+pub(crate) fn raw_time_domain(
+    rec: &Record,
+    dofs: &[String],
+    dof: usize,
+    lib: &Library,
+    sg: (usize, usize),
+    trim: usize,
+    stride: usize,
+) -> Result<(Mat<f64>, Vec<f64>)> {
+    let dt = rec.dt();
+    let n = rec.len();
+    let trim = trim.max(sg.0 + 1);
+    if n <= 2 * trim + lib.len() + 2 {
+        return Err(CriteriaError::Invalid(format!(
+            "record '{}' is too short ({n} samples) for a library of {} terms",
+            rec.source(),
+            lib.len()
+        )));
+    }
+    let (cs, acc) = raw_columns_sg(rec, dofs, dof, dt, sg)?;
+    let stride = stride.max(1);
+    let sub =
+        |v: &[f64]| -> Vec<f64> { v[trim..n - trim].iter().step_by(stride).copied().collect() };
+    let rows = (n - 2 * trim).div_ceil(stride);
+    let cols = lib
+        .required_columns()
+        .into_iter()
+        .filter_map(|c| cs.column(&c).map(|v| (c.clone(), sub(v))))
+        .collect();
+    let a = lib.evaluate(&OwnedColumns { rows, cols })?;
+    Ok((a, sub(&acc)))
+}
+
 /// Stored bins on each side of a bin whose residual powers are averaged by [`reweight`].
 const REWEIGHT_HALF: usize = 16;
 

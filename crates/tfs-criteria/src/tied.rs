@@ -311,8 +311,7 @@ pub fn identify_tfs_tied(
     let t0 = Instant::now();
     let mut c1s = Vec::with_capacity(nd);
     for (d, lib) in libs.iter().enumerate() {
-        let td_d: Vec<(Mat<f64>, Vec<f64>)> = td.iter().map(|per| per[d].clone()).collect();
-        c1s.push(criterion1_dof(&blocks, &preps, &td_d, spec, d, lib)?.0);
+        c1s.push(criterion1_dof(&blocks, &preps, spec, d, lib)?.0);
     }
     timing.push(("criterion 1".to_string(), ms(t0)));
     // ---- Criterion 3: transforms per DOF, window count and block (reweighted per DOF by its

@@ -47,3 +47,43 @@ fn ten_db_is_recovered_or_flagged_and_thirty_db_is_not_flagged() {
     );
     assert!(id.trace.dofs[0].criterion1.as_ref().unwrap().supported);
 }
+
+/// Criterion 1 on the measured data: κ falls as the noise grows, the calibration puts κ0 between
+/// the clean and the noisy data (high SNR at 60 dB, low at 20 and 10 dB, as in the paper, which
+/// prunes the library only at 60 dB), and the calibration curve itself falls for clean data.
+#[test]
+fn kappa_falls_with_noise_and_the_verdict_follows() {
+    let spec = IdentifySpec::new(&["x"], "x^1..7, x', xb_acc");
+    let mut kappas = Vec::new();
+    for snr in [60.0, 20.0, 10.0] {
+        let recs = common::train(Some((snr, NoiseKind::White)), 0.5, 4);
+        let id = identify_tfs(&recs, &spec).unwrap();
+        let c1 = id.trace.dofs[0].criterion1.clone().unwrap();
+        let k = c1.kappa.get(c1.variant);
+        eprintln!(
+            "{snr} dB: κ {k:.3}, κ0 {:.3} ({}), high {}",
+            c1.kappa0, c1.kappa0_source, c1.high_snr
+        );
+        assert_eq!(
+            c1.high_snr,
+            snr >= 60.0,
+            "{snr} dB: κ {k}, κ0 {}",
+            c1.kappa0
+        );
+        if snr >= 60.0 {
+            // Clean data: adding 10 dB noise costs κ more than the scatter between draws.
+            let added: Vec<f64> = c1
+                .curve
+                .iter()
+                .filter(|p| p.added_snr_db.is_some())
+                .map(|p| p.kappa.get(c1.variant))
+                .collect();
+            assert!(added[0] - added[added.len() - 1] > 0.5, "{added:?}");
+        }
+        kappas.push(k);
+    }
+    assert!(
+        kappas.windows(2).all(|w| w[0] > w[1]),
+        "κ must fall as noise grows: {kappas:?}"
+    );
+}
