@@ -654,7 +654,7 @@ struct DofData {
 /// T-F-S SINDy (criteria 1–4 with data assembly), then backward elimination by significance
 /// ([`TfsOptions::prune_insignificant`]). See the crate documentation.
 pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identified> {
-    let mut id = identify_tfs_once(records, spec)?;
+    let mut id = identify_tfs_once(records, spec, None)?;
     if spec.tfs.prune_insignificant == 0 {
         return Ok(id);
     }
@@ -683,6 +683,8 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
                 .map(|c| c.support_note.clone())
         })
         .collect();
+    let first_c1: Option<Vec<Criterion1>> =
+        id.trace.dofs.iter().map(|d| d.criterion1.clone()).collect();
     let mut current = spec.clone();
     let mut notes: Vec<Vec<String>> = vec![Vec::new(); spec.dofs.len()];
     for round in 1..=spec.tfs.prune_insignificant {
@@ -725,7 +727,14 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
             break;
         }
         current.dof_libraries = reduced;
-        id = identify_tfs_once(records, &current)?;
+        // Criterion 1 describes the library the user offered: the re-runs keep the first pass's
+        // κ and κ0 (and skip the calibration) unless pruning needs the reduced library's factor.
+        let keep_c1: Option<Vec<Criterion1>> = if spec.tfs.prune {
+            None
+        } else {
+            first_c1.clone()
+        };
+        id = identify_tfs_once(records, &current, keep_c1.as_deref())?;
     }
     let finals: Vec<Vec<String>> = spec
         .dofs
@@ -774,7 +783,12 @@ fn i_of(dofs: &[String], dof: &str) -> usize {
 }
 
 /// One pass of the T-F-S pipeline on a fixed library (see [`identify_tfs`]).
-fn identify_tfs_once(records: &[Record], spec: &IdentifySpec) -> Result<Identified> {
+/// `given_c1`: Criterion 1 per DOF to report instead of computing it (the elimination re-runs).
+fn identify_tfs_once(
+    records: &[Record],
+    spec: &IdentifySpec,
+    given_c1: Option<&[Criterion1]>,
+) -> Result<Identified> {
     let t_all = Instant::now();
     let opt = &spec.tfs;
     validate_tfs(opt)?;
@@ -806,7 +820,18 @@ fn identify_tfs_once(records: &[Record], spec: &IdentifySpec) -> Result<Identifi
                 .collect::<Result<_>>()?,
         };
         // ---- Criterion 1.
-        let (mut c1, factor, nonconst) = criterion1_dof(&blocks, &preps, spec, d, lib)?;
+        let (mut c1, factor, nonconst) = match given_c1.and_then(|c| c.get(d)) {
+            Some(given) => {
+                let nonconst: Vec<usize> = (0..lib.len())
+                    .filter(|&j| !lib.terms()[j].is_constant())
+                    .collect();
+                let mut given = given.clone();
+                given.supported = true;
+                given.support_note.clear();
+                (given, Mat::<f64>::zeros(0, 0), nonconst)
+            }
+            None => criterion1_dof(&blocks, &preps, spec, d, lib)?,
+        };
         timing.push((format!("{dof}: criterion 1"), ms(t0)));
         // ---- Criterion 2.
         let t0 = Instant::now();

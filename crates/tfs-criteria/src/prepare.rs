@@ -544,18 +544,48 @@ pub(crate) fn raw_time_domain(
             lib.len()
         )));
     }
-    let (cs, acc) = raw_columns_sg(rec, dofs, dof, dt, sg)?;
     let stride = stride.max(1);
-    let sub =
-        |v: &[f64]| -> Vec<f64> { v[trim..n - trim].iter().step_by(stride).copied().collect() };
-    let rows = (n - 2 * trim).div_ceil(stride);
-    let cols = lib
-        .required_columns()
-        .into_iter()
-        .filter_map(|c| cs.column(&c).map(|v| (c.clone(), sub(v))))
-        .collect();
-    let a = lib.evaluate(&OwnedColumns { rows, cols })?;
-    Ok((a, sub(&acc)))
+    let at: Vec<usize> = (trim..n - trim).step_by(stride).collect();
+    // The derivatives are needed only at the kept rows, all at least a half window from the ends:
+    // centred Savitzky–Golay weights applied there (the same values `savitzky_golay` gives).
+    let (h, order) = sg;
+    let w1 = tfs_signal::savitzky_golay_weights(h, order, 1, h)?;
+    let w2 = tfs_signal::savitzky_golay_weights(h, order, 2, h)?;
+    let apply = |w: &[f64], x: &[f64], scale: f64| -> Vec<f64> {
+        at.iter()
+            .map(|&i| {
+                w.iter()
+                    .zip(&x[i - h..=i + h])
+                    .map(|(a, b)| a * b)
+                    .sum::<f64>()
+                    / scale
+            })
+            .collect()
+    };
+    let sub = |v: &[f64]| -> Vec<f64> { at.iter().map(|&i| v[i]).collect() };
+    let mut cols: Vec<(String, Vec<f64>)> = Vec::new();
+    let mut acc = Vec::new();
+    for (i, d) in dofs.iter().enumerate() {
+        let x = rec.column(d).expect("checked");
+        cols.push((d.clone(), sub(x)));
+        cols.push((format!("{d}'"), apply(&w1, x, dt)));
+        if i == dof {
+            acc = apply(&w2, x, dt * dt);
+        }
+    }
+    for name in lib.required_columns() {
+        if cols.iter().any(|(c, _)| *c == name) {
+            continue;
+        }
+        if let Some(v) = rec.column(&name) {
+            cols.push((name.clone(), sub(v)));
+        }
+    }
+    let a = lib.evaluate(&OwnedColumns {
+        rows: at.len(),
+        cols,
+    })?;
+    Ok((a, acc))
 }
 
 /// Stored bins on each side of a bin whose residual powers are averaged by [`reweight`].
@@ -658,6 +688,50 @@ mod tests {
     use tfs_regress::{Compressed, lstsq_support};
     use tfs_signal::NoiseKind;
     use tfs_signal::noise::noise_for;
+
+    /// Criterion 1's block evaluates Savitzky–Golay derivatives only at the kept rows; it equals
+    /// the full-length derivatives of `raw_columns_sg` (with asymmetric end fits) sampled there.
+    #[test]
+    fn raw_block_matches_full_savitzky_golay_at_the_kept_rows() {
+        let n = 3000;
+        let dt = 0.01;
+        let e = gauss(n, 5);
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * dt).collect();
+        let x: Vec<f64> = t
+            .iter()
+            .zip(&e)
+            .map(|(t, e)| (1.3 * t).sin() + 0.2 * (4.1 * t).cos() + 0.01 * e)
+            .collect();
+        let u: Vec<f64> = t.iter().map(|t| (0.7 * t).cos()).collect();
+        let rec = Record::new("r", t, vec![("x".into(), x), ("xb_acc".into(), u)]).unwrap();
+        let dofs = vec!["x".to_string()];
+        let lib = Library::parse("x^1..3, x', x*x', xb_acc", &["x"]).unwrap();
+        let (trim, stride) = (60, 7);
+        let (a, y) = raw_time_domain(&rec, &dofs, 0, &lib, (12, 3), trim, stride).unwrap();
+        let (cs, acc) = raw_columns_sg(&rec, &dofs, 0, dt, (12, 3)).unwrap();
+        let full = lib
+            .evaluate(&OwnedColumns {
+                rows: n,
+                cols: lib
+                    .required_columns()
+                    .into_iter()
+                    .map(|c| (c.clone(), cs.column(&c).unwrap().to_vec()))
+                    .collect(),
+            })
+            .unwrap();
+        let rows: Vec<usize> = (trim..n - trim).step_by(stride).collect();
+        assert_eq!(a.nrows(), rows.len());
+        for (r, &i) in rows.iter().enumerate() {
+            assert!((y[r] - acc[i]).abs() <= 1e-9 * acc[i].abs().max(1.0));
+            for j in 0..lib.len() {
+                let (p, q) = (a[(r, j)], full[(i, j)]);
+                assert!(
+                    (p - q).abs() <= 1e-9 * q.abs().max(1.0),
+                    "row {i}, column {j}: {p} vs {q}"
+                );
+            }
+        }
+    }
 
     /// Unit-variance white noise (seeded).
     fn gauss(n: usize, seed: u64) -> Vec<f64> {
