@@ -102,6 +102,23 @@ impl Case {
     fn key(&self) -> String {
         format!("{}{}", if self.pink { "pink" } else { "white" }, self.snr)
     }
+    /// Base seed of the case's noise: fixed per case, so `--snr 30` alone writes the same records
+    /// as the 30 dB case of the default list (the default cases keep the seeds of their list
+    /// positions, 1000 + 100·i; any other case gets one from its key).
+    fn seed_base(&self) -> u64 {
+        const DEFAULT: [&str; 5] = ["white60", "white30", "white20", "pink30", "white10"];
+        let key = self.key();
+        match DEFAULT.iter().position(|k| *k == key) {
+            Some(i) => 1000 + 100 * i as u64,
+            None => {
+                // FNV-1a of the key: stable across runs and platforms.
+                let h = key.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+                    (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3)
+                });
+                10_000 + h % 1_000_000
+            }
+        }
+    }
     fn label(&self) -> String {
         format!(
             "{} dB {}",
@@ -175,7 +192,7 @@ pub fn run(args: PeersArgs) -> Result<()> {
     for (ci, case) in cases.iter().enumerate() {
         eprintln!("[{}/{}] {} …", ci + 1, cases.len(), case.label());
         let dir = args.out.join("data").join(case.key());
-        let clean_test = write_records(&truth, *case, scale, 1000 + 100 * ci as u64, &dir)?;
+        let clean_test = write_records(&truth, *case, scale, case.seed_base(), &dir)?;
         let train: Vec<Record> = (1..=TRAIN.len())
             .map(|i| read_csv(dir.join(format!("train{i}.csv"))).map_err(anyhow::Error::from))
             .collect::<Result<_>>()?;
@@ -670,6 +687,21 @@ fn write_outputs(out: &Path, rows: &[Value], quick: bool, total: f64) -> Result<
 mod tests {
     use super::*;
     use tfs::library::{Equation, ModelTerm, Term};
+
+    /// A case's records do not depend on where it sits in `--snr`: the default cases keep the
+    /// seeds of the default list, other cases get distinct ones.
+    #[test]
+    fn case_seeds_follow_the_case_not_its_position() {
+        let seed = |s: &str| Case::parse(s).unwrap().seed_base();
+        assert_eq!(seed("60"), 1000);
+        assert_eq!(seed("30"), 1100);
+        assert_eq!(seed("pink30"), 1300);
+        assert_eq!(seed("10"), 1400);
+        let others = [seed("25"), seed("pink20"), seed("40")];
+        assert!(others.iter().all(|s| *s >= 10_000));
+        assert!(others[0] != others[1] && others[1] != others[2] && others[0] != others[2]);
+        assert_eq!(seed("25"), seed(" 25 "));
+    }
 
     #[test]
     fn cases_parse_white_and_pink_and_reject_junk() {
