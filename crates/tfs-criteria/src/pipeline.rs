@@ -1195,6 +1195,15 @@ fn identify_tfs_once(
             },
         ];
         why.push(interval_note);
+        if !c1.high_snr && intervals.iter().any(Option::is_some) {
+            // The sandwich sees the scatter the noise causes, not the bias of powers of a noisy
+            // displacement (errors in variables), which grows as the SNR falls.
+            why.push(format!(
+                "Criterion 1 says low SNR (κ {:.2} < κ0 {:.2}): the intervals cover the scatter caused by noise, not the errors-in-variables bias of the nonlinear terms, so at low SNR the true coefficients can lie outside them",
+                c1.kappa.get(c1.variant),
+                c1.kappa0
+            ));
+        }
         let verdict = if c1.supported {
             verdict
         } else {
