@@ -1,8 +1,9 @@
 //! The criteria of T-F-S SINDy (Qian et al.) and the identification pipelines built on them.
 //!
 //! * Criterion 1 ([`noise_level_index`], [`noise_level_index_factor`], [`knee_index`]): the noise
-//!   level index κ of `B = [Θ | x'']`, raw and standardised, and the threshold κ0 calibrated by
-//!   adding known noise to the user's own data.
+//!   level index κ of `B = [Θ | x'']` on the measured data (`x''` by Savitzky–Golay, as in the
+//!   paper), raw and standardised, and the threshold κ0 calibrated by adding known noise to the
+//!   user's own data.
 //! * Criterion 2 ([`prune_library`], [`prune_factor`]): backward elimination on κ, run on the small
 //!   factor of one thin QR.
 //! * Criterion 3 ([`spectral`]): windowed transforms (plain or derivative-transfer "weak" form),

@@ -400,6 +400,28 @@ fn centred_factor(blocks: &[(Mat<f64>, Vec<f64>)], cols: &[usize]) -> Result<Mat
     }))
 }
 
+/// What the trace tells the user when the data do not support the library.
+pub(crate) const NOT_SUPPORTED_ADVICE: &str = "the model below is not a reliable identification. What to do: measure longer or repeat the test (more records), raise the excitation level or lower the sensor noise, or use a smaller library (fewer high powers)";
+
+/// Criterion 1's raw block of one record (see [`raw_time_domain`]): 2 % trimmed at each end and
+/// at most ~4000 rows (κ does not need every sample).
+fn criterion1_block(
+    r: &Record,
+    spec: &IdentifySpec,
+    d: usize,
+    lib: &Library,
+) -> Result<(Mat<f64>, Vec<f64>)> {
+    raw_time_domain(
+        r,
+        &spec.dofs,
+        d,
+        lib,
+        spec.tfs.savitzky_golay,
+        (r.len() / 50).max(4),
+        (r.len() / 4000).max(1),
+    )
+}
+
 /// Criterion 1 for DOF `d`: κ of the time-domain blocks `(Θ, x'')` of every record built from
 /// the measured data (see [`raw_time_domain`]; constant columns excluded), κ0 (given or
 /// calibrated by adding noise to the same kind of block) and the verdict, with the centred factor
@@ -418,17 +440,7 @@ pub(crate) fn criterion1_dof(
         .collect();
     let td: Vec<(Mat<f64>, Vec<f64>)> = blocks
         .par_iter()
-        .map(|r| {
-            raw_time_domain(
-                r,
-                &spec.dofs,
-                d,
-                lib,
-                opt.savitzky_golay,
-                (r.len() / 50).max(4),
-                (r.len() / 4000).max(1),
-            )
-        })
+        .map(|r| criterion1_block(r, spec, d, lib))
         .collect::<Result<_>>()?;
     let (kappa, factor) = criterion1_blocks(&td, &nonconst)?;
     let (kappa0, source, curve, knee) = match opt.kappa0 {
@@ -763,9 +775,8 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
             && let Some(c1) = d.criterion1.as_mut()
         {
             c1.supported = false;
-            c1.support_note = format!(
-                "too noisy for this library: {reason}; the model below is not a reliable identification. What to do: measure longer or repeat the test (more records), raise the excitation level or lower the sensor noise, or use a smaller library (fewer high powers)"
-            );
+            c1.support_note =
+                format!("too noisy for this library: {reason}; {NOT_SUPPORTED_ADVICE}");
             d.assembly_verdict = format!("{}. {}", c1.support_note, d.assembly_verdict);
         }
         let mut n = n;
@@ -1099,7 +1110,7 @@ fn identify_tfs_once(
         let snr_txt = c1.estimated_snr_db.map_or(String::new(), |v| {
             format!(" (estimated displacement SNR {v:.1} dB)")
         });
-        let what_to_do = "the model below is not a reliable identification. What to do: measure longer or repeat the test (more records), raise the excitation level or lower the sensor noise, or use a smaller library (fewer high powers)";
+        let what_to_do = NOT_SUPPORTED_ADVICE;
         // A displacement term of the DOF itself (restoring force) offered by the library.
         let disp = |col: usize| {
             lib.terms()[col].vars().iter().any(|v| match v {
@@ -1512,15 +1523,7 @@ fn calibrate(
                         r2.set_column(c.clone(), nv)?;
                     }
                 }
-                td.push(raw_time_domain(
-                    &r2,
-                    &spec.dofs,
-                    d,
-                    lib,
-                    opt.savitzky_golay,
-                    (r2.len() / 50).max(4),
-                    (r2.len() / 4000).max(1),
-                )?);
+                td.push(criterion1_block(&r2, spec, d, lib)?);
             }
             let (k, _) = criterion1_blocks(&td, nonconst)?;
             Ok(CalibrationPoint {
@@ -1532,15 +1535,7 @@ fn calibrate(
     curve.extend(points);
     // The knee is found on the segment's own curve (the data point of `curve` is κ of every
     // record, a slightly different quantity).
-    let seg_td = raw_time_domain(
-        &segment,
-        &spec.dofs,
-        d,
-        lib,
-        opt.savitzky_golay,
-        (segment.len() / 50).max(4),
-        (segment.len() / 4000).max(1),
-    )?;
+    let seg_td = criterion1_block(&segment, spec, d, lib)?;
     let seg_kappa = criterion1_blocks(std::slice::from_ref(&seg_td), nonconst)?.0;
     let seg_top = seg_kappa.get(opt.kappa_variant);
     let mut seg_curve = vec![CalibrationPoint {

@@ -22,8 +22,9 @@ use tfs_regress::{Compressed, lstsq_support};
 
 use crate::error::{CriteriaError, Result, invalid};
 use crate::pipeline::{
-    AssemblyStep, ChosenSettings, DofTrace, Identified, IdentifySpec, RecordBins, SettingScore,
-    Trace, blocks_of, criterion1_dof, dof_transforms, fit_select, residual_stats, validate_tfs,
+    AssemblyStep, ChosenSettings, DofTrace, Identified, IdentifySpec, NOT_SUPPORTED_ADVICE,
+    RecordBins, SettingScore, Trace, blocks_of, criterion1_dof, dof_transforms, fit_select,
+    residual_stats, validate_tfs,
 };
 use crate::prepare::{Prepared, prepare, rows_for, time_domain};
 
@@ -608,9 +609,8 @@ pub fn identify_tfs_tied(
         let verdict_d = match problem {
             Some(p) => {
                 c1.supported = false;
-                c1.support_note = format!(
-                    "too noisy for this library: {p}; the model below is not a reliable identification. What to do: measure longer or repeat the test (more records), raise the excitation level or lower the sensor noise, or use a smaller library (fewer high powers)"
-                );
+                c1.support_note =
+                    format!("too noisy for this library: {p}; {NOT_SUPPORTED_ADVICE}");
                 format!("{}. {verdict}", c1.support_note)
             }
             None => {
