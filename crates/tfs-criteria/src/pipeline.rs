@@ -19,7 +19,8 @@ use crate::kappa::{
 };
 use crate::prepare::{
     Prepared, TransformForm, WindowTransform, check_record, decimation, prepare, raw_columns_sg,
-    raw_time_domain, record_series, reweight, rows_for, time_domain, window_transforms,
+    raw_time_domain, record_series, reweight, rows_for, rows_for_band, time_domain,
+    window_transforms,
 };
 use crate::prune::{Criterion2, prune_factor};
 
@@ -433,7 +434,7 @@ pub(crate) fn criterion1_dof(
     spec: &IdentifySpec,
     d: usize,
     lib: &Library,
-) -> Result<(Criterion1, Mat<f64>, Vec<usize>)> {
+) -> Result<Criterion1Out> {
     let opt = &spec.tfs;
     let nonconst: Vec<usize> = (0..lib.len())
         .filter(|&j| !lib.terms()[j].is_constant())
@@ -655,6 +656,10 @@ fn support_threshold(path: &tfs_regress::LambdaPath) -> f64 {
 }
 
 /// One block's frequency-domain rows: merged, per window, row count, kept frequencies.
+/// Criterion 1 of one DOF: the verdict, the centred factor Criterion 2 prunes on and the
+/// non-constant columns (see [`criterion1_dof`]).
+type Criterion1Out = (Criterion1, Mat<f64>, Vec<usize>);
+
 type BlockRows = (Compressed, Vec<Compressed>, usize, Vec<f64>);
 
 /// Per-block data for one DOF.
@@ -822,31 +827,50 @@ fn identify_tfs_once(
     for (d, lib) in libs.iter().enumerate() {
         let dof = &spec.dofs[d];
         let names = lib.names();
-        // ---- time-domain blocks on the reconstruction (criteria 1, 2 and the held-out checks).
-        let t0 = Instant::now();
-        let data = DofData {
-            td: preps
-                .par_iter()
-                .map(|p| time_domain(p, &spec.dofs, d, lib, trim(p), stride(p)))
-                .collect::<Result<_>>()?,
+        // ---- time-domain blocks on the reconstruction (criteria 1, 2 and the held-out checks)
+        // and Criterion 1.
+        let given = given_c1.and_then(|c| c.get(d));
+        let c1_stage = || -> Result<(DofData, Criterion1Out, f64)> {
+            let t0 = Instant::now();
+            let data = DofData {
+                td: preps
+                    .par_iter()
+                    .map(|p| time_domain(p, &spec.dofs, d, lib, trim(p), stride(p)))
+                    .collect::<Result<_>>()?,
+            };
+            let c1 = match given {
+                Some(given) => {
+                    let nonconst: Vec<usize> = (0..lib.len())
+                        .filter(|&j| !lib.terms()[j].is_constant())
+                        .collect();
+                    let mut given = given.clone();
+                    given.supported = true;
+                    given.support_note.clear();
+                    (given, Mat::<f64>::zeros(0, 0), nonconst)
+                }
+                None => criterion1_dof(&blocks, &preps, spec, d, lib)?,
+            };
+            Ok((data, c1, ms(t0)))
         };
-        // ---- Criterion 1.
-        let (mut c1, factor, nonconst) = match given_c1.and_then(|c| c.get(d)) {
-            Some(given) => {
-                let nonconst: Vec<usize> = (0..lib.len())
-                    .filter(|&j| !lib.terms()[j].is_constant())
-                    .collect();
-                let mut given = given.clone();
-                given.supported = true;
-                given.support_note.clear();
-                (given, Mat::<f64>::zeros(0, 0), nonconst)
-            }
-            None => criterion1_dof(&blocks, &preps, spec, d, lib)?,
+        let all: Vec<usize> = (0..lib.len()).collect();
+        let transforms_stage = |keep: &[usize]| -> Result<_> {
+            let t0 = Instant::now();
+            let tr = dof_transforms(&preps, spec, d, lib, keep)?;
+            Ok((tr, ms(t0)))
         };
-        timing.push((format!("{dof}: criterion 1"), ms(t0)));
+        // Without pruning, Criterion 3 does not depend on Criterion 1's outcome: both run at
+        // once (the calibration and the windowed transforms each leave cores idle on their own).
+        let (c1_out, early) = if opt.prune {
+            (c1_stage()?, None)
+        } else {
+            let (a, b) = rayon::join(c1_stage, || transforms_stage(&all));
+            (a?, Some(b?))
+        };
+        let (data, (mut c1, factor, nonconst), c1_ms) = c1_out;
+        timing.push((format!("{dof}: criterion 1"), c1_ms));
         // ---- Criterion 2.
         let t0 = Instant::now();
-        let mut keep: Vec<usize> = (0..lib.len()).collect();
+        let mut keep: Vec<usize> = all.clone();
         let mut c2 = None;
         if opt.prune && c1.high_snr && nonconst.len() > 1 {
             let sd = crate::kappa::column_norms(factor.as_ref());
@@ -867,9 +891,11 @@ fn identify_tfs_once(
         }
         timing.push((format!("{dof}: criterion 2"), ms(t0)));
         // ---- Criterion 3: transforms for each window count.
-        let t0 = Instant::now();
-        let (qs, transforms) = dof_transforms(&preps, spec, d, lib, &keep)?;
-        timing.push((format!("{dof}: criterion 3 transforms"), ms(t0)));
+        let ((qs, transforms), tr_ms) = match early {
+            Some(t) => t,
+            None => transforms_stage(&keep)?,
+        };
+        timing.push((format!("{dof}: criterion 3 transforms"), tr_ms));
         // Time-domain validation blocks restricted to kept columns.
         let t0 = Instant::now();
         let val: Vec<Compressed> = data
@@ -882,38 +908,70 @@ fn identify_tfs_once(
             .collect::<std::result::Result<_, _>>()?;
         // The constant term (if offered) is estimated in the time domain: see `fill_constant`.
         let const_j = (0..keep.len()).find(|&j| lib.terms()[keep[j]].is_constant());
-        // Compressed rows per (window count, delta, block).
-        let compress_blocks = |wi: usize, delta: f64| -> Result<Vec<BlockRows>> {
-            transforms[wi]
-                .iter()
-                .map(|wins| {
-                    let mut parts = Vec::new();
-                    let mut rows = 0;
-                    let mut freqs = Vec::new();
-                    for w in wins {
-                        let (a, y, f) = rows_for(w, delta, &keep);
-                        if a.nrows() == 0 {
-                            continue;
-                        }
-                        rows += a.nrows();
-                        freqs.extend(f);
-                        parts.push(Compressed::from_rows(a.as_ref(), &y)?);
+        // Compressed rows per window count, delta and block. The bins kept at a smaller δ
+        // include those kept at a larger one, so each window is compressed once, from the
+        // largest δ down, appending only the rows each smaller δ adds.
+        let mut order: Vec<usize> = (0..opt.deltas.len()).collect();
+        order.sort_by(|&a, &b| opt.deltas[b].total_cmp(&opt.deltas[a]));
+        // One window layout of one block, compressed at every δ (indexed like `opt.deltas`).
+        let compress_block = |wins: &[WindowTransform]| -> Result<Vec<BlockRows>> {
+            let mut out: Vec<Option<BlockRows>> = vec![None; opt.deltas.len()];
+            let mut state: Vec<(Compressed, usize)> =
+                vec![(Compressed::empty(keep.len()), 0); wins.len()];
+            let mut rows = 0;
+            let mut freqs = Vec::new();
+            let mut hi = f64::INFINITY;
+            for &di in &order {
+                let lo = opt.deltas[di];
+                for (w, st) in wins.iter().zip(state.iter_mut()) {
+                    let (a, y, f) = rows_for_band(w, lo, hi, &keep);
+                    if a.nrows() == 0 {
+                        continue;
                     }
-                    if parts.is_empty() {
-                        parts.push(Compressed::empty(keep.len()));
-                    }
-                    Ok((Compressed::merge(&parts)?, parts, rows, freqs))
-                })
-                .collect()
+                    rows += a.nrows();
+                    freqs.extend(f);
+                    st.0.append(a.as_ref(), &y)?;
+                    st.1 += a.nrows();
+                }
+                hi = lo;
+                let mut parts: Vec<Compressed> = state
+                    .iter()
+                    .filter(|(_, m)| *m > 0)
+                    .map(|(c, _)| c.clone())
+                    .collect();
+                if parts.is_empty() {
+                    parts.push(Compressed::empty(keep.len()));
+                }
+                out[di] = Some((Compressed::merge(&parts)?, parts, rows, freqs.clone()));
+            }
+            Ok(out
+                .into_iter()
+                .map(|o| o.expect("every δ visited"))
+                .collect())
         };
+        let pairs: Vec<(usize, usize)> = (0..opt.window_counts.len())
+            .flat_map(|wi| (0..nb).map(move |b| (wi, b)))
+            .collect();
+        let mut per_pair: Vec<Vec<BlockRows>> = pairs
+            .par_iter()
+            .map(|&(wi, b)| compress_block(&transforms[wi][b]))
+            .collect::<Result<_>>()?;
+        // compressed[wi][di][block]
+        let mut compressed: Vec<Vec<Vec<BlockRows>>> =
+            vec![vec![Vec::with_capacity(nb); opt.deltas.len()]; opt.window_counts.len()];
+        for (&(wi, _), by_delta) in pairs.iter().zip(per_pair.iter_mut()) {
+            for (di, br) in std::mem::take(by_delta).into_iter().enumerate() {
+                compressed[wi][di].push(br);
+            }
+        }
         // ---- Settings by leave-one-block-out held-out error.
-        let grid: Vec<(usize, f64)> = (0..opt.window_counts.len())
-            .flat_map(|wi| opt.deltas.iter().map(move |&delta| (wi, delta)))
+        let grid: Vec<(usize, usize)> = (0..opt.window_counts.len())
+            .flat_map(|wi| (0..opt.deltas.len()).map(move |di| (wi, di)))
             .collect();
         let scores: Vec<f64> = grid
             .par_iter()
-            .map(|&(wi, delta)| -> Result<f64> {
-                let cb = compress_blocks(wi, delta)?;
+            .map(|&(wi, di)| -> Result<f64> {
+                let cb = &compressed[wi][di];
                 let mut err = 0.0;
                 for f in 0..nb {
                     let train: Vec<Compressed> = (0..nb)
@@ -933,23 +991,25 @@ fn identify_tfs_once(
             })
             .collect::<Result<_>>()?;
         let mut candidates = Vec::new();
-        let mut best: Option<(f64, usize, f64)> = None;
-        for (&(wi, delta), &err) in grid.iter().zip(&scores) {
+        let mut best: Option<(f64, usize, usize)> = None;
+        for (&(wi, di), &err) in grid.iter().zip(&scores) {
+            let delta = opt.deltas[di];
             candidates.push(SettingScore {
                 delta,
                 windows: opt.window_counts[wi],
                 held_out_error: err,
             });
             if best.is_none_or(|b| err < b.0) {
-                best = Some((err, wi, delta));
+                best = Some((err, wi, di));
             }
         }
-        let (best_err, wi, delta) = best.expect("at least one setting");
+        let (best_err, wi, di) = best.expect("at least one setting");
+        let delta = opt.deltas[di];
         let windows = opt.window_counts[wi];
         timing.push((format!("{dof}: settings selection"), ms(t0)));
         // ---- Data assembly + Criterion 4 (the last block is held out).
         let t0 = Instant::now();
-        let cb = compress_blocks(wi, delta)?;
+        let cb = &compressed[wi][di];
         let hold = nb - 1;
         let (ha, hy) = &data.td[hold];
         let hak = Mat::<f64>::from_fn(ha.nrows(), keep.len(), |i, j| ha[(i, keep[j])]);
@@ -1034,6 +1094,7 @@ fn identify_tfs_once(
         };
         timing.push((format!("{dof}: assembly and criterion 4"), ms(t0)));
         // ---- Intervals and inclusion probabilities by bagging over windows of the records used.
+        let t0 = Instant::now();
         let support: Vec<bool> = coef.iter().map(|v| *v != 0.0).collect();
         let mut intervals: Vec<Option<[f64; 2]>> = vec![None; keep.len()];
         let mut inclusion: Vec<Option<f64>> = vec![None; keep.len()];
@@ -1091,6 +1152,7 @@ fn identify_tfs_once(
                 );
             }
         }
+        timing.push((format!("{dof}: intervals and inclusion"), ms(t0)));
         // ---- Does the data support the library? (the verdict the CLI prints)
         let own = |col: usize| {
             lib.terms()[col].vars().iter().any(|v| match v {
@@ -1501,30 +1563,40 @@ fn calibrate(
         })
         .collect();
     let segment = Record::new(src.source(), src.t()[a..b].to_vec(), cols)?;
-    let blocks = std::slice::from_ref(&segment);
+    // One unit-level noise draw per column, scaled to each calibration SNR (common random
+    // numbers: the curve's steps show the effect of the level, not of a new draw, and the draw is
+    // made once instead of once per level).
+    let reference_db = 0.0;
+    let unit: Vec<Option<Vec<f64>>> = noisy_cols
+        .iter()
+        .enumerate()
+        .map(|(ci, c)| {
+            segment
+                .column(c)
+                .map(|v| {
+                    tfs_signal::noise::noise_for(
+                        v,
+                        reference_db,
+                        tfs_signal::NoiseKind::White,
+                        1000 + ci as u64,
+                    )
+                })
+                .transpose()
+        })
+        .collect::<std::result::Result<_, _>>()?;
     let points: Vec<CalibrationPoint> = opt
         .calibration_snrs_db
         .par_iter()
-        .enumerate()
-        .map(|(si, &snr)| -> Result<CalibrationPoint> {
-            let mut td = Vec::new();
-            for (bi, r) in blocks.iter().enumerate() {
-                let mut r2 = r.clone();
-                for (ci, c) in noisy_cols.iter().enumerate() {
-                    if let Some(v) = r.column(c) {
-                        let seed = 1000 * si as u64 + 31 * bi as u64 + ci as u64;
-                        let n = tfs_signal::noise::noise_for(
-                            v,
-                            snr,
-                            tfs_signal::NoiseKind::White,
-                            seed,
-                        )?;
-                        let nv: Vec<f64> = v.iter().zip(n).map(|(a, b)| a + b).collect();
-                        r2.set_column(c.clone(), nv)?;
-                    }
+        .map(|&snr| -> Result<CalibrationPoint> {
+            let scale = 10f64.powf(-(snr - reference_db) / 20.0);
+            let mut r2 = segment.clone();
+            for (c, n) in noisy_cols.iter().zip(&unit) {
+                if let (Some(v), Some(n)) = (segment.column(c), n) {
+                    let nv: Vec<f64> = v.iter().zip(n).map(|(a, b)| a + scale * b).collect();
+                    r2.set_column(c.clone(), nv)?;
                 }
-                td.push(criterion1_block(&r2, spec, d, lib)?);
             }
+            let td = [criterion1_block(&r2, spec, d, lib)?];
             let (k, _) = criterion1_blocks(&td, nonconst)?;
             Ok(CalibrationPoint {
                 added_snr_db: Some(snr),

@@ -442,8 +442,19 @@ pub(crate) fn rows_for(
     delta: f64,
     keep: &[usize],
 ) -> (Mat<f64>, Vec<f64>, Vec<f64>) {
+    rows_for_band(w, delta, f64::INFINITY, keep)
+}
+
+/// [`rows_for`] restricted to the bins with `lo ≤` relative amplitude `< hi`: the rows a smaller
+/// δ adds to a larger one's (the kept sets are nested in δ).
+pub(crate) fn rows_for_band(
+    w: &WindowTransform,
+    lo: f64,
+    hi: f64,
+    keep: &[usize],
+) -> (Mat<f64>, Vec<f64>, Vec<f64>) {
     let sel: Vec<usize> = (0..w.lhs.len())
-        .filter(|&b| w.rel_amp[b] >= delta)
+        .filter(|&b| w.rel_amp[b] >= lo && w.rel_amp[b] < hi)
         .collect();
     let mut rows: Vec<(usize, bool)> = Vec::with_capacity(2 * sel.len());
     for &b in &sel {
