@@ -13,7 +13,8 @@
 //!   band-limited reconstruction whose band comes from the data (noise floor fitted on the upper
 //!   half of the spectrum, cut-off extended to harmonics that rise above the floor).
 //! * Criterion 4 ([`residual_stats`]) inside the record-by-record data assembly of
-//!   [`identify_tfs`]; [`identify_sindy`] is the classical baseline.
+//!   [`identify_tfs`]; once it is met, the structure it accepted is refit on every record
+//!   ([`TfsOptions::refit_all_records`]). [`identify_sindy`] is the classical baseline.
 //! * Every kept coefficient gets a 95 % interval (cluster-robust standard errors over groups of
 //!   neighbouring bins) and an inclusion probability (bootstrap over non-overlapping windows);
 //!   [`Criterion1::supported`] and [`Trace::warnings`] say when the data are too noisy for the

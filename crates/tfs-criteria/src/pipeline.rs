@@ -93,6 +93,16 @@ pub struct TfsOptions {
     /// selection on the reduced library drops them by itself.
     #[serde(default)]
     pub prune_insignificant: usize,
+    /// After Criterion 4 is met with the first `k` records, keep the structure it chose and
+    /// estimate the coefficients on every training record (default `true`). The paper keeps the
+    /// `k`-record fit; refitting uses all the data the user gave and, on repeated noise draws of
+    /// the paper's cell, roughly halves the restoring-force error at 30 dB.
+    #[serde(default = "default_true")]
+    pub refit_all_records: bool,
+}
+
+fn default_true() -> bool {
+    true
 }
 
 impl Default for TfsOptions {
@@ -118,6 +128,7 @@ impl Default for TfsOptions {
             debias: true,
             reweight: 2,
             prune_insignificant: 3,
+            refit_all_records: true,
         }
     }
 }
@@ -1057,6 +1068,29 @@ fn identify_tfs_once(
             }
         }
         let (coef, thr, used, verdict) = match stop {
+            Some(k) if opt.refit_all_records && k < nb => {
+                // Criterion 4 settled the structure; its coefficients are then estimated on
+                // every training record (the held-out one included): on the peers setup this
+                // halves the force error at 30 dB (Monte-Carlo over noise draws).
+                let (c, t) = fits[k - 1].clone();
+                let support: Vec<bool> = c.iter().map(|v| *v != 0.0).collect();
+                let all = Compressed::merge(&cb.iter().map(|c| c.0.clone()).collect::<Vec<_>>())?;
+                let mut f = lstsq_support(&all, &support)?;
+                if let Some(cj) = const_j {
+                    fill_constant(&mut f.coef, cj, &data.td, &keep);
+                }
+                (
+                    f.coef,
+                    t,
+                    nb,
+                    format!(
+                        "criterion 4 met after {k} record(s): μ = {:.4}, σ = {:.4} on held-out '{}'; that structure is kept and its coefficients refit on all {nb} records",
+                        steps[k - 1].mu,
+                        steps[k - 1].sigma,
+                        blocks[hold].source()
+                    ),
+                )
+            }
             Some(k) => {
                 let (c, t) = fits[k - 1].clone();
                 (

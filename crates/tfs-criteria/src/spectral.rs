@@ -662,7 +662,10 @@ mod tests {
         for n in [1usize, 2, 7, 12_014, 40_002, 100_010] {
             let m = fast_even_len(n);
             assert!(m >= n && m % 2 == 0 && smooth(m), "{n} -> {m}");
-            assert!((n.max(2)..m).all(|k| k % 2 == 1 || !smooth(k)), "{n} -> {m}");
+            assert!(
+                (n.max(2)..m).all(|k| k % 2 == 1 || !smooth(k)),
+                "{n} -> {m}"
+            );
         }
         assert_eq!(fast_even_len(100_010), 100_352);
     }

@@ -209,3 +209,51 @@ fn settings_come_from_the_training_records_only() {
     };
     assert_eq!(coefs(&id.model), coefs(&id2.model));
 }
+
+/// When Criterion 4 is met before the records run out, the structure it chose is kept and the
+/// coefficients are refit on every record (default): same terms, the verdict says so, and every
+/// interval is narrower than the k-record fit's (more data). With the option off the k-record
+/// fit is returned as the paper does.
+#[test]
+fn coefficients_are_refit_on_every_record_once_criterion4_is_met() {
+    let recs = train(Some((30.0, tfs_signal::NoiseKind::White)), 0.4, 4);
+    let spec = IdentifySpec::new(&["x"], LIB);
+    let mut paper = spec.clone();
+    paper.tfs.refit_all_records = false;
+    let a = identify_tfs(&recs, &spec).unwrap();
+    let b = identify_tfs(&recs, &paper).unwrap();
+    let (ta, tb) = (&a.trace.dofs[0], &b.trace.dofs[0]);
+    let met = tb.assembly_verdict.contains("criterion 4 met after")
+        && !tb.assembly_verdict.contains("after 4 record");
+    assert!(
+        met,
+        "this data must meet criterion 4 early: {}",
+        tb.assembly_verdict
+    );
+    assert!(
+        ta.assembly_verdict.contains("refit on all 4 records"),
+        "{}",
+        ta.assembly_verdict
+    );
+    assert!(
+        !tb.assembly_verdict.contains("refit"),
+        "{}",
+        tb.assembly_verdict
+    );
+    let terms = |m: &tfs_library::Model| -> Vec<String> {
+        m.equations[0]
+            .terms
+            .iter()
+            .map(|t| t.term.to_string())
+            .collect()
+    };
+    assert_eq!(terms(&a.model), terms(&b.model));
+    for (x, y) in a.model.equations[0]
+        .terms
+        .iter()
+        .zip(&b.model.equations[0].terms)
+    {
+        let w = |t: &tfs_library::ModelTerm| t.interval.map(|[lo, hi]| hi - lo).unwrap();
+        assert!(w(x) < w(y), "{}: {} vs {}", x.term, w(x), w(y));
+    }
+}
