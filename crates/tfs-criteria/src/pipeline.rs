@@ -1067,21 +1067,26 @@ fn identify_tfs_once(
                 break;
             }
         }
+        // Least squares on every block with the support of `c` (the constant re-estimated in
+        // the time domain).
+        let refit_all = |c: &[f64]| -> Result<Vec<f64>> {
+            let support: Vec<bool> = c.iter().map(|v| *v != 0.0).collect();
+            let all = Compressed::merge(&cb.iter().map(|c| c.0.clone()).collect::<Vec<_>>())?;
+            let mut f = lstsq_support(&all, &support)?;
+            if let Some(cj) = const_j {
+                fill_constant(&mut f.coef, cj, &data.td, &keep);
+            }
+            Ok(f.coef)
+        };
         let (coef, thr, used, verdict) = match stop {
             Some(k) if opt.refit_all_records && k < nb => {
                 // Criterion 4 settled the structure; its coefficients are then estimated on
                 // every training record (the held-out one included): on the peers setup this
                 // halves the force error at 30 dB (Monte-Carlo over noise draws).
-                let (c, t) = fits[k - 1].clone();
-                let support: Vec<bool> = c.iter().map(|v| *v != 0.0).collect();
-                let all = Compressed::merge(&cb.iter().map(|c| c.0.clone()).collect::<Vec<_>>())?;
-                let mut f = lstsq_support(&all, &support)?;
-                if let Some(cj) = const_j {
-                    fill_constant(&mut f.coef, cj, &data.td, &keep);
-                }
+                let (c, t) = &fits[k - 1];
                 (
-                    f.coef,
-                    t,
+                    refit_all(c)?,
+                    *t,
                     nb,
                     format!(
                         "criterion 4 met after {k} record(s): μ = {:.4}, σ = {:.4} on held-out '{}'; that structure is kept and its coefficients refit on all {nb} records",
@@ -1108,14 +1113,8 @@ fn identify_tfs_once(
             None => {
                 // Records ran out: keep the last support, refit on every block.
                 let (c, t) = fits.last().cloned().unwrap_or((vec![0.0; keep.len()], 0.0));
-                let support: Vec<bool> = c.iter().map(|v| *v != 0.0).collect();
-                let all = Compressed::merge(&cb.iter().map(|c| c.0.clone()).collect::<Vec<_>>())?;
-                let mut f = lstsq_support(&all, &support)?;
-                if let Some(cj) = const_j {
-                    fill_constant(&mut f.coef, cj, &data.td, &keep);
-                }
                 (
-                    f.coef,
+                    refit_all(&c)?,
                     t,
                     nb,
                     format!(
