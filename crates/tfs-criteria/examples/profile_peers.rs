@@ -32,7 +32,8 @@ fn force_error(m: &Model) -> f64 {
     (num / den).sqrt()
 }
 
-/// Option overrides from the environment (`TFS_REWEIGHT=passes`, `TFS_PRUNE=rounds`, …).
+/// Option overrides from the environment (`TFS_REWEIGHT=passes`, `TFS_PRUNE=rounds`,
+/// `TFS_EIV=draws` of the errors-in-variables correction, …); `TFS_TIMING` prints stage times.
 fn tweak(spec: &mut IdentifySpec) {
     if let Some(v) = std::env::var("TFS_REWEIGHT")
         .ok()
@@ -59,6 +60,9 @@ fn tweak(spec: &mut IdentifySpec) {
     }
     if let Some(g) = list("TFS_GATE") {
         spec.tfs.min_bin_snr = g.first().copied().filter(|v| *v > 0.0);
+    }
+    if let Some(e) = list("TFS_EIV") {
+        spec.tfs.noise_correction_draws = e.first().map_or(0, |v| *v as usize);
     }
     if let Some(p) = list("TFS_PRUNE") {
         spec.tfs.prune_insignificant = p.first().map_or(0, |v| *v as usize);
@@ -211,7 +215,26 @@ fn monte_carlo(
             };
             recs.push(r);
         }
+        let t0 = Instant::now();
         let id = identify_tfs(&recs, &spec)?;
+        if std::env::var("TFS_TIMING").is_ok() {
+            // A second, warm call: the first also pays for FFT planning and the thread pool.
+            let t1 = Instant::now();
+            let warm = identify_tfs(&recs, &spec)?;
+            println!(
+                "  time: cold {:.1} ms, warm {:.1} ms; warm stages {:?}",
+                1e3 * (t1 - t0).as_secs_f64(),
+                1e3 * t1.elapsed().as_secs_f64(),
+                warm.trace.timing_ms
+            );
+        }
+        if std::env::var("TFS_VERBOSE").is_ok() {
+            println!("  {}", id.model.equation_string());
+            for w in &id.trace.dofs[0].settings.why {
+                println!("  - {w}");
+            }
+            println!("  verdict: {}", id.trace.dofs[0].assembly_verdict);
+        }
         let c: Vec<f64> = names
             .iter()
             .map(|t| {
@@ -306,6 +329,62 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 b.noise_var,
                 b.total_noise_var(),
                 b.in_band_noise_share
+            );
+        }
+        return Ok(());
+    }
+    if args.get(1).is_some_and(|s| s == "noisecheck") {
+        // In-band noise of the reconstruction: estimated (band.noise_var) vs actual.
+        use tfs_criteria::synthetic::{NoiseSpec, Surrogate, SweepSpec, surrogate_record};
+        let kind = if args.get(2).is_some_and(|s| s == "pink") {
+            tfs_signal::NoiseKind::Pink
+        } else {
+            tfs_signal::NoiseKind::White
+        };
+        let snr: f64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(10.0);
+        let sys = Surrogate {
+            c: 2.0,
+            a: [12.145, -18.0618, 6.5625],
+        };
+        for (i, &(f0, f1, duration, amplitude)) in [(0.05, 1.5, 100.0, 3.0), (0.1, 1.2, 80.0, 5.0)]
+            .iter()
+            .enumerate()
+        {
+            let sw = SweepSpec {
+                f0,
+                f1,
+                duration,
+                amplitude,
+            };
+            let ns = NoiseSpec {
+                snr_db: snr,
+                kind,
+                seed: 17 * i as u64,
+            };
+            let noisy = surrogate_record("n", &sys, sw, 200.0, Some(ns))?;
+            let clean = surrogate_record("c", &sys, sw, 200.0, None)?;
+            let sn =
+                tfs_criteria::spectral::band_limit(noisy.column("x").unwrap(), noisy.dt(), None);
+            let sc = tfs_criteria::spectral::band_limit(
+                clean.column("x").unwrap(),
+                clean.dt(),
+                Some(sn.band.cutoff_hz),
+            );
+            let n = sn.x.len();
+            let (a, b) = (n / 10, n - n / 10);
+            let var = |u: &[f64], v: &[f64]| {
+                (a..b).map(|k| (u[k] - v[k]).powi(2)).sum::<f64>() / (b - a) as f64
+            };
+            let dr = tfs_criteria::spectral::band_noise(&sn.band, n, 1).unwrap();
+            let z = vec![0.0; n];
+            println!(
+                "rec {i}: cutoff {:.2} Hz; x: est {:.3e} actual {:.3e} draw {:.3e}; v: actual {:.3e} draw {:.3e}",
+                sn.band.cutoff_hz,
+                sn.band.noise_var,
+                var(&sn.x, &sc.x),
+                var(&dr.x, &z),
+                var(&sn.v, &sc.v),
+                var(&dr.v, &z)
             );
         }
         return Ok(());

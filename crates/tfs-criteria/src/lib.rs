@@ -15,6 +15,10 @@
 //! * Criterion 4 ([`residual_stats`]) inside the record-by-record data assembly of
 //!   [`identify_tfs`]; once it is met, the structure it accepted is refit on every record
 //!   ([`TfsOptions::refit_all_records`]). [`identify_sindy`] is the classical baseline.
+//! * The final coefficients are corrected for errors in variables
+//!   ([`TfsOptions::noise_correction_draws`]): draws of each record's estimated noise, pushed
+//!   through the same reconstruction, windows, bins and weights ([`spectral::band_noise`]),
+//!   estimate the noise's share of the normal equations, which is removed before solving.
 //! * Every kept coefficient gets a 95 % interval (cluster-robust standard errors over groups of
 //!   neighbouring bins) and an inclusion probability (bootstrap over non-overlapping windows);
 //!   [`Criterion1::supported`] and [`Trace::warnings`] say when the data are too noisy for the
@@ -42,6 +46,7 @@
 //! assert_eq!(c2.kept, vec![1]);
 //! ```
 
+mod eiv;
 mod error;
 mod kappa;
 mod pipeline;

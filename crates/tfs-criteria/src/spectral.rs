@@ -89,6 +89,16 @@ impl Band {
         (self.floor_log_a + self.floor_beta * k.ln()).exp() / self.mirror_len as f64 * dt
     }
 
+    /// Is the fitted floor a noise-only estimate? The floor is fitted on the upper half of the
+    /// spectrum (above half the Nyquist frequency); when the band kept for the signal reaches into
+    /// that half, the floor was fitted partly to signal (e.g. the harmonics of a broadband
+    /// excitation through a nonlinearity) and overstates the noise.
+    pub fn floor_is_noise_only(&self) -> bool {
+        self.floor_log_a.is_finite()
+            && self.mirror_len > 0
+            && self.cutoff_hz < 0.25 * self.mirror_len as f64 * self.bin_hz
+    }
+
     /// Estimated variance of the whole-band noise of the raw signal: the fitted floor summed over
     /// every bin (Parseval on the 2N-point extension, `σ² = 2·Σ_k N̂_k / (2N)²`).
     pub fn total_noise_var(&self) -> f64 {
@@ -449,6 +459,65 @@ pub fn band_limit(x: &[f64], dt: f64, cutoff_hz: Option<f64>) -> Smoothed {
     }
 }
 
+/// One draw of the noise that the reconstruction described by `band` carries, `n` samples long,
+/// with its spectral first and second derivatives: Gaussian noise whose power spectrum is the
+/// band's fitted noise floor (white or coloured), limited to the band's cut-off exactly as the
+/// reconstruction is. Its variance is `band.noise_var` in expectation. Seeded: same seed, same
+/// draw. `None` when the band has no usable floor model.
+pub fn band_noise(band: &Band, n: usize, seed: u64) -> Option<Smoothed> {
+    let nn = band.mirror_len;
+    if !band.floor_log_a.is_finite() || nn < 2 || n > nn || band.bin_hz <= 0.0 {
+        return None;
+    }
+    let kc = ((band.cutoff_hz / band.bin_hz).round() as usize).min(nn / 2);
+    // Unit white noise has E|X_k|² = nn in an unnormalised transform; scaling bin k by
+    // √(N̂_k / nn) gives E|X_k|² = N̂_k, the floor's definition.
+    let white = tfs_signal::noise::standard_normal(nn, seed);
+    let fwd = fft_forward(nn);
+    let mut buf = white;
+    let mut spec = fwd.make_output_vec();
+    fwd.process(&mut buf, &mut spec)
+        .expect("buffer sizes come from the plan");
+    for (k, c) in spec.iter_mut().enumerate() {
+        let g = if k == 0 || k > kc {
+            0.0
+        } else {
+            ((band.floor_log_a + band.floor_beta * (k as f64).ln()).exp() / nn as f64).sqrt()
+        };
+        *c *= g;
+    }
+    let inv = fft_inverse(nn);
+    let mut outs = [Vec::new(), Vec::new(), Vec::new()];
+    let mut real = vec![0.0; nn];
+    let mut scratch = Vec::new();
+    for (d, out) in outs.iter_mut().enumerate() {
+        let mut s: Vec<Complex<f64>> = spec
+            .iter()
+            .enumerate()
+            .map(|(k, &c)| {
+                let w = 2.0 * std::f64::consts::PI * k as f64 * band.bin_hz;
+                match d {
+                    0 => c,
+                    1 => c * Complex::new(0.0, w),
+                    _ => c * (-w * w),
+                }
+            })
+            .collect();
+        s[0].im = 0.0;
+        let last = s.len() - 1;
+        s[last].im = 0.0;
+        inverse_with(&inv, &mut s, &mut real, &mut scratch);
+        *out = real[..n].iter().map(|v| v / nn as f64).collect();
+    }
+    let [x, v, a] = outs;
+    Some(Smoothed {
+        x,
+        v,
+        a,
+        band: *band,
+    })
+}
+
 /// A smooth window on `len` samples that vanishes with its first two derivatives at both ends:
 /// `w(s) = sin⁴(πs)`, `s = n/(len−1)`. Returns (w, w', w'') with time derivatives for step `dt`.
 pub fn window(len: usize, dt: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
@@ -759,6 +828,62 @@ mod tests {
                 "seed {seed}: the 20.3 Hz harmonic was cut at {c1} Hz"
             );
         }
+    }
+
+    /// A draw of the band's noise has the band's in-band variance, and a pink floor puts more of
+    /// it at low frequencies than a white one.
+    #[test]
+    fn band_noise_has_the_band_variance_and_the_floor_shape() {
+        let n = 40_000;
+        let dt = 0.005;
+        let t: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
+        for (kind, seed) in [
+            (tfs_signal::NoiseKind::White, 3),
+            (tfs_signal::NoiseKind::Pink, 4),
+        ] {
+            let clean: Vec<f64> = t
+                .iter()
+                .map(|t| (2.0 * std::f64::consts::PI * 0.7 * t).sin())
+                .collect();
+            let noise = tfs_signal::noise::noise_for(&clean, 26.0, kind, seed).unwrap();
+            let x: Vec<f64> = clean.iter().zip(&noise).map(|(a, b)| a + b).collect();
+            let band = band_limit(&x, dt, None).band;
+            assert!(band.floor_is_noise_only(), "{kind:?}: {band:?}");
+            let draws: Vec<Smoothed> = (0..8)
+                .map(|s| band_noise(&band, n, s).expect("a floor model"))
+                .collect();
+            let var = draws
+                .iter()
+                .map(|d| d.x.iter().map(|v| v * v).sum::<f64>() / n as f64)
+                .sum::<f64>()
+                / 8.0;
+            assert!(
+                (var / band.noise_var - 1.0).abs() < 0.1,
+                "{kind:?}: draw variance {var:e} vs band {:e}",
+                band.noise_var
+            );
+            // Spectral derivatives: the velocity of the draw is the derivative of the draw.
+            let d = &draws[0];
+            let fd: f64 = (1000..n - 1000)
+                .map(|i| ((d.x[i + 1] - d.x[i - 1]) / (2.0 * dt) - d.v[i]).powi(2))
+                .sum::<f64>();
+            let vv: f64 = (1000..n - 1000).map(|i| d.v[i].powi(2)).sum::<f64>();
+            assert!(fd < 1e-3 * vv, "{kind:?}: velocity of the draw");
+            // Same seed, same draw.
+            assert_eq!(band_noise(&band, n, 0).unwrap().x, draws[0].x);
+        }
+        // A signal that fills the spectrum up to 0.45 of the sampling rate leaves no noise-only
+        // half to fit the floor on.
+        let broad: Vec<f64> = t
+            .iter()
+            .map(|t| {
+                (1..60)
+                    .map(|k| (2.0 * std::f64::consts::PI * 1.5 * k as f64 * t + k as f64).sin())
+                    .sum::<f64>()
+            })
+            .collect();
+        let band = band_limit(&broad, dt, None).band;
+        assert!(!band.floor_is_noise_only(), "{band:?}");
     }
 
     #[test]

@@ -72,7 +72,11 @@ fn kappa_falls_with_noise_and_the_verdict_follows() {
         );
         // At low SNR the trace says what the intervals do not cover.
         let why = id.trace.dofs[0].settings.why.join(" | ");
-        assert_eq!(why.contains("errors-in-variables"), !c1.high_snr, "{why}");
+        assert_eq!(
+            why.contains("the true coefficients can lie outside them"),
+            !c1.high_snr,
+            "{why}"
+        );
         if snr >= 60.0 {
             // Clean data: adding 10 dB noise costs κ more than the scatter between draws.
             let added: Vec<f64> = c1

@@ -177,6 +177,15 @@ pub fn noise_for(x: &[f64], snr_db: f64, kind: NoiseKind, seed: u64) -> Result<V
     )
 }
 
+/// `n` independent standard normal samples (mean 0, variance 1) from a `ChaCha8Rng` seeded with
+/// `seed`: the raw material for noise of any other spectrum (shape it in the frequency domain).
+pub fn standard_normal(n: usize, seed: u64) -> Vec<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    (0..n)
+        .map(|_| rng.sample::<f64, _>(StandardNormal))
+        .collect()
+}
+
 /// `x` plus noise at `snr_db`, from a `ChaCha8Rng` seeded with `seed`.
 pub fn add_noise_seeded(x: &[f64], snr_db: f64, kind: NoiseKind, seed: u64) -> Result<Vec<f64>> {
     add_noise(x, snr_db, kind, &mut ChaCha8Rng::seed_from_u64(seed))
