@@ -77,6 +77,11 @@ pub struct PeersArgs {
     /// no fitting).
     #[arg(long)]
     pub replot: bool,
+    /// Noise realisation: 0 writes the records of the published table; K > 0 draws new noise for
+    /// every case (same truth, sweeps and SNRs), to see how much a result moves from one draw to
+    /// the next. Use a separate `--out` per draw.
+    #[arg(long, default_value_t = 0)]
+    pub draw: u64,
 }
 
 /// One noise case.
@@ -122,6 +127,11 @@ impl Case {
             }
         }
     }
+    /// Seed of the case's noise in realisation `draw` (0 = [`Case::seed_base`]); the stride keeps
+    /// the draws of different cases apart.
+    fn seed(&self, draw: u64) -> u64 {
+        self.seed_base() + 7_919 * draw
+    }
     fn label(&self) -> String {
         format!(
             "{} dB {}",
@@ -166,6 +176,7 @@ pub fn run(args: PeersArgs) -> Result<()> {
             &args.out,
             rows,
             v["quick"].as_bool().unwrap_or(false),
+            v["draw"].as_u64().unwrap_or(0),
             v["total_seconds"].as_f64().unwrap_or(f64::NAN),
         )?;
         eprintln!("redrew {}/peers.md and the figures", args.out.display());
@@ -195,7 +206,7 @@ pub fn run(args: PeersArgs) -> Result<()> {
     for (ci, case) in cases.iter().enumerate() {
         eprintln!("[{}/{}] {} …", ci + 1, cases.len(), case.label());
         let dir = args.out.join("data").join(case.key());
-        let clean_test = write_records(&truth, *case, scale, case.seed_base(), &dir)?;
+        let clean_test = write_records(&truth, *case, scale, case.seed(args.draw), &dir)?;
         let train: Vec<Record> = (1..=TRAIN.len())
             .map(|i| read_csv(dir.join(format!("train{i}.csv"))).map_err(anyhow::Error::from))
             .collect::<Result<_>>()?;
@@ -290,10 +301,16 @@ pub fn run(args: PeersArgs) -> Result<()> {
             rows.push(row);
         }
         // Rewrite the table after every case so an interrupted run keeps what it finished.
-        write_outputs(&args.out, &rows, args.quick, t_all.elapsed().as_secs_f64())?;
+        write_outputs(
+            &args.out,
+            &rows,
+            args.quick,
+            args.draw,
+            t_all.elapsed().as_secs_f64(),
+        )?;
     }
     let total = t_all.elapsed().as_secs_f64();
-    write_outputs(&args.out, &rows, args.quick, total)?;
+    write_outputs(&args.out, &rows, args.quick, args.draw, total)?;
     eprintln!(
         "wrote {}/peers.md, peers.json, peers_force_error.svg, peers_boa_error.svg ({total:.0} s)",
         args.out.display()
@@ -613,8 +630,13 @@ fn cell(v: &Value, key: &str) -> String {
     }
 }
 
-fn write_outputs(out: &Path, rows: &[Value], quick: bool, total: f64) -> Result<()> {
+fn write_outputs(out: &Path, rows: &[Value], quick: bool, draw: u64, total: f64) -> Result<()> {
     let mut md = String::from("# tfs vs PySINDy: side by side\n\n");
+    if draw > 0 {
+        md += &format!(
+            "Noise realisation {draw} (`--draw {draw}`): the same cases with new noise; the published table is draw 0.\n\n"
+        );
+    }
     md += &format!(
         "S-DOF Kresling cell, surrogate truth (γ0 = 30°, m = 1, c = 2). Four training sweeps {TRAIN:?} and test sweep {TEST:?} (f0 Hz, f1 Hz, T s, amplitude), {RAMP} s ramps, 200 Hz{}; noise on x and xb_acc at the SNR of each signal. Force error: relative RMS over 0 ≤ h ≤ 1.8. BOA error: share of a {} grid of (x0, v0) ∈ [0, 2] × [−3, 3] labelled differently from the truth. Test R-MSE: model driven by the measured test input, against the noise-free test displacement. PySINDy settings (weak: test-function half-width and threshold; classical: threshold) are chosen by the lowest test R-MSE — an oracle that sees the test record; tfs and SINDy (tfs) choose theirs from the training data only. Fit time: tfs and SINDy (tfs), the median of three identical calls in this process; PySINDy, the selected candidate's velocity smoothing, library rows and STLSQ fit (no import or start-up). Total run time {total:.0} s.\n\n",
         if quick {
@@ -654,7 +676,7 @@ fn write_outputs(out: &Path, rows: &[Value], quick: bool, total: f64) -> Result<
     std::fs::write(
         out.join("peers.json"),
         serde_json::to_string_pretty(
-            &json!({"format": "tfs-peers/1", "quick": quick, "total_seconds": total, "rows": rows}),
+            &json!({"format": "tfs-peers/1", "quick": quick, "draw": draw, "total_seconds": total, "rows": rows}),
         )?,
     )?;
     // Figure: errors against SNR for the white-noise cases.
@@ -722,6 +744,16 @@ mod tests {
         assert!(others.iter().all(|s| *s >= 10_000));
         assert!(others[0] != others[1] && others[1] != others[2] && others[0] != others[2]);
         assert_eq!(seed("25"), seed(" 25 "));
+        // Draw 0 is the published table; other draws give every case new, distinct noise.
+        let c = Case::parse("20").unwrap();
+        assert_eq!(c.seed(0), c.seed_base());
+        let draws: Vec<u64> = (0..4).map(|k| c.seed(k)).collect();
+        assert!(draws.windows(2).all(|w| w[0] != w[1]));
+        assert!(
+            draws
+                .iter()
+                .all(|s| *s != Case::parse("30").unwrap().seed(0))
+        );
     }
 
     #[test]
