@@ -695,8 +695,29 @@ struct DofData {
 /// T-F-S SINDy (criteria 1–4 with data assembly), then backward elimination by significance
 /// ([`TfsOptions::prune_insignificant`]). See the crate documentation.
 pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identified> {
-    let mut id = identify_tfs_once(records, spec, None)?;
-    if spec.tfs.prune_insignificant == 0 {
+    validate_tfs(&spec.tfs)?;
+    // The records and their band-limited reconstructions do not depend on the library: every
+    // pass of the elimination below shares them.
+    let blocks = blocks_of(records)?;
+    let t0 = Instant::now();
+    let preps: Vec<Prepared<'_>> = blocks
+        .par_iter()
+        .map(|r| {
+            prepare(
+                r,
+                &spec.dofs,
+                spec.tfs.cutoff_hz,
+                &mut RealFftPlanner::new(),
+            )
+        })
+        .collect::<Result<_>>()?;
+    let recon_ms = ms(t0);
+    let rounds = spec.tfs.prune_insignificant;
+    let once = |spec: &IdentifySpec, c1: Option<&[Criterion1]>, final_pass: bool| {
+        identify_tfs_once(&blocks, &preps, recon_ms, spec, c1, final_pass)
+    };
+    let mut id = once(spec, None, rounds == 0)?;
+    if rounds == 0 {
         return Ok(id);
     }
     let support = |id: &Identified, dof: &str| -> Result<Vec<String>> {
@@ -775,7 +796,7 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
         } else {
             first_c1.clone()
         };
-        id = identify_tfs_once(records, &current, keep_c1.as_deref())?;
+        id = once(&current, keep_c1.as_deref(), round == rounds)?;
     }
     let finals: Vec<Vec<String>> = spec
         .dofs
@@ -822,25 +843,25 @@ fn i_of(dofs: &[String], dof: &str) -> usize {
     dofs.iter().position(|d| d == dof).unwrap_or(0)
 }
 
-/// One pass of the T-F-S pipeline on a fixed library (see [`identify_tfs`]).
+/// One pass of the T-F-S pipeline on a fixed library (see [`identify_tfs`]), on the records cut
+/// to blocks and their reconstructions (made once, `recon_ms` long, for every pass).
 /// `given_c1`: Criterion 1 per DOF to report instead of computing it (the elimination re-runs).
+/// A pass that is not `final_pass` may be followed by an elimination round; where it will be (a
+/// kept term's interval includes 0), its bootstrap inclusion probabilities are not computed,
+/// since the next pass replaces its model.
 fn identify_tfs_once(
-    records: &[Record],
+    blocks: &[Record],
+    preps: &[Prepared<'_>],
+    recon_ms: f64,
     spec: &IdentifySpec,
     given_c1: Option<&[Criterion1]>,
+    final_pass: bool,
 ) -> Result<Identified> {
     let t_all = Instant::now();
     let opt = &spec.tfs;
     validate_tfs(opt)?;
     let libs = spec.libraries()?;
-    let blocks = blocks_of(records)?;
-    let mut timing = Vec::new();
-    let t0 = Instant::now();
-    let preps: Vec<Prepared<'_>> = blocks
-        .par_iter()
-        .map(|r| prepare(r, &spec.dofs, opt.cutoff_hz, &mut RealFftPlanner::new()))
-        .collect::<Result<_>>()?;
-    timing.push(("band-limited reconstruction".to_string(), ms(t0)));
+    let mut timing = vec![("band-limited reconstruction".to_string(), recon_ms)];
     let nb = preps.len();
     let trim = |p: &Prepared<'_>| (p.rec.len() / 50).max(4);
     // Time-domain checks use at most ~4000 rows per record (a subsample; κ and residual
@@ -872,14 +893,14 @@ fn identify_tfs_once(
                     given.support_note.clear();
                     (given, Mat::<f64>::zeros(0, 0), nonconst)
                 }
-                None => criterion1_dof(&blocks, &preps, spec, d, lib)?,
+                None => criterion1_dof(blocks, preps, spec, d, lib)?,
             };
             Ok((data, c1, ms(t0)))
         };
         let all: Vec<usize> = (0..lib.len()).collect();
         let transforms_stage = |keep: &[usize]| -> Result<_> {
             let t0 = Instant::now();
-            let tr = dof_transforms(&preps, spec, d, lib, keep)?;
+            let tr = dof_transforms(preps, spec, d, lib, keep)?;
             Ok((tr, ms(t0)))
         };
         // Without pruning, Criterion 3 does not depend on Criterion 1's outcome: both run at
@@ -1192,42 +1213,59 @@ fn identify_tfs_once(
                 .collect();
             let parts = cluster_blocks(&rows, delta, &keep)?;
             if parts.len() >= 3 {
-                let s = bagging(
-                    &parts,
-                    &Stlsq {
-                        threshold: thr,
-                        ..Stlsq::default()
-                    },
-                    &BagOptions {
-                        n_boot: opt.bagging,
-                        level: INTERVAL_LEVEL,
-                        seed: 1,
-                    },
-                )?;
-                for (inc, &p) in inclusion.iter_mut().zip(&s.inclusion) {
-                    *inc = Some(p);
-                }
                 // The constant is estimated in the time domain, not from the bins: no interval.
                 let sel: Vec<usize> = (0..keep.len())
                     .filter(|&j| support[j] && Some(j) != const_j)
                     .collect();
-                if let Some(cj) = const_j {
-                    inclusion[cj] = None;
-                }
-                interval_note = match cluster_intervals(&rows, delta, &keep, &sel, &coef) {
-                    Some((half, g)) => {
-                        for (k, &j) in sel.iter().enumerate() {
-                            intervals[j] = Some([coef[j] - half[k], coef[j] + half[k]]);
-                        }
-                        format!(
-                            "coefficient intervals: {:.0}% (± t·SE), cluster-robust standard errors from the residuals of the fit ({g} clusters of {CLUSTER_BINS} neighbouring bins of one window pair, t on {} degrees of freedom); inclusion = share of {} bootstrap resamples of the same {} clusters in which STLSQ at the chosen threshold keeps the term",
-                            100.0 * INTERVAL_LEVEL,
-                            g - 1,
-                            opt.bagging,
-                            parts.len()
-                        )
+                let clusters = cluster_intervals(&rows, delta, &keep, &sel, &coef);
+                if let Some((half, _)) = &clusters {
+                    for (k, &j) in sel.iter().enumerate() {
+                        intervals[j] = Some([coef[j] - half[k], coef[j] + half[k]]);
                     }
-                    None => "no coefficient intervals: too few independent clusters of bins".into(),
+                }
+                // Terms the elimination of `identify_tfs` will remove (interval includes 0); it
+                // re-runs the selection when some remain, and that pass replaces this model.
+                let weak = intervals
+                    .iter()
+                    .filter(|i| i.is_some_and(|[lo, hi]| lo <= 0.0 && hi >= 0.0))
+                    .count();
+                let replaced = !final_pass && weak > 0 && weak < lib.len();
+                let inclusion_note = if replaced {
+                    "inclusion not computed in this pass (terms are removed and the selection re-run)".to_string()
+                } else {
+                    let s = bagging(
+                        &parts,
+                        &Stlsq {
+                            threshold: thr,
+                            ..Stlsq::default()
+                        },
+                        &BagOptions {
+                            n_boot: opt.bagging,
+                            level: INTERVAL_LEVEL,
+                            seed: 1,
+                        },
+                    )?;
+                    for (inc, &p) in inclusion.iter_mut().zip(&s.inclusion) {
+                        *inc = Some(p);
+                    }
+                    if let Some(cj) = const_j {
+                        inclusion[cj] = None;
+                    }
+                    format!(
+                        "inclusion = share of {} bootstrap resamples of the same {} clusters in which STLSQ at the chosen threshold keeps the term",
+                        opt.bagging,
+                        parts.len()
+                    )
+                };
+                interval_note = match clusters {
+                    Some((_, g)) => format!(
+                        "coefficient intervals: {:.0}% (± t·SE), cluster-robust standard errors from the residuals of the fit ({g} clusters of {CLUSTER_BINS} neighbouring bins of one window pair, t on {} degrees of freedom); {inclusion_note}",
+                        100.0 * INTERVAL_LEVEL,
+                        g - 1,
+                    ),
+                    None => format!(
+                        "no coefficient intervals: too few independent clusters of bins; {inclusion_note}"
+                    ),
                 };
             } else {
                 interval_note = format!(
@@ -1312,8 +1350,8 @@ fn identify_tfs_once(
         });
         let bins = cb
             .iter()
-            .zip(&preps)
-            .zip(&blocks)
+            .zip(preps)
+            .zip(blocks)
             .zip(&qs)
             .map(|(((c, p), r), &q)| {
                 let lo = c.3.iter().cloned().fold(f64::INFINITY, f64::min);
