@@ -18,6 +18,14 @@ fn truth(h: f64) -> f64 {
     12.145 * h.powi(5) - 18.0618 * h.powi(6) + 6.5625 * h.powi(7)
 }
 
+/// The peers system (m = 1, c = 2, the surrogate force of [`truth`]).
+fn peers_truth() -> tfs_criteria::synthetic::Surrogate {
+    tfs_criteria::synthetic::Surrogate {
+        c: 2.0,
+        a: [12.145, -18.0618, 6.5625],
+    }
+}
+
 /// Relative RMS error of the model's restoring force over 0 ≤ h ≤ 1.8.
 fn force_error(m: &Model) -> f64 {
     let Ok(r) = m.restoring("x") else {
@@ -134,11 +142,8 @@ fn monte_carlo(
     seeds: u64,
     which: &str,
 ) -> Result<(), Box<dyn std::error::Error>> {
-    use tfs_criteria::synthetic::{NoiseSpec, Surrogate, SweepSpec, surrogate_record};
-    let sys = Surrogate {
-        c: 2.0,
-        a: [12.145, -18.0618, 6.5625],
-    };
+    use tfs_criteria::synthetic::{NoiseSpec, SweepSpec, surrogate_record};
+    let sys = peers_truth();
     let sweeps = [
         (0.05, 1.5, 100.0, 3.0),
         (0.05, 1.5, 60.0, 4.0),
@@ -320,7 +325,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if args.get(1).is_some_and(|s| s == "bands") {
         let dir = args.get(2).cloned().unwrap_or_default();
         for r in read(&dir)? {
-            let b = tfs_criteria::spectral::band_limit(r.column("x").unwrap(), r.dt(), None).band;
+            let x = r.column("x").unwrap();
+            // As the pipeline sees it: cut to a fast FFT length first.
+            let x = &x[..tfs_criteria::spectral::smooth_len(x.len())];
+            let b = tfs_criteria::spectral::band_limit(x, r.dt(), None).band;
             println!(
                 "{}: cutoff {:.2} beta {:.3} noise_var {:.3e} total {:.3e} share {:.4}",
                 r.source(),
@@ -335,17 +343,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     if args.get(1).is_some_and(|s| s == "noisecheck") {
         // In-band noise of the reconstruction: estimated (band.noise_var) vs actual.
-        use tfs_criteria::synthetic::{NoiseSpec, Surrogate, SweepSpec, surrogate_record};
+        use tfs_criteria::synthetic::{NoiseSpec, SweepSpec, surrogate_record};
         let kind = if args.get(2).is_some_and(|s| s == "pink") {
             tfs_signal::NoiseKind::Pink
         } else {
             tfs_signal::NoiseKind::White
         };
         let snr: f64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(10.0);
-        let sys = Surrogate {
-            c: 2.0,
-            a: [12.145, -18.0618, 6.5625],
-        };
+        let sys = peers_truth();
         for (i, &(f0, f1, duration, amplitude)) in [(0.05, 1.5, 100.0, 3.0), (0.1, 1.2, 80.0, 5.0)]
             .iter()
             .enumerate()
