@@ -7,7 +7,7 @@
 mod common;
 
 use tfs_criteria::synthetic::{NoiseSpec, SweepSpec, surrogate_record};
-use tfs_criteria::{IdentifySpec, identify_tfs};
+use tfs_criteria::{IdentifySpec, TfsOptions, identify_tfs};
 use tfs_data::Record;
 use tfs_library::Term;
 use tfs_signal::NoiseKind;
@@ -81,7 +81,7 @@ fn mean_coefs(seeds: u64, draws: usize) -> ([f64; 2], String) {
 fn correction_removes_the_damping_attenuation_with_pinned_settings() {
     let seeds = 6;
     let (plain, off_note) = mean_coefs(seeds, 0);
-    let (fixed, on_note) = mean_coefs(seeds, 4);
+    let (fixed, on_note) = mean_coefs(seeds, TfsOptions::default().noise_correction_draws);
     let truth = -common::TRUTH.c;
     let (e_plain, e_fixed) = (plain[0] / truth - 1.0, fixed[0] / truth - 1.0);
     eprintln!(
