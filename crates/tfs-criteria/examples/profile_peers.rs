@@ -26,6 +26,25 @@ fn peers_truth() -> tfs_criteria::synthetic::Surrogate {
     }
 }
 
+/// A 200 Hz sweep record `(f0, f1, duration, amplitude)` of `sys`, with noise `(SNR dB, kind,
+/// seed)` or clean.
+fn sweep(
+    sys: &tfs_criteria::synthetic::Surrogate,
+    name: &str,
+    (f0, f1, duration, amplitude): (f64, f64, f64, f64),
+    noise: Option<(f64, tfs_signal::NoiseKind, u64)>,
+) -> Result<Record, Box<dyn std::error::Error>> {
+    use tfs_criteria::synthetic::{NoiseSpec, SweepSpec, surrogate_record};
+    let sw = SweepSpec {
+        f0,
+        f1,
+        duration,
+        amplitude,
+    };
+    let ns = noise.map(|(snr_db, kind, seed)| NoiseSpec { snr_db, kind, seed });
+    Ok(surrogate_record(name, sys, sw, 200.0, ns)?)
+}
+
 /// Relative RMS error of the model's restoring force over 0 ≤ h ≤ 1.8.
 fn force_error(m: &Model) -> f64 {
     let Ok(r) = m.restoring("x") else {
@@ -142,7 +161,6 @@ fn monte_carlo(
     seeds: u64,
     which: &str,
 ) -> Result<(), Box<dyn std::error::Error>> {
-    use tfs_criteria::synthetic::{NoiseSpec, SweepSpec, surrogate_record};
     let sys = peers_truth();
     let sweeps = [
         (0.05, 1.5, 100.0, 3.0),
@@ -164,25 +182,20 @@ fn monte_carlo(
     for seed in 0..seeds {
         let mut recs = Vec::new();
         for (i, &(f0, f1, duration, amplitude)) in sweeps.iter().enumerate() {
-            let sw = SweepSpec {
-                f0,
-                f1,
-                duration,
-                amplitude,
-            };
-            let ns = NoiseSpec {
-                snr_db: snr,
-                kind: nk,
-                seed: 1000 * seed + 17 * i as u64,
-            };
-            let noisy = surrogate_record(&format!("r{i}"), &sys, sw, 200.0, Some(ns))?;
+            let sw = (f0, f1, duration, amplitude);
+            let noisy = sweep(
+                &sys,
+                &format!("r{i}"),
+                sw,
+                Some((snr, nk, 1000 * seed + 17 * i as u64)),
+            )?;
             let r = if which == "both" {
                 noisy
             } else if let Some(spec) = which.strip_prefix("band") {
                 // "band<lo>-<hi>": only the x noise between lo and hi Hz (acc noise kept).
                 let (lo, hi) = spec.split_once('-').unwrap();
                 let (lo, hi): (f64, f64) = (lo.parse()?, hi.parse()?);
-                let clean = surrogate_record(&format!("r{i}"), &sys, sw, 200.0, None)?;
+                let clean = sweep(&sys, &format!("r{i}"), sw, None)?;
                 let cx = clean.column("x").unwrap();
                 let n: Vec<f64> = noisy
                     .column("x")
@@ -203,7 +216,7 @@ fn monte_carlo(
                     ],
                 )?
             } else {
-                let clean = surrogate_record(&format!("r{i}"), &sys, sw, 200.0, None)?;
+                let clean = sweep(&sys, &format!("r{i}"), sw, None)?;
                 let (xs, acs) = if which == "x" {
                     (&noisy, &clean)
                 } else {
@@ -343,7 +356,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     if args.get(1).is_some_and(|s| s == "noisecheck") {
         // In-band noise of the reconstruction: estimated (band.noise_var) vs actual.
-        use tfs_criteria::synthetic::{NoiseSpec, SweepSpec, surrogate_record};
         let kind = if args.get(2).is_some_and(|s| s == "pink") {
             tfs_signal::NoiseKind::Pink
         } else {
@@ -355,19 +367,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .iter()
             .enumerate()
         {
-            let sw = SweepSpec {
-                f0,
-                f1,
-                duration,
-                amplitude,
-            };
-            let ns = NoiseSpec {
-                snr_db: snr,
-                kind,
-                seed: 17 * i as u64,
-            };
-            let noisy = surrogate_record("n", &sys, sw, 200.0, Some(ns))?;
-            let clean = surrogate_record("c", &sys, sw, 200.0, None)?;
+            let sw = (f0, f1, duration, amplitude);
+            let noisy = sweep(&sys, "n", sw, Some((snr, kind, 17 * i as u64)))?;
+            let clean = sweep(&sys, "c", sw, None)?;
             let sn =
                 tfs_criteria::spectral::band_limit(noisy.column("x").unwrap(), noisy.dt(), None);
             let sc = tfs_criteria::spectral::band_limit(

@@ -29,11 +29,10 @@ use tfs_regress::Compressed;
 
 use crate::error::Result;
 use crate::pipeline::TfsOptions;
-use crate::prepare::{Prepared, Series, TransformForm, WindowTransform, record_series};
-use crate::spectral::{
-    Smoothed, band_noise, bin_omegas, weak_first_derivative, weak_second_derivative, window,
-    window_layout, windowed_fft,
+use crate::prepare::{
+    Prepared, RecordSeries, Series, TransformForm, WindowTransform, record_series, rows_for,
 };
+use crate::spectral::{Smoothed, band_noise, bin_omegas, window, window_layout};
 
 /// Second moments of the noise part of the regression rows, over the columns of one support.
 #[derive(Debug, Clone)]
@@ -187,54 +186,45 @@ pub(crate) fn noise_moments(
                     _ => unreachable!("the same term gives the same form"),
                 })
                 .collect();
+            let delta_series = RecordSeries {
+                dt: plus.dt,
+                lhs: d_lhs,
+                weak_lhs: plus.weak_lhs,
+                terms: d_terms,
+                noise: None,
+            };
             let wins = &transforms[r];
-            let (starts, len) = window_layout(d_lhs.len(), wins.len());
-            let dt = plus.dt;
-            let win = window(len, dt);
-            let om = bin_omegas(len, dt);
-            let df = 1.0 / (len as f64 * dt);
+            let (starts, len) = window_layout(delta_series.lhs.len(), wins.len());
+            let win = window(len, plus.dt);
+            let om = bin_omegas(len, plus.dt);
+            let df = 1.0 / (len as f64 * plus.dt);
+            let all: Vec<usize> = (0..k).collect();
             let mut dd = Mat::<f64>::zeros(k, k);
             let mut dy = vec![0.0; k];
-            let mut row = vec![0.0; k];
             for (w, &st) in wins.iter().zip(&starts) {
-                let sl = |v: &[f64]| v[st..st + len].to_vec();
-                let lhs = if plus.weak_lhs {
-                    weak_second_derivative(&sl(&d_lhs), &win, &om, dt)
-                } else {
-                    windowed_fft(&sl(&d_lhs), &win.0, dt)
-                };
-                let full: Vec<Vec<Complex<f64>>> = d_terms
+                // The noise part of this window's rows: same bins and weights as the data's.
+                let at: Vec<usize> = w
+                    .freq
                     .iter()
-                    .map(|t| match t {
-                        Series::Plain(v) => windowed_fft(&sl(v), &win.0, dt),
-                        Series::Transfer(g) => weak_first_derivative(&sl(g), &win, &om, dt),
-                    })
+                    .map(|f| ((f / df).round() as usize).min(len / 2))
                     .collect();
-                for b in 0..w.lhs.len() {
-                    if w.rel_amp[b] < delta {
-                        continue;
-                    }
-                    let kb = ((w.freq[b] / df).round() as usize).min(lhs.len() - 1);
-                    let wt = w.weight[b];
-                    let parts: &[bool] = if w.freq[b] > 0.0 {
-                        &[false, true]
-                    } else {
-                        &[false]
-                    };
-                    for &im in parts {
-                        let pick = |c: Complex<f64>| if im { c.im } else { c.re };
-                        row.iter_mut().for_each(|v| *v = 0.0);
-                        for (s, &j) in noisy_at.iter().enumerate() {
-                            row[j] = wt * pick(full[s][kb]);
-                        }
-                        let y = wt * pick(lhs[kb]);
-                        for &i in &noisy_at {
-                            dy[i] += row[i] * y;
-                            for &j in &noisy_at {
-                                dd[(i, j)] += row[i] * row[j];
-                            }
-                        }
-                    }
+                let lhs = delta_series.lhs_spectrum(st, &win, &om);
+                let mut cols = vec![vec![Complex::new(0.0, 0.0); at.len()]; k];
+                for (s, &j) in noisy_at.iter().enumerate() {
+                    let full = delta_series.term_spectrum(s, st, &win, &om);
+                    cols[j] = at.iter().map(|&kb| full[kb]).collect();
+                }
+                let noise_rows = WindowTransform {
+                    freq: w.freq.clone(),
+                    rel_amp: w.rel_amp.clone(),
+                    lhs: at.iter().map(|&kb| lhs[kb]).collect(),
+                    cols,
+                    weight: w.weight.clone(),
+                };
+                let (a, y, _) = rows_for(&noise_rows, delta, &all);
+                dd += a.transpose() * &a;
+                for (i, v) in dy.iter_mut().enumerate() {
+                    *v += (0..a.nrows()).map(|m| a[(m, i)] * y[m]).sum::<f64>();
                 }
             }
             Ok((dd, dy))

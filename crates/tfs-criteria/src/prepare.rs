@@ -115,6 +115,40 @@ pub(crate) struct RecordSeries {
     pub noise: Option<(Band, f64)>,
 }
 
+impl RecordSeries {
+    /// Transform (bins `0..=len/2`) of the left-hand side over the window of `win.0.len()`
+    /// samples starting at `st`; `win` and `om` are that length's window and bin frequencies.
+    pub(crate) fn lhs_spectrum(
+        &self,
+        st: usize,
+        win: &(Vec<f64>, Vec<f64>, Vec<f64>),
+        om: &[f64],
+    ) -> Vec<Complex<f64>> {
+        let x = &self.lhs[st..st + win.0.len()];
+        if self.weak_lhs {
+            weak_second_derivative(x, win, om, self.dt)
+        } else {
+            windowed_fft(x, &win.0, self.dt)
+        }
+    }
+
+    /// Transform of term `j` over the same window (see [`RecordSeries::lhs_spectrum`]), in the
+    /// term's form (plain, or derivative transfer onto the window).
+    pub(crate) fn term_spectrum(
+        &self,
+        j: usize,
+        st: usize,
+        win: &(Vec<f64>, Vec<f64>, Vec<f64>),
+        om: &[f64],
+    ) -> Vec<Complex<f64>> {
+        let len = win.0.len();
+        match &self.terms[j] {
+            Series::Plain(v) => windowed_fft(&v[st..st + len], &win.0, self.dt),
+            Series::Transfer(g) => weak_first_derivative(&g[st..st + len], win, om, self.dt),
+        }
+    }
+}
+
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn record_series(
     p: &Prepared<'_>,
@@ -395,12 +429,7 @@ pub(crate) fn window_transforms(
     starts
         .iter()
         .map(|&st| {
-            let sl = |v: &[f64]| v[st..st + len].to_vec();
-            let lhs_full = if s.weak_lhs {
-                weak_second_derivative(&sl(&s.lhs), &win, &om, dt)
-            } else {
-                windowed_fft(&sl(&s.lhs), &win.0, dt)
-            };
+            let lhs_full = s.lhs_spectrum(st, &win, &om);
             let max = lhs_full.iter().fold(0.0f64, |a, c| a.max(c.norm()));
             // The strongest bin is always kept so no window is left without rows.
             let top = (0..lhs_full.len())
@@ -412,14 +441,9 @@ pub(crate) fn window_transforms(
                     k == top || gate.as_ref().is_none_or(|g| lhs_full[k].norm_sqr() >= g[k])
                 })
                 .collect();
-            let cols = s
-                .terms
-                .iter()
-                .map(|t| {
-                    let full = match t {
-                        Series::Plain(v) => windowed_fft(&sl(v), &win.0, dt),
-                        Series::Transfer(g) => weak_first_derivative(&sl(g), &win, &om, dt),
-                    };
+            let cols = (0..s.terms.len())
+                .map(|j| {
+                    let full = s.term_spectrum(j, st, &win, &om);
                     bins.iter().map(|&k| full[k]).collect()
                 })
                 .collect();
