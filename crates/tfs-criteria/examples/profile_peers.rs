@@ -429,6 +429,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let id = identify_tfs(&recs, &spec)?;
         let el = t.elapsed().as_secs_f64() * 1e3;
         println!("tfs {el:.1} ms: {}", id.model.equation_string());
+        if let Ok(eq) = id.model.equation("x") {
+            let inc: Vec<String> = eq
+                .terms
+                .iter()
+                .map(|t| format!("{} {:?}", t.term, t.inclusion))
+                .collect();
+            println!("   inclusion: {}", inc.join(", "));
+        }
         for (k, v) in &id.trace.timing_ms {
             println!("   {k}: {v:.1}");
         }

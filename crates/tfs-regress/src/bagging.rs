@@ -82,6 +82,7 @@ pub fn bagging<R: Regressor + Sync + ?Sized>(
         "must be in (0, 1)",
     )?;
     let nb = blocks.len();
+    let merger = crate::compress::CountedMerge::new(blocks)?;
     let draws: Vec<Result<(Vec<f64>, Vec<bool>)>> = (0..opts.n_boot)
         .into_par_iter()
         .map(|i| {
@@ -91,8 +92,7 @@ pub fn bagging<R: Regressor + Sync + ?Sized>(
             for _ in 0..nb {
                 counts[rng.random_range(0..nb)] += 1;
             }
-            let pairs: Vec<(&Compressed, usize)> = blocks.iter().zip(counts).collect();
-            let merged = Compressed::merge_counted(&pairs)?;
+            let merged = merger.merge(&counts)?;
             let fit = regressor.fit_compressed(&merged)?;
             Ok((fit.coef, fit.support))
         })

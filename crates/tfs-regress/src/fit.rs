@@ -72,29 +72,67 @@ fn rank_tol(rows: usize, cols: usize) -> f64 {
 
 /// Least squares on a small dense system `min ‖M x − y‖` by column-pivoted QR.
 /// Returns `x` (zero for dependent columns) and the dependent column indices.
+///
+/// Sequential on purpose: it is called thousands of times per identification, from inside
+/// rayon tasks, on matrices of a few dozen rows. `Qᵀy` is applied from the Householder factors
+/// (no explicit `Q`).
 pub(crate) fn small_lstsq(mmat: MatRef<'_, f64>, y: &[f64]) -> (Vec<f64>, Vec<usize>) {
+    use faer::dyn_stack::{MemBuffer, MemStack};
+    use faer::linalg::householder::{
+        apply_block_householder_sequence_transpose_on_the_left_in_place_scratch,
+        apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj,
+    };
+    use faer::linalg::qr::col_pivoting::factor as cp;
     let (k, p) = mmat.shape();
     if p == 0 {
         return (Vec::new(), Vec::new());
     }
-    let qr = mmat.col_piv_qr();
-    let r = qr.thin_R();
-    let q = qr.compute_thin_Q();
     let size = k.min(p);
-    let (fwd, _) = qr.P().arrays();
-    let r00 = if size > 0 { r[(0, 0)].abs() } else { 0.0 };
+    if size == 0 {
+        return (vec![0.0; p], (0..p).collect());
+    }
+    let mut qr = mmat.to_owned();
+    let bs = faer::linalg::qr::no_pivoting::factor::recommended_block_size::<f64>(k, p);
+    let mut h = Mat::<f64>::zeros(bs, size);
+    let mut fwd_buf = vec![0usize; p];
+    let mut inv_buf = vec![0usize; p];
+    let mut mem = MemBuffer::new(
+        cp::qr_in_place_scratch::<usize, f64>(k, p, bs, Par::Seq, Default::default()).or(
+            apply_block_householder_sequence_transpose_on_the_left_in_place_scratch::<f64>(
+                k, bs, 1,
+            ),
+        ),
+    );
+    let (_, perm) = cp::qr_in_place(
+        qr.as_mut(),
+        h.as_mut(),
+        &mut fwd_buf,
+        &mut inv_buf,
+        Par::Seq,
+        MemStack::new(&mut mem),
+        Default::default(),
+    );
+    let fwd: Vec<usize> = perm.arrays().0.to_vec();
+    let r = qr.as_ref();
+    let r00 = r[(0, 0)].abs();
     let tol = rank_tol(k, p) * r00;
     let rank = (0..size)
         .take_while(|&i| r00 > 0.0 && r[(i, i)].abs() > tol)
         .count();
-    let mut rhs = Mat::<f64>::zeros(rank, 1);
-    for i in 0..rank {
-        rhs[(i, 0)] = (0..k).map(|t| q[(t, i)] * y[t]).sum();
-    }
-    solve_upper_triangular_in_place(r.get(..rank, ..rank), rhs.as_mut(), Par::Seq);
+    let mut rhs = Mat::<f64>::from_fn(k, 1, |i, _| y[i]);
+    apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
+        r.get(.., ..size),
+        h.as_ref(),
+        faer::Conj::No,
+        rhs.as_mut(),
+        Par::Seq,
+        MemStack::new(&mut mem),
+    );
+    let mut sol = rhs.get(..rank, ..).to_owned();
+    solve_upper_triangular_in_place(r.get(..rank, ..rank), sol.as_mut(), Par::Seq);
     let mut x = vec![0.0; p];
     for i in 0..rank {
-        x[fwd[i]] = rhs[(i, 0)];
+        x[fwd[i]] = sol[(i, 0)];
     }
     let mut dependent: Vec<usize> = fwd[rank..].to_vec();
     dependent.sort_unstable();
