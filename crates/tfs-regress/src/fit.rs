@@ -71,12 +71,18 @@ fn rank_tol(rows: usize, cols: usize) -> f64 {
 }
 
 /// Least squares on a small dense system `min ‖M x − y‖` by column-pivoted QR.
-/// Returns `x` (zero for dependent columns) and the dependent column indices.
+/// Returns `x` (zero for dependent columns) and the dependent column indices. The rank
+/// tolerance is that of a system of `tol_rows` rows (see [`rank_tol`]), so trailing zero rows
+/// left out of `M` do not change which columns count as dependent.
 ///
 /// Sequential on purpose: it is called thousands of times per identification, from inside
 /// rayon tasks, on matrices of a few dozen rows. `Qᵀy` is applied from the Householder factors
 /// (no explicit `Q`).
-pub(crate) fn small_lstsq(mmat: MatRef<'_, f64>, y: &[f64]) -> (Vec<f64>, Vec<usize>) {
+pub(crate) fn small_lstsq(
+    mmat: MatRef<'_, f64>,
+    y: &[f64],
+    tol_rows: usize,
+) -> (Vec<f64>, Vec<usize>) {
     use faer::dyn_stack::{MemBuffer, MemStack};
     use faer::linalg::householder::{
         apply_block_householder_sequence_transpose_on_the_left_in_place_scratch,
@@ -90,6 +96,11 @@ pub(crate) fn small_lstsq(mmat: MatRef<'_, f64>, y: &[f64]) -> (Vec<f64>, Vec<us
     let size = k.min(p);
     if size == 0 {
         return (vec![0.0; p], (0..p).collect());
+    }
+    if k >= p
+        && let Some(x) = unpivoted_lstsq(mmat, y, tol_rows.max(k))
+    {
+        return (x, Vec::new());
     }
     let mut qr = mmat.to_owned();
     let bs = faer::linalg::qr::no_pivoting::factor::recommended_block_size::<f64>(k, p);
@@ -115,7 +126,7 @@ pub(crate) fn small_lstsq(mmat: MatRef<'_, f64>, y: &[f64]) -> (Vec<f64>, Vec<us
     let fwd: Vec<usize> = perm.arrays().0.to_vec();
     let r = qr.as_ref();
     let r00 = r[(0, 0)].abs();
-    let tol = rank_tol(k, p) * r00;
+    let tol = rank_tol(tol_rows.max(k), p) * r00;
     let rank = (0..size)
         .take_while(|&i| r00 > 0.0 && r[(i, i)].abs() > tol)
         .count();
@@ -139,6 +150,53 @@ pub(crate) fn small_lstsq(mmat: MatRef<'_, f64>, y: &[f64]) -> (Vec<f64>, Vec<us
     (x, dependent)
 }
 
+/// How far above the pivoted QR's rank tolerance every diagonal entry of the unpivoted factor
+/// must stay for [`unpivoted_lstsq`] to answer: a margin so wide that the pivoted factorisation
+/// would find the same (full) rank.
+const UNPIVOTED_MARGIN: f64 = 1e3;
+
+/// The fast path of [`small_lstsq`] for a tall system of clearly full column rank: one
+/// unpivoted QR of `[M | y]` gives `R` and `Qᵀy` together. `None` (use the pivoted QR) when some
+/// `|R_kk|` comes within [`UNPIVOTED_MARGIN`] of the rank tolerance relative to the largest
+/// column norm.
+fn unpivoted_lstsq(mmat: MatRef<'_, f64>, y: &[f64], tol_rows: usize) -> Option<Vec<f64>> {
+    use faer::dyn_stack::{MemBuffer, MemStack};
+    use faer::linalg::qr::no_pivoting::factor as qf;
+    let (k, p) = mmat.shape();
+    let mut aug = Mat::<f64>::from_fn(k, p + 1, |i, j| if j < p { mmat[(i, j)] } else { y[i] });
+    let norm_max = (0..p)
+        .map(|j| mmat.col(j).squared_norm_l2())
+        .fold(0.0_f64, f64::max)
+        .sqrt();
+    if norm_max == 0.0 {
+        return None;
+    }
+    let size = k.min(p + 1);
+    let bs = qf::recommended_block_size::<f64>(k, p + 1);
+    let mut h = Mat::<f64>::zeros(bs, size);
+    let mut mem = MemBuffer::new(qf::qr_in_place_scratch::<f64>(
+        k,
+        p + 1,
+        bs,
+        Par::Seq,
+        Default::default(),
+    ));
+    qf::qr_in_place(
+        aug.as_mut(),
+        h.as_mut(),
+        Par::Seq,
+        MemStack::new(&mut mem),
+        Default::default(),
+    );
+    let tol = UNPIVOTED_MARGIN * rank_tol(tol_rows, p) * norm_max;
+    if (0..p).any(|i| aug[(i, i)].abs() <= tol) {
+        return None;
+    }
+    let mut sol = Mat::<f64>::from_fn(p, 1, |i, _| aug[(i, p)]);
+    solve_upper_triangular_in_place(aug.get(..p, ..p), sol.as_mut(), Par::Seq);
+    Some((0..p).map(|i| sol[(i, 0)]).collect())
+}
+
 /// Ridge (λ ≥ 0) least squares on the columns `cols` of a compressed problem whose columns
 /// are multiplied by `scale[j]` and right-hand side by `bscale`:
 /// `min ‖R D x − c·bscale‖² + λ‖x‖²` with `D = diag(scale)` restricted to `cols`.
@@ -153,19 +211,22 @@ pub(crate) fn subset_solve(
     let n = p.ncols();
     let s = cols.len();
     let extra = if lambda > 0.0 { s } else { 0 };
-    let mut m = Mat::<f64>::zeros(n + extra, s);
+    // Rows of R below the last chosen column are zero in these columns: they only add
+    // `Σ c_i²` to the residual, which does not move the solution.
+    let top = cols.iter().map(|&j| j + 1).max().unwrap_or(0);
+    let mut m = Mat::<f64>::zeros(top + extra, s);
     let r = p.r();
     for (jj, &j) in cols.iter().enumerate() {
         for i in 0..=j {
             m[(i, jj)] = r[(i, j)] * scale[j];
         }
         if lambda > 0.0 {
-            m[(n + jj, jj)] = lambda.sqrt();
+            m[(top + jj, jj)] = lambda.sqrt();
         }
     }
-    let mut y: Vec<f64> = p.c().iter().map(|v| v * bscale).collect();
-    y.resize(n + extra, 0.0);
-    let (xs, dep) = small_lstsq(m.as_ref(), &y);
+    let mut y: Vec<f64> = p.c()[..top].iter().map(|v| v * bscale).collect();
+    y.resize(top + extra, 0.0);
+    let (xs, dep) = small_lstsq(m.as_ref(), &y, n + extra);
     let mut x = vec![0.0; n];
     for (jj, &j) in cols.iter().enumerate() {
         x[j] = xs[jj];
