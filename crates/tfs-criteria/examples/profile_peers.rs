@@ -79,6 +79,9 @@ fn tweak(spec: &mut IdentifySpec) {
     if let Some(w) = list("TFS_WINDOWS") {
         spec.tfs.window_counts = w.into_iter().map(|v| v as usize).collect();
     }
+    if let Ok(v) = std::env::var("TFS_RESELECT") {
+        spec.tfs.reselect_for_support = v != "0";
+    }
     if std::env::var("TFS_NODEBIAS").is_ok() {
         spec.tfs.debias = false;
     }
