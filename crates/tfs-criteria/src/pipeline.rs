@@ -264,8 +264,14 @@ pub struct ChosenSettings {
     pub windows: usize,
     /// Scaled STLSQ threshold of the final model.
     pub threshold: f64,
-    /// Every candidate setting with its score.
+    /// Every candidate setting with its score for selecting terms (held-out error of the
+    /// λ-path fits).
     pub candidates: Vec<SettingScore>,
+    /// Every candidate setting with its score for the selected terms' coefficients (held-out
+    /// error of least squares on them; see [`TfsOptions::reselect_for_support`]). `delta` and
+    /// `windows` above are this list's best; empty when the settings were not chosen again.
+    #[serde(default)]
+    pub coefficient_candidates: Vec<SettingScore>,
     /// Plain-language reasons.
     pub why: Vec<String>,
 }
@@ -1501,6 +1507,19 @@ fn identify_tfs_once(
                 windows,
                 threshold: thr,
                 candidates,
+                coefficient_candidates: reselected
+                    .as_ref()
+                    .map(|(_, _, sc)| {
+                        grid.iter()
+                            .zip(sc)
+                            .map(|(&(wi, di), &e)| SettingScore {
+                                delta: opt.deltas[di],
+                                windows: opt.window_counts[wi],
+                                held_out_error: e,
+                            })
+                            .collect()
+                    })
+                    .unwrap_or_default(),
                 why,
             },
             assembly: steps,
@@ -1962,6 +1981,7 @@ pub fn identify_sindy(records: &[Record], spec: &IdentifySpec) -> Result<Identif
                 windows: 0,
                 threshold: thr,
                 candidates: Vec::new(),
+                coefficient_candidates: Vec::new(),
                 why: vec![why],
             },
             assembly: Vec::new(),

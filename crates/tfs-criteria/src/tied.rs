@@ -631,6 +631,7 @@ pub fn identify_tfs_tied(
                 windows,
                 threshold: thr,
                 candidates: candidates.clone(),
+                coefficient_candidates: Vec::new(),
                 why,
             },
             assembly: steps[d].clone(),

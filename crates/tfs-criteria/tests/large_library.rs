@@ -60,3 +60,31 @@ fn spec_columns(spec: &IdentifySpec) -> usize {
         .unwrap()
         .len()
 }
+
+/// δ and the window count are chosen twice: for selecting terms (the λ-path scores in
+/// `candidates`) and then for the selected terms' coefficients (`coefficient_candidates`); the
+/// reported setting is the second list's best, and turning the second choice off reports the
+/// first list's best.
+#[test]
+fn coefficients_use_the_setting_that_predicts_held_out_records_best() {
+    let recs = common::train(Some((30.0, NoiseKind::White)), 0.5, 4);
+    let best = |c: &[tfs_criteria::SettingScore]| {
+        let b = c
+            .iter()
+            .min_by(|a, b| a.held_out_error.total_cmp(&b.held_out_error))
+            .unwrap();
+        (b.delta, b.windows)
+    };
+    let mut spec = IdentifySpec::new(&["x"], "poly(x, x'; 1..7), xb_acc");
+    let on = identify_tfs(&recs, &spec).unwrap();
+    let s = &on.trace.dofs[0].settings;
+    let grid = spec.tfs.deltas.len() * spec.tfs.window_counts.len();
+    assert_eq!(s.candidates.len(), grid);
+    assert_eq!(s.coefficient_candidates.len(), grid);
+    assert_eq!((s.delta, s.windows), best(&s.coefficient_candidates));
+    spec.tfs.reselect_for_support = false;
+    let off = identify_tfs(&recs, &spec).unwrap();
+    let s = &off.trace.dofs[0].settings;
+    assert!(s.coefficient_candidates.is_empty());
+    assert_eq!((s.delta, s.windows), best(&s.candidates));
+}
