@@ -41,11 +41,10 @@ const DT: f64 = 0.005;
 const RAMP: f64 = 2.0;
 /// T-F-S library of the paper.
 const TFS_LIBRARY: &str = "x^1..7, x', xb_acc";
-/// Classical library (Appendix B: 35 monomials of x, x' plus the input = 36 columns); PySINDy uses
-/// the same columns.
 /// Timed repetitions of every tfs fit (the median is reported).
 const FIT_TIMINGS: usize = 3;
-
+/// Classical library (Appendix B: 35 monomials of x, x' plus the input = 36 columns); PySINDy uses
+/// the same columns.
 const CLASSICAL_LIBRARY: &str = "poly(x, x'; 1..7), xb_acc";
 /// Force-error range of h.
 const FORCE_RANGE: (f64, f64) = (0.0, 1.8);

@@ -1027,28 +1027,33 @@ fn identify_tfs_once(
         let grid: Vec<(usize, usize)> = (0..opt.window_counts.len())
             .flat_map(|wi| (0..opt.deltas.len()).map(move |di| (wi, di)))
             .collect();
-        let scores: Vec<f64> = grid
-            .par_iter()
-            .map(|&(wi, di)| -> Result<f64> {
-                let cb = &compressed[wi][di];
-                let mut err = 0.0;
-                for f in 0..nb {
-                    let train: Vec<Compressed> = (0..nb)
-                        .filter(|&k| k != f)
-                        .map(|k| cb[k].0.clone())
-                        .collect();
-                    let train = Compressed::merge(&train)?;
-                    let (mut coef, _) =
-                        fit_select(&train, &cb[f].0, opt.threshold, opt.n_thresholds)?;
-                    if let Some(cj) = const_j {
-                        let td = (0..nb).filter(|&k| k != f).map(|k| &data.td[k]);
-                        fill_constant(&mut coef, cj, td, &keep);
-                    }
-                    err += val[f].rss(&coef)? / val[f].b_norm2().max(f64::MIN_POSITIVE);
-                }
-                Ok(err / nb as f64)
-            })
-            .collect::<Result<_>>()?;
+        // Mean relative time-domain residual on each record in turn, of the model `fit` makes
+        // from the other records' rows (training rows, held-out rows) at every setting.
+        let held_out_scores =
+            |fit: &(dyn Fn(&Compressed, &Compressed) -> Result<Vec<f64>> + Sync)| {
+                grid.par_iter()
+                    .map(|&(wi, di)| -> Result<f64> {
+                        let cb = &compressed[wi][di];
+                        let mut err = 0.0;
+                        for f in 0..nb {
+                            let train: Vec<Compressed> = (0..nb)
+                                .filter(|&k| k != f)
+                                .map(|k| cb[k].0.clone())
+                                .collect();
+                            let mut coef = fit(&Compressed::merge(&train)?, &cb[f].0)?;
+                            if let Some(cj) = const_j {
+                                let td = (0..nb).filter(|&k| k != f).map(|k| &data.td[k]);
+                                fill_constant(&mut coef, cj, td, &keep);
+                            }
+                            err += val[f].rss(&coef)? / val[f].b_norm2().max(f64::MIN_POSITIVE);
+                        }
+                        Ok(err / nb as f64)
+                    })
+                    .collect::<Result<Vec<f64>>>()
+            };
+        let scores = held_out_scores(&|train, held| {
+            Ok(fit_select(train, held, opt.threshold, opt.n_thresholds)?.0)
+        })?;
         let mut candidates = Vec::new();
         let mut best: Option<(f64, usize, usize)> = None;
         for (&(wi, di), &err) in grid.iter().zip(&scores) {
@@ -1167,26 +1172,7 @@ fn identify_tfs_once(
         let mut reselected = None;
         if opt.reselect_for_support && grid.len() > 1 && chosen.iter().any(|v| *v != 0.0) {
             let sup: Vec<bool> = chosen.iter().map(|v| *v != 0.0).collect();
-            let scores2: Vec<f64> = grid
-                .par_iter()
-                .map(|&(wi, di)| -> Result<f64> {
-                    let cb = &compressed[wi][di];
-                    let mut err = 0.0;
-                    for f in 0..nb {
-                        let train: Vec<Compressed> = (0..nb)
-                            .filter(|&k| k != f)
-                            .map(|k| cb[k].0.clone())
-                            .collect();
-                        let mut coef = lstsq_support(&Compressed::merge(&train)?, &sup)?.coef;
-                        if let Some(cj) = const_j {
-                            let td = (0..nb).filter(|&k| k != f).map(|k| &data.td[k]);
-                            fill_constant(&mut coef, cj, td, &keep);
-                        }
-                        err += val[f].rss(&coef)? / val[f].b_norm2().max(f64::MIN_POSITIVE);
-                    }
-                    Ok(err / nb as f64)
-                })
-                .collect::<Result<_>>()?;
+            let scores2 = held_out_scores(&|train, _| Ok(lstsq_support(train, &sup)?.coef))?;
             let (k, e) = scores2
                 .iter()
                 .enumerate()

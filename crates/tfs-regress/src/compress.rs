@@ -326,8 +326,8 @@ impl Compressed {
 /// coefficient (its eigenvalues are the resample's weight on each direction relative to the
 /// whole), so its Cholesky factor `L` is accurate and `Lᵀ F` is the resample's factor, a
 /// left-multiplicative perturbation of the exact one of relative size ~ε·cond(Σ k_g H_g).
-/// Where `F` is (numerically) singular or the Cholesky factorisation fails, the exact stacked
-/// QR is used instead.
+/// Where `F` is (numerically) singular, or `Σ k_g H_g` is not positive definite or has a
+/// condition number beyond ~1e8, the exact stacked QR is used instead.
 pub(crate) struct CountedMerge<'a> {
     blocks: &'a [Compressed],
     /// `F` and every `H_g`; `None` when `F` cannot be inverted safely.
@@ -368,38 +368,45 @@ impl<'a> CountedMerge<'a> {
     /// The blocks merged with block `g` counted `counts[g]` times (see
     /// [`Compressed::merge_counted`]).
     pub(crate) fn merge(&self, counts: &[usize]) -> Result<Compressed> {
-        let m: usize = self.blocks.iter().zip(counts).map(|(b, &k)| b.m * k).sum();
-        if let Some((f, h)) = &self.whitened {
-            let n1 = f.nrows();
-            let mut g = Mat::<f64>::zeros(n1, n1);
-            for (hg, &k) in h.iter().zip(counts) {
-                if k > 0 {
-                    g += faer::Scale(k as f64) * hg;
-                }
-            }
-            // The diagonal of L bounds cond(Σ k_g H_g) from below; beyond 1e8 the perturbation
-            // ε·cond would start to show, and the exact QR is used.
-            let llt = g.llt(faer::Side::Lower).ok().filter(|llt| {
-                let d: Vec<f64> = (0..n1).map(|j| llt.L()[(j, j)].powi(2)).collect();
-                let (lo, hi) = d.iter().fold((f64::INFINITY, 0.0_f64), |(lo, hi), &v| {
-                    (lo.min(v), hi.max(v))
-                });
-                lo > 1e-8 * hi
-            });
-            if let Some(llt) = llt {
-                let mut fb = llt.L().transpose() * f;
-                // Exactly upper triangular (the product of two upper-triangular factors).
-                for j in 0..n1 {
-                    for i in j + 1..n1 {
-                        fb[(i, j)] = 0.0;
-                    }
-                }
-                return Ok(Compressed::from_factor(fb, m));
+        match self.whitened_merge(counts) {
+            Some(c) => Ok(c),
+            None => {
+                let pairs: Vec<(&Compressed, usize)> =
+                    self.blocks.iter().zip(counts.iter().copied()).collect();
+                Compressed::merge_counted(&pairs)
             }
         }
-        let pairs: Vec<(&Compressed, usize)> =
-            self.blocks.iter().zip(counts.iter().copied()).collect();
-        Compressed::merge_counted(&pairs)
+    }
+
+    /// The fast path of [`CountedMerge::merge`]; `None` where it would not be accurate.
+    fn whitened_merge(&self, counts: &[usize]) -> Option<Compressed> {
+        let m: usize = self.blocks.iter().zip(counts).map(|(b, &k)| b.m * k).sum();
+        let (f, h) = self.whitened.as_ref()?;
+        let n1 = f.nrows();
+        let mut g = Mat::<f64>::zeros(n1, n1);
+        for (hg, &k) in h.iter().zip(counts) {
+            if k > 0 {
+                g += faer::Scale(k as f64) * hg;
+            }
+        }
+        // The diagonal of L bounds cond(Σ k_g H_g) from below; beyond 1e8 the perturbation
+        // ε·cond would start to show, and the exact QR is used.
+        let llt = g.llt(faer::Side::Lower).ok()?;
+        let d: Vec<f64> = (0..n1).map(|j| llt.L()[(j, j)].powi(2)).collect();
+        let (lo, hi) = d.iter().fold((f64::INFINITY, 0.0_f64), |(lo, hi), &v| {
+            (lo.min(v), hi.max(v))
+        });
+        if lo <= 1e-8 * hi {
+            return None;
+        }
+        let mut fb = llt.L().transpose() * f;
+        // Exactly upper triangular (the product of two upper-triangular factors).
+        for j in 0..n1 {
+            for i in j + 1..n1 {
+                fb[(i, j)] = 0.0;
+            }
+        }
+        Some(Compressed::from_factor(fb, m))
     }
 }
 
@@ -451,7 +458,9 @@ mod tests {
                     .wrapping_add(1442695040888963407);
                 counts[(state >> 33) as usize % blocks.len()] += 1;
             }
-            let fast = merger.merge(&counts).unwrap();
+            let fast = merger
+                .whitened_merge(&counts)
+                .expect("a resample of 40 blocks is well conditioned: the fast path answers");
             let pairs: Vec<(&Compressed, usize)> =
                 blocks.iter().zip(counts.iter().copied()).collect();
             let exact = Compressed::merge_counted(&pairs).unwrap();
@@ -475,12 +484,12 @@ mod tests {
         counts[3] = 10;
         // One block of 12 rows over a tenth of the x range: the whitened Gram matrix of this
         // resample is far too ill-conditioned for the fast path.
-        let (f, h) = merger.whitened.as_ref().unwrap();
-        let _ = f;
+        let (_, h) = merger.whitened.as_ref().unwrap();
         let mut g = Mat::<f64>::zeros(9, 9);
         g += faer::Scale(10.0) * &h[3];
         let ev = g.self_adjoint_eigenvalues(faer::Side::Lower).unwrap();
         assert!(ev[0] < 1e-8 * ev[8], "{ev:?}");
+        assert!(merger.whitened_merge(&counts).is_none());
         let fast = merger.merge(&counts).unwrap();
         let exact = Compressed::merge_counted(&[(&blocks[3], 10)]).unwrap();
         assert_eq!(coef(&fast), coef(&exact));

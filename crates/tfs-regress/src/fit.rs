@@ -70,8 +70,8 @@ fn rank_tol(rows: usize, cols: usize) -> f64 {
     rows.max(cols) as f64 * f64::EPSILON
 }
 
-/// Least squares on a small dense system `min ‖M x − y‖` by column-pivoted QR.
-/// Returns `x` (zero for dependent columns) and the dependent column indices. The rank
+/// Least squares on a small dense system `min ‖M x − y‖`: one unpivoted QR where the rank is
+/// clearly full ([`unpivoted_lstsq`]), a column-pivoted QR otherwise. Returns `x` (zero for dependent columns) and the dependent column indices. The rank
 /// tolerance is that of a system of `tol_rows` rows (see [`rank_tol`]), so trailing zero rows
 /// left out of `M` do not change which columns count as dependent.
 ///
