@@ -147,6 +147,111 @@ pub fn noise_level_index_factor(r: MatRef<'_, f64>) -> Result<Kappa> {
     })
 }
 
+/// Largest standardised κ for which [`kappa_by_gram`] answers. Forming the Gram matrix of the
+/// centred, unit-norm columns costs a relative error of about ε·10^κ in its smallest
+/// eigenvalue (1e-8 at this limit, far below the hundredths by which κ scatters between noise
+/// draws); above it the caller takes the QR route, whose error is ε·10^(κ/2).
+pub(crate) const GRAM_KAPPA_MAX: f64 = 8.0;
+
+/// κ (raw and standardised) of the rows of several blocks stacked, each block `(A, y)` taken as
+/// `[A[:, cols] | y]`, centred by the mean over all rows — the same quantity as
+/// [`noise_level_index`] of the stacked matrix — from the Gram matrix of the centred,
+/// unit-norm columns: one symmetric rank-k product (faer) and a Cholesky factor `R_s` of that
+/// Gram, instead of a QR of every row. `R_s` is the QR factor of the standardised matrix, and
+/// `R_s·diag(‖c_j‖)` that of the centred one, so both variants come from small SVDs exactly as
+/// on the QR route.
+///
+/// Accurate while the standardised κ stays below [`GRAM_KAPPA_MAX`]; returns `Ok(None)` above
+/// it, when the Cholesky factorisation fails, or when a column has no variance (the caller then
+/// takes the QR route, which also reports the constant column).
+pub(crate) fn kappa_by_gram(
+    blocks: &[(MatRef<'_, f64>, &[f64])],
+    cols: &[usize],
+) -> Result<Option<Kappa>> {
+    use faer::linalg::matmul::triangular::{BlockStructure, matmul};
+    let m: usize = blocks.iter().map(|(a, _)| a.nrows()).sum();
+    let p = cols.len() + 1;
+    if m < p + 1 || p < 2 {
+        return Ok(None);
+    }
+    // Column j < p−1 is library column cols[j]; the last is the target. Each column of every
+    // block is read as one contiguous slice.
+    let column = |a: &MatRef<'_, f64>, y: &[f64], j: usize| -> Vec<f64> {
+        if j + 1 == p {
+            return y.to_vec();
+        }
+        let col = a.col(cols[j]);
+        match col.try_as_col_major() {
+            Some(s) => s.as_slice().to_vec(),
+            None => col.iter().copied().collect(),
+        }
+    };
+    let mut c = Mat::<f64>::zeros(m, p);
+    let mut norms = vec![0.0; p];
+    for (j, nj) in norms.iter_mut().enumerate() {
+        let out = c
+            .col_mut(j)
+            .try_as_col_major_mut()
+            .expect("faer columns are contiguous");
+        let out = out.as_slice_mut();
+        let mut row = 0;
+        for (a, y) in blocks {
+            let v = column(a, y, j);
+            out[row..row + v.len()].copy_from_slice(&v);
+            row += v.len();
+        }
+        if let Some(i) = out.iter().position(|v| !v.is_finite()) {
+            return Err(CriteriaError::Numerics(format!(
+                "column {j} row {i} of the diagnostic matrix is {}",
+                out[i]
+            )));
+        }
+        let size = out.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let mean = out.iter().sum::<f64>() / m as f64;
+        let mut ss = 0.0;
+        for v in out.iter_mut() {
+            *v -= mean;
+            ss += *v * *v;
+        }
+        *nj = ss.sqrt();
+        // A column constant up to rounding (the test of `centre`) has no variance to speak of.
+        let sd = (ss / (m as f64 - 1.0)).sqrt();
+        if sd <= 1e-14 * size.max(f64::MIN_POSITIVE) || !nj.is_finite() {
+            return Ok(None);
+        }
+        let f = 1.0 / *nj;
+        for v in out.iter_mut() {
+            *v *= f;
+        }
+    }
+    let mut g = Mat::<f64>::zeros(p, p);
+    matmul(
+        g.as_mut(),
+        BlockStructure::TriangularLower,
+        faer::Accum::Replace,
+        c.transpose(),
+        BlockStructure::Rectangular,
+        c.as_ref(),
+        BlockStructure::Rectangular,
+        1.0,
+        faer::Par::Seq,
+    );
+    let Ok(llt) = g.as_ref().llt(faer::Side::Lower) else {
+        return Ok(None);
+    };
+    let rs = llt.L().transpose().to_owned();
+    let all: Vec<usize> = (0..p).collect();
+    let standardised = kappa_of_columns(rs.as_ref(), &all, None)?;
+    if standardised >= GRAM_KAPPA_MAX {
+        return Ok(None);
+    }
+    let inv: Vec<f64> = norms.iter().map(|v| 1.0 / v).collect();
+    Ok(Some(Kappa {
+        raw: kappa_of_columns(rs.as_ref(), &all, Some(&inv))?,
+        standardised,
+    }))
+}
+
 /// Euclidean norms of the columns of `r`.
 pub(crate) fn column_norms(r: MatRef<'_, f64>) -> Vec<f64> {
     (0..r.ncols())
@@ -298,6 +403,78 @@ mod tests {
         let ev = corr.self_adjoint_eigenvalues(faer::Side::Lower).unwrap();
         let want = (ev[p - 1] / ev[0]).log10();
         assert!((k.standardised - want).abs() < 1e-8);
+    }
+
+    /// The Gram route gives the κ of the stacked, centred blocks that the QR route gives, and
+    /// declines ill-conditioned or constant columns.
+    #[test]
+    fn gram_route_matches_qr_route() {
+        let mut s = 3u64;
+        let (p, rows) = (6, [250usize, 180]);
+        let blocks: Vec<(Mat<f64>, Vec<f64>)> = rows
+            .iter()
+            .map(|&m| {
+                let a = Mat::<f64>::from_fn(m, p, |_, j| {
+                    10f64.powi(j as i32 - 2) * lcg(&mut s) + 3.0 * j as f64
+                });
+                let y = (0..m)
+                    .map(|i| a[(i, 1)] - 40.0 * a[(i, 3)] + 0.1 * lcg(&mut s))
+                    .collect();
+                (a, y)
+            })
+            .collect();
+        let cols = [0, 1, 3, 5];
+        let stacked = Mat::<f64>::from_fn(rows[0] + rows[1], cols.len() + 1, |i, j| {
+            let (b, i) = if i < rows[0] {
+                (0, i)
+            } else {
+                (1, i - rows[0])
+            };
+            if j < cols.len() {
+                blocks[b].0[(i, cols[j])]
+            } else {
+                blocks[b].1[i]
+            }
+        });
+        let want = noise_level_index(stacked.as_ref()).unwrap();
+        let refs: Vec<(MatRef<'_, f64>, &[f64])> = blocks
+            .iter()
+            .map(|(a, y)| (a.as_ref(), y.as_slice()))
+            .collect();
+        let got = kappa_by_gram(&refs, &cols)
+            .unwrap()
+            .expect("well conditioned");
+        assert!((got.raw - want.raw).abs() < 1e-7, "{got:?} vs {want:?}");
+        assert!((got.standardised - want.standardised).abs() < 1e-7);
+        // y nearly in the span of the columns: standardised κ above the limit, declined.
+        let tight: Vec<(Mat<f64>, Vec<f64>)> = blocks
+            .iter()
+            .map(|(a, _)| {
+                let y = (0..a.nrows())
+                    .map(|i| a[(i, 1)] + 1e-6 * lcg(&mut s))
+                    .collect();
+                (a.clone(), y)
+            })
+            .collect();
+        let refs: Vec<(MatRef<'_, f64>, &[f64])> = tight
+            .iter()
+            .map(|(a, y)| (a.as_ref(), y.as_slice()))
+            .collect();
+        assert!(kappa_by_gram(&refs, &cols).unwrap().is_none());
+        // A constant column: declined (the QR route names it).
+        let flat: Vec<(Mat<f64>, Vec<f64>)> = blocks
+            .iter()
+            .map(|(a, y)| {
+                let mut a = a.clone();
+                a.col_mut(5).fill(0.1);
+                (a, y.clone())
+            })
+            .collect();
+        let refs: Vec<(MatRef<'_, f64>, &[f64])> = flat
+            .iter()
+            .map(|(a, y)| (a.as_ref(), y.as_slice()))
+            .collect();
+        assert!(kappa_by_gram(&refs, &cols).unwrap().is_none());
     }
 
     #[test]

@@ -415,13 +415,15 @@ pub(crate) fn blocks_of(records: &[Record]) -> Result<Vec<Record>> {
 /// Small centred factor of `[Θ | y]` over several blocks: compress `[1 | Θ]` against `y` and drop
 /// the constant's row and column.
 fn centred_factor(blocks: &[(Mat<f64>, Vec<f64>)], cols: &[usize]) -> Result<Mat<f64>> {
-    let mut comps = Vec::new();
-    for (a, y) in blocks {
-        let aa = Mat::<f64>::from_fn(a.nrows(), cols.len() + 1, |i, j| {
-            if j == 0 { 1.0 } else { a[(i, cols[j - 1])] }
-        });
-        comps.push(Compressed::from_rows(aa.as_ref(), y)?);
-    }
+    let comps = blocks
+        .par_iter()
+        .map(|(a, y)| {
+            let aa = Mat::<f64>::from_fn(a.nrows(), cols.len() + 1, |i, j| {
+                if j == 0 { 1.0 } else { a[(i, cols[j - 1])] }
+            });
+            Compressed::from_rows(aa.as_ref(), y)
+        })
+        .collect::<std::result::Result<Vec<_>, _>>()?;
     let c = Compressed::merge(&comps)?;
     let n = cols.len() + 1;
     let r = c.r();
@@ -481,7 +483,12 @@ pub(crate) fn criterion1_dof(
         .par_iter()
         .map(|r| criterion1_block(r, spec, d, lib))
         .collect::<Result<_>>()?;
-    let (kappa, factor) = criterion1_blocks(&td, &nonconst)?;
+    // The centred factor is needed only by Criterion 2's pruning; κ alone has a cheaper route.
+    let (kappa, factor) = if opt.prune {
+        criterion1_blocks(&td, &nonconst)?
+    } else {
+        (criterion1_kappa(&td, &nonconst)?, Mat::<f64>::zeros(0, 0))
+    };
     let (kappa0, source, curve, knee) = match opt.kappa0 {
         Kappa0Choice::Fixed(k) => (k, "given by the user".to_string(), Vec::new(), None),
         Kappa0Choice::Calibrate => calibrate(blocks, spec, d, lib, &nonconst, kappa, opt)?,
@@ -552,6 +559,21 @@ pub(crate) fn dof_transforms(
             .try_for_each(|t| reweight(t, dmin, keep, opt.reweight))?;
     }
     Ok((qs, transforms))
+}
+
+/// κ alone of time-domain blocks `(Θ, x'')` (constant columns excluded): from the Gram matrix
+/// of the centred, standardised columns where that is accurate (see
+/// [`crate::kappa::kappa_by_gram`]), otherwise from the centred factor as
+/// [`criterion1_blocks`].
+fn criterion1_kappa(blocks: &[(Mat<f64>, Vec<f64>)], cols: &[usize]) -> Result<crate::Kappa> {
+    let refs: Vec<(MatRef<'_, f64>, &[f64])> = blocks
+        .iter()
+        .map(|(a, y)| (a.as_ref(), y.as_slice()))
+        .collect();
+    match crate::kappa::kappa_by_gram(&refs, cols)? {
+        Some(k) => Ok(k),
+        None => Ok(criterion1_blocks(blocks, cols)?.0),
+    }
 }
 
 /// Criterion 1 on time-domain blocks `(Θ, x'')` (constant columns excluded).
@@ -959,7 +981,7 @@ fn identify_tfs_once(
         let t0 = Instant::now();
         let val: Vec<Compressed> = data
             .td
-            .iter()
+            .par_iter()
             .map(|(a, y)| {
                 let ak = Mat::<f64>::from_fn(a.nrows(), keep.len(), |i, j| a[(i, keep[j])]);
                 Compressed::from_rows(ak.as_ref(), y)
@@ -1808,7 +1830,7 @@ fn calibrate(
                 }
             }
             let td = [criterion1_block(&r2, spec, d, lib)?];
-            let (k, _) = criterion1_blocks(&td, nonconst)?;
+            let k = criterion1_kappa(&td, nonconst)?;
             Ok(CalibrationPoint {
                 added_snr_db: Some(snr),
                 kappa: k,
@@ -1819,7 +1841,7 @@ fn calibrate(
     // The knee is found on the segment's own curve (the data point of `curve` is κ of every
     // record, a slightly different quantity).
     let seg_td = criterion1_block(&segment, spec, d, lib)?;
-    let seg_kappa = criterion1_blocks(std::slice::from_ref(&seg_td), nonconst)?.0;
+    let seg_kappa = criterion1_kappa(std::slice::from_ref(&seg_td), nonconst)?;
     let seg_top = seg_kappa.get(opt.kappa_variant);
     let mut seg_curve = vec![CalibrationPoint {
         added_snr_db: None,
