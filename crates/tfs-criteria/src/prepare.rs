@@ -647,17 +647,29 @@ pub(crate) fn reweight(
         return Ok(());
     }
     for _ in 0..passes {
-        let mut parts = Vec::new();
-        for w in recs.iter().flatten() {
-            let (a, y, _) = rows_for(w, delta, keep);
-            if a.nrows() > 0 {
-                parts.push(Compressed::from_rows(a.as_ref(), &y)?);
-            }
-        }
-        if parts.is_empty() {
+        // Every window's rows stacked and compressed in one call (its cache-sized chunks are
+        // far cheaper than one small QR per window).
+        let parts: Vec<(Mat<f64>, Vec<f64>)> = recs
+            .iter()
+            .flatten()
+            .map(|w| {
+                let (a, y, _) = rows_for(w, delta, keep);
+                (a, y)
+            })
+            .collect();
+        let total: usize = parts.iter().map(|(a, _)| a.nrows()).sum();
+        if total == 0 {
             return Ok(());
         }
-        let all = Compressed::merge(&parts)?;
+        let mut a = Mat::<f64>::zeros(total, keep.len());
+        let mut y = Vec::with_capacity(total);
+        for (pa, py) in &parts {
+            a.as_mut()
+                .get_mut(y.len()..y.len() + pa.nrows(), ..)
+                .copy_from(pa);
+            y.extend_from_slice(py);
+        }
+        let all = Compressed::from_rows(a.as_ref(), &y)?;
         let Ok(fit) = lstsq_support(&all, &vec![true; keep.len()]) else {
             return Ok(());
         };
