@@ -167,7 +167,7 @@ pub(crate) const GRAM_KAPPA_MAX: f64 = 8.0;
 /// it, when the Cholesky factorisation fails, or when a column has no variance (the caller then
 /// takes the QR route, which also reports the constant column).
 pub(crate) fn kappa_by_gram(
-    blocks: &[(MatRef<'_, f64>, &[f64])],
+    blocks: &[(Mat<f64>, Vec<f64>)],
     cols: &[usize],
 ) -> Result<Option<Kappa>> {
     use faer::linalg::matmul::triangular::{BlockStructure, matmul};
@@ -176,18 +176,6 @@ pub(crate) fn kappa_by_gram(
     if m < p + 1 || p < 2 {
         return Ok(None);
     }
-    // Column j < p−1 is library column cols[j]; the last is the target. Each column of every
-    // block is read as one contiguous slice.
-    let column = |a: &MatRef<'_, f64>, y: &[f64], j: usize| -> Vec<f64> {
-        if j + 1 == p {
-            return y.to_vec();
-        }
-        let col = a.col(cols[j]);
-        match col.try_as_col_major() {
-            Some(s) => s.as_slice().to_vec(),
-            None => col.iter().copied().collect(),
-        }
-    };
     let mut c = Mat::<f64>::zeros(m, p);
     let mut norms = vec![0.0; p];
     for (j, nj) in norms.iter_mut().enumerate() {
@@ -196,10 +184,15 @@ pub(crate) fn kappa_by_gram(
             .try_as_col_major_mut()
             .expect("faer columns are contiguous");
         let out = out.as_slice_mut();
+        // Column j < p−1 is library column cols[j]; the last is the target.
         let mut row = 0;
         for (a, y) in blocks {
-            let v = column(a, y, j);
-            out[row..row + v.len()].copy_from_slice(&v);
+            let v = if j + 1 == p {
+                y.as_slice()
+            } else {
+                a.col_as_slice(cols[j])
+            };
+            out[row..row + v.len()].copy_from_slice(v);
             row += v.len();
         }
         if let Some(i) = out.iter().position(|v| !v.is_finite()) {
@@ -439,11 +432,7 @@ mod tests {
             }
         });
         let want = noise_level_index(stacked.as_ref()).unwrap();
-        let refs: Vec<(MatRef<'_, f64>, &[f64])> = blocks
-            .iter()
-            .map(|(a, y)| (a.as_ref(), y.as_slice()))
-            .collect();
-        let got = kappa_by_gram(&refs, &cols)
+        let got = kappa_by_gram(&blocks, &cols)
             .unwrap()
             .expect("well conditioned");
         assert!((got.raw - want.raw).abs() < 1e-7, "{got:?} vs {want:?}");
@@ -458,11 +447,7 @@ mod tests {
                 (a.clone(), y)
             })
             .collect();
-        let refs: Vec<(MatRef<'_, f64>, &[f64])> = tight
-            .iter()
-            .map(|(a, y)| (a.as_ref(), y.as_slice()))
-            .collect();
-        assert!(kappa_by_gram(&refs, &cols).unwrap().is_none());
+        assert!(kappa_by_gram(&tight, &cols).unwrap().is_none());
         // A constant column: declined (the QR route names it).
         let flat: Vec<(Mat<f64>, Vec<f64>)> = blocks
             .iter()
@@ -472,11 +457,7 @@ mod tests {
                 (a, y.clone())
             })
             .collect();
-        let refs: Vec<(MatRef<'_, f64>, &[f64])> = flat
-            .iter()
-            .map(|(a, y)| (a.as_ref(), y.as_slice()))
-            .collect();
-        assert!(kappa_by_gram(&refs, &cols).unwrap().is_none());
+        assert!(kappa_by_gram(&flat, &cols).unwrap().is_none());
     }
 
     #[test]

@@ -566,11 +566,7 @@ pub(crate) fn dof_transforms(
 /// [`crate::kappa::kappa_by_gram`]), otherwise from the centred factor as
 /// [`criterion1_blocks`].
 fn criterion1_kappa(blocks: &[(Mat<f64>, Vec<f64>)], cols: &[usize]) -> Result<crate::Kappa> {
-    let refs: Vec<(MatRef<'_, f64>, &[f64])> = blocks
-        .iter()
-        .map(|(a, y)| (a.as_ref(), y.as_slice()))
-        .collect();
-    match crate::kappa::kappa_by_gram(&refs, cols)? {
+    match crate::kappa::kappa_by_gram(blocks, cols)? {
         Some(k) => Ok(k),
         None => Ok(criterion1_blocks(blocks, cols)?.0),
     }
