@@ -92,6 +92,75 @@ fn triangular_factor(mut aug: Mat<f64>) -> Mat<f64> {
     out
 }
 
+/// Rows per chunk up to which [`Compressed::append`] zeroes new rows into the current factor
+/// with [`absorb_rows`] (~2(k+1)n² flops for `k` rows) instead of one dense QR of the stacked
+/// `(n+1+k)×(n+1)` matrix (~2(n+k)n² − ⅔n³, blocked). Measured for 39 columns: the structured
+/// update is 10× faster for 2 rows, 2.5× for 64, 1.2× for 512 and even at 2,048.
+const ABSORB_MAX_ROWS: usize = 512;
+
+/// Column entries beyond which (or, when non-zero, below which) the unscaled sums of squares
+/// of [`absorb_rows`] could overflow or underflow; such input goes to the dense QR.
+const ABSORB_SAFE: (f64, f64) = (1e-140, 1e140);
+
+/// Zero `k` rows into an upper-triangular factor with one Householder reflection per column,
+/// in place: `w` is column-major with leading dimension `ld ≥ n1 + k`, rows `0..n1` hold the
+/// upper-triangular `T` and rows `n1..n1+k` the rows `B` (rows below are not read). Afterwards rows `0..n1` hold the
+/// upper-triangular factor of `[T; B]` (the rows of `B` are left as Householder vectors).
+///
+/// The reflection for column `j` acts on row `j` of `T` and on the rows of `B` still non-zero
+/// in that column: all `k` of them, or, with `trapezoid` (row `i` of `B` is zero left of column
+/// `i`, as in another block's factor), the first `min(j+1, k)`. No other entry changes: the
+/// rows of `T` are never mixed with each other, which is what makes this cheaper than a QR of
+/// the stacked matrix (which does not know `T` is already triangular).
+///
+/// Returns `false` when an entry is outside [`ABSORB_SAFE`] (the caller then uses the
+/// dense QR, whose norms are scaled); `w` is then partly updated and must be discarded.
+fn absorb_rows(w: &mut [f64], n1: usize, ld: usize, k: usize, trapezoid: bool) -> bool {
+    debug_assert!(ld >= n1 + k && w.len() == ld * n1);
+    let (lo, hi) = ABSORB_SAFE;
+    let outside = |v: f64| {
+        let a = v.abs();
+        a > hi || (a != 0.0 && a < lo) || !a.is_finite()
+    };
+    for j in 0..n1 {
+        let a = if trapezoid { (j + 1).min(k) } else { k };
+        if a == 0 {
+            continue;
+        }
+        let (head, tail) = w.split_at_mut((j + 1) * ld);
+        let colj = &mut head[j * ld..];
+        let alpha = colj[j];
+        let v = &mut colj[n1..n1 + a];
+        if outside(alpha) || v.iter().any(|&x| outside(x)) {
+            return false;
+        }
+        let sigma: f64 = v.iter().map(|x| x * x).sum();
+        if sigma == 0.0 {
+            continue;
+        }
+        let norm = (alpha * alpha + sigma).sqrt();
+        let beta = if alpha <= 0.0 { norm } else { -norm };
+        let v0 = alpha - beta;
+        let tau = -v0 / beta;
+        for x in v.iter_mut() {
+            *x /= v0;
+        }
+        colj[j] = beta;
+        let v = &colj[n1..n1 + a];
+        for col in tail.chunks_exact_mut(ld) {
+            let (t, b) = col.split_at_mut(n1);
+            let b = &mut b[..a];
+            let d = t[j] + v.iter().zip(b.iter()).map(|(x, y)| x * y).sum::<f64>();
+            let s = tau * d;
+            t[j] -= s;
+            for (y, x) in b.iter_mut().zip(v) {
+                *y -= s * x;
+            }
+        }
+    }
+    true
+}
+
 impl Compressed {
     /// The compression of zero rows with `n` columns (the neutral element of [`Compressed::merge`]).
     pub fn empty(n: usize) -> Self {
@@ -149,6 +218,41 @@ impl Compressed {
         f
     }
 
+    /// Write the top `h` rows of [`Compressed::augmented`]`(w)` into the column-major buffer
+    /// `buf` (leading dimension `ld`) starting at row `row0`.
+    fn write_augmented(&self, w: f64, h: usize, buf: &mut [f64], ld: usize, row0: usize) {
+        let n = self.ncols();
+        for j in 0..n {
+            let col = &mut buf[j * ld + row0..j * ld + row0 + h];
+            for (i, v) in col.iter_mut().enumerate() {
+                *v = if i <= j { w * self.r[(i, j)] } else { 0.0 };
+            }
+        }
+        let col = &mut buf[n * ld + row0..n * ld + row0 + h];
+        for (i, v) in col.iter_mut().enumerate() {
+            *v = if i < n {
+                w * self.c[i]
+            } else {
+                w * self.rss0.sqrt()
+            };
+        }
+    }
+
+    /// The compression whose augmented factor is rows `0..n1` of the column-major buffer `buf`
+    /// (leading dimension `ld`), of `m` original rows.
+    fn from_buffer(buf: &[f64], n1: usize, ld: usize, m: usize) -> Self {
+        let n = n1 - 1;
+        let r = Mat::from_fn(n, n, |i, j| if i <= j { buf[j * ld + i] } else { 0.0 });
+        let c = (0..n).map(|i| buf[n * ld + i]).collect();
+        let rho = buf[n * ld + n];
+        Self {
+            r,
+            c,
+            rss0: rho * rho,
+            m,
+        }
+    }
+
     /// Add more rows `(A, b)` without revisiting the rows already compressed.
     ///
     /// Cost is one QR of an `(n+1+k)×(n+1)` matrix for `k` new rows.
@@ -175,6 +279,26 @@ impl Compressed {
         let mut start = 0;
         while start < total {
             let k = CHUNK_ROWS.min(total - start);
+            // Fewer rows in all than n+1: the factor has only that many rows, which the dense
+            // QR gives directly (the reflections of the later columns would scatter rounding —
+            // or, for rank-deficient rows, more — into rows that `merge` then drops).
+            if k <= ABSORB_MAX_ROWS && self.m + k > n {
+                let (n1, ld) = (n + 1, n + 1 + k);
+                let mut buf = vec![0.0; ld * n1];
+                self.write_augmented(1.0, n1, &mut buf, ld, 0);
+                for j in 0..n {
+                    let col = &mut buf[j * ld + n1..(j + 1) * ld];
+                    for (i, v) in col.iter_mut().enumerate() {
+                        *v = a[(start + i, j)];
+                    }
+                }
+                buf[n * ld + n1..].copy_from_slice(&b[start..start + k]);
+                if absorb_rows(&mut buf, n1, ld, k, false) {
+                    *self = Self::from_buffer(&buf, n1, ld, self.m + k);
+                    start += k;
+                    continue;
+                }
+            }
             let mut aug = Mat::<f64>::zeros(n + 1 + k, n + 1);
             aug.as_mut()
                 .get_mut(..n + 1, ..)
@@ -223,6 +347,9 @@ impl Compressed {
         // A block of fewer than n+1 rows has a factor with only that many non-zero rows:
         // stacking just those leaves the merged factor unchanged and the QR smaller.
         let height = |b: &Compressed| b.m.min(n + 1);
+        if let Some(f) = Self::merge_structured(&used, n) {
+            return Ok(f);
+        }
         let total: usize = used.iter().map(|(b, _)| height(b)).sum();
         let mut aug = Mat::<f64>::zeros(total.max(1), n + 1);
         let mut m = 0;
@@ -236,6 +363,33 @@ impl Compressed {
             m += b.m * k;
         }
         Ok(Self::from_factor(triangular_factor(aug), m))
+    }
+
+    /// [`Compressed::merge_counted`] by absorbing each further block's factor into the first
+    /// one's with [`absorb_rows`] (the blocks' triangular structure kept: ~⅔n³ per block instead
+    /// of a dense QR of every factor stacked). `None` where [`absorb_rows`] declines.
+    fn merge_structured(used: &[&(&Compressed, usize)], n: usize) -> Option<Self> {
+        let n1 = n + 1;
+        let height = |b: &Compressed| b.m.min(n1);
+        let (first, k0) = used[0];
+        // As in `append_unchecked`: fewer rows than n+1 in all go to the dense QR.
+        if used.iter().map(|(b, k)| b.m * k).sum::<usize>() < n1 {
+            return None;
+        }
+        let hmax = used[1..].iter().map(|(b, _)| height(b)).max().unwrap_or(0);
+        let ld = n1 + hmax;
+        let mut buf = vec![0.0; ld * n1];
+        first.write_augmented((*k0 as f64).sqrt(), n1, &mut buf, ld, 0);
+        let mut m = first.m * k0;
+        for (b, k) in &used[1..] {
+            let h = height(b);
+            b.write_augmented((*k as f64).sqrt(), h, &mut buf, ld, n1);
+            if !absorb_rows(&mut buf, n1, ld, h, true) {
+                return None;
+            }
+            m += b.m * k;
+        }
+        Some(Self::from_buffer(&buf, n1, ld, m))
     }
 
     /// Number of columns `n`.
@@ -501,6 +655,42 @@ mod tests {
             for j in 0..8 {
                 assert!((gf[(i, j)] - ge[(i, j)]).abs() <= 1e-9 * scale);
             }
+        }
+    }
+
+    /// Entries whose squares could overflow make the structured update decline, and `append`
+    /// and `merge` then take the dense QR (norms scaled) and stay exact.
+    #[test]
+    fn huge_entries_take_the_dense_qr() {
+        let big = 1e150;
+        let a = Mat::<f64>::from_fn(12, 3, |i, j| {
+            let v = ((i * 3 + j) as f64 * 0.71).sin() + if i == j { 2.0 } else { 0.0 };
+            if j == 2 { big * v } else { v }
+        });
+        let b: Vec<f64> = (0..12).map(|i| (i as f64 * 0.3).cos()).collect();
+        let mut buf = vec![0.0; 16 * 4];
+        for j in 0..3 {
+            for i in 0..12 {
+                buf[j * 16 + 4 + i] = a[(i, j)];
+            }
+        }
+        assert!(!absorb_rows(&mut buf, 4, 16, 12, false));
+        let mut p = Compressed::from_rows(a.as_ref().subrows(0, 6), &b[..6]).unwrap();
+        p.append(a.as_ref().subrows(6, 6), &b[6..]).unwrap();
+        let q = Compressed::merge(&[
+            Compressed::from_rows(a.as_ref().subrows(0, 6), &b[..6]).unwrap(),
+            Compressed::from_rows(a.as_ref().subrows(6, 6), &b[6..]).unwrap(),
+        ])
+        .unwrap();
+        let x = [0.5, -1.0, 2.0 / big];
+        let direct: f64 = (0..12)
+            .map(|i| {
+                let r: f64 = (0..3).map(|j| a[(i, j)] * x[j]).sum::<f64>() - b[i];
+                r * r
+            })
+            .sum();
+        for c in [&p, &q] {
+            assert!((c.rss(&x).unwrap() - direct).abs() <= 1e-10 * direct);
         }
     }
 

@@ -163,6 +163,65 @@ proptest! {
         }
     }
 
+    /// The structured updates (new rows or another block's factor zeroed into the current
+    /// triangle) against the raw rows, on wide, badly scaled and rank-deficient designs, with
+    /// blocks on both sides of the row count where `append` switches to the dense QR, and
+    /// counted merges against rows repeated.
+    #[test]
+    fn structured_updates_equal_stacked_rows(
+        seed in 0u64..10_000,
+        n in 1usize..40,
+        blocks in 1usize..5,
+        dependent in any::<bool>(),
+    ) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let sizes: Vec<usize> = (0..blocks).map(|_| rng.random_range(1..90)).collect();
+        let counts: Vec<usize> = (0..blocks).map(|_| rng.random_range(0..3)).collect();
+        let mtot: usize = sizes.iter().sum();
+        let scale: Vec<f64> = (0..n).map(|_| 10f64.powf(rng.random_range(-4.0..4.0))).collect();
+        let mut a = Mat::from_fn(mtot, n, |_, j| scale[j] * rng.random_range(-1.0..1.0));
+        if dependent && n > 2 {
+            // Column 1 a multiple of column 0, column n-1 a sum of the two before it.
+            for i in 0..mtot {
+                a[(i, 1)] = 3.0 * a[(i, 0)];
+                a[(i, n - 1)] = a[(i, n - 2)] + a[(i, n - 3)];
+            }
+        }
+        let b: Vec<f64> = (0..mtot).map(|_| rng.random_range(-2.0..2.0)).collect();
+        let mut parts = Vec::new();
+        let mut appended = Compressed::empty(n);
+        let (mut start, mut rep_rows) = (0, Vec::new());
+        for (&s, &k) in sizes.iter().zip(&counts) {
+            let ab = a.as_ref().subrows(start, s);
+            parts.push(Compressed::from_rows(ab, &b[start..start + s]).unwrap());
+            appended.append(ab, &b[start..start + s]).unwrap();
+            rep_rows.extend((0..k).flat_map(|_| start..start + s));
+            start += s;
+        }
+        let merged = Compressed::merge(&parts).unwrap();
+        let pairs: Vec<(&Compressed, usize)> = parts.iter().zip(counts.iter().copied()).collect();
+        let counted = Compressed::merge_counted(&pairs).unwrap();
+        let ar = Mat::from_fn(rep_rows.len(), n, |i, j| a[(rep_rows[i], j)]);
+        let br: Vec<f64> = rep_rows.iter().map(|&i| b[i]).collect();
+        for (c, (a, b)) in [(&merged, (&a, &b)), (&appended, (&a, &b)), (&counted, (&ar, &br))] {
+            prop_assert_eq!(c.nrows(), a.nrows());
+            for _ in 0..3 {
+                let x: Vec<f64> = (0..n).map(|j| rng.random_range(-2.0..2.0) / scale[j]).collect();
+                let d = direct_rss(a, b, &x);
+                // Relative to the size of the terms summed, not of their (cancelling) sum.
+                let size: f64 = (0..a.nrows())
+                    .map(|i| {
+                        let t: f64 = (0..n).map(|j| (a[(i, j)] * x[j]).abs()).sum::<f64>();
+                        (t + b[i].abs()).powi(2)
+                    })
+                    .sum();
+                let got = c.rss(&x).unwrap();
+                prop_assert!((got - d).abs() <= 1e-11 * (1.0 + size), "rss {got} vs {d} (size {size})");
+            }
+            prop_assert!(c.rss0() >= 0.0 && c.rss0() <= b.iter().map(|v| v * v).sum::<f64>() * (1.0 + 1e-12));
+        }
+    }
+
     #[test]
     fn lstsq_matches_normal_equations(seed in 0u64..10_000, n in 1usize..8, extra in 1usize..30) {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
