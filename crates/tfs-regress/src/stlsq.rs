@@ -95,8 +95,56 @@ impl Stlsq {
 
 /// Memo of subset solves keyed by (columns, ridge used): STLSQ on one problem at many thresholds
 /// revisits the same supports (every threshold starts from the full one), so a λ path solves each
-/// distinct support once.
-pub(crate) type SolveCache = HashMap<(Vec<usize>, bool), (Vec<f64>, Vec<usize>)>;
+/// distinct support once. Supports of up to 128 columns are keyed by a bit mask and looked up
+/// without allocating (a λ path makes thousands of look-ups).
+#[derive(Default)]
+pub(crate) struct SolveCache {
+    index: HashMap<SupportKey, usize>,
+    solves: Vec<(Vec<f64>, Vec<usize>)>,
+}
+
+/// A support (strictly increasing columns) and whether the solve used the ridge.
+#[derive(Hash, PartialEq, Eq)]
+enum SupportKey {
+    Mask(u128, bool),
+    Columns(Vec<usize>, bool),
+}
+
+impl SupportKey {
+    fn new(cols: &[usize], ridge: bool) -> Self {
+        if cols.iter().all(|&j| j < 128) {
+            Self::Mask(cols.iter().fold(0u128, |m, &j| m | (1u128 << j)), ridge)
+        } else {
+            Self::Columns(cols.to_vec(), ridge)
+        }
+    }
+}
+
+impl SolveCache {
+    /// An empty memo.
+    pub(crate) fn new() -> Self {
+        Self::default()
+    }
+
+    /// The memoised `solve(cols)` (computed on first use).
+    fn get(
+        &mut self,
+        cols: &[usize],
+        ridge: bool,
+        solve: impl FnOnce() -> (Vec<f64>, Vec<usize>),
+    ) -> &(Vec<f64>, Vec<usize>) {
+        let key = SupportKey::new(cols, ridge);
+        let i = match self.index.get(&key) {
+            Some(&i) => i,
+            None => {
+                self.solves.push(solve());
+                self.index.insert(key, self.solves.len() - 1);
+                self.solves.len() - 1
+            }
+        };
+        &self.solves[i]
+    }
+}
 
 impl Stlsq {
     /// [`Regressor::fit_compressed`] with a memo of subset solves shared across calls on the same
@@ -105,29 +153,28 @@ impl Stlsq {
         self.validate()?;
         let n = p.ncols();
         let (cs, bs) = scales(p, self.scale_columns);
-        let solve = |cols: &[usize], ridge: f64, cache: &mut SolveCache| {
-            let key = (cols.to_vec(), ridge > 0.0);
-            if let Some(v) = cache.get(&key) {
-                return v.clone();
-            }
-            let v = subset_solve(p, cols, &cs, bs, ridge);
-            cache.insert(key, v.clone());
-            v
+        // The memoised solve on `cols` copied into `x`; returns its dependent columns (almost
+        // always none: an empty `Vec` does not allocate).
+        let solve = |cols: &[usize], ridge: f64, cache: &mut SolveCache, x: &mut [f64]| {
+            let (xs, dep) = cache.get(cols, ridge > 0.0, || subset_solve(p, cols, &cs, bs, ridge));
+            x.copy_from_slice(xs);
+            dep.clone()
         };
         let mut dependent: Vec<usize> = (0..n).filter(|&j| cs[j] == 0.0).collect();
         let mut cols: Vec<usize> = (0..n).filter(|&j| cs[j] != 0.0).collect();
         let mut x = vec![0.0; n];
         let mut converged = false;
         let mut iterations = 0;
+        let mut keep = Vec::with_capacity(n);
         while iterations < self.max_iter {
             iterations += 1;
-            let (xs, dep) = solve(&cols, self.ridge, cache);
-            x = xs;
-            let keep: Vec<usize> = cols
-                .iter()
-                .copied()
-                .filter(|&j| x[j].abs() >= self.threshold && !dep.contains(&j))
-                .collect();
+            let dep = solve(&cols, self.ridge, cache, &mut x);
+            keep.clear();
+            keep.extend(
+                cols.iter()
+                    .copied()
+                    .filter(|&j| x[j].abs() >= self.threshold && !dep.contains(&j)),
+            );
             for j in dep {
                 if !dependent.contains(&j) {
                     dependent.push(j);
@@ -137,18 +184,15 @@ impl Stlsq {
                 converged = true;
                 break;
             }
-            cols = keep;
+            std::mem::swap(&mut cols, &mut keep);
         }
         if !converged {
             // Out of iterations: x is the fit on the support before the last thresholding.
             // Honour the threshold on the returned model by fitting on the last support.
-            let (xs, _) = solve(&cols, self.ridge, cache);
-            x = xs;
+            solve(&cols, self.ridge, cache, &mut x);
         }
         if self.unbiased_refit {
-            let (xs, dep) = solve(&cols, 0.0, cache);
-            x = xs;
-            for j in dep {
+            for j in solve(&cols, 0.0, cache, &mut x) {
                 if !dependent.contains(&j) {
                     dependent.push(j);
                 }
