@@ -20,6 +20,9 @@
 //! equations (`AᵀA − 2D` not positive definite): there the first-order picture fails and the
 //! trace says the data are too noisy to correct.
 
+use std::borrow::Cow;
+use std::sync::OnceLock;
+
 use faer::linalg::solvers::Solve;
 use faer::{Mat, Side};
 use rayon::prelude::*;
@@ -32,7 +35,7 @@ use crate::pipeline::TfsOptions;
 use crate::prepare::{
     Prepared, RecordSeries, Series, TransformForm, WindowTransform, record_series, rows_for,
 };
-use crate::spectral::{Smoothed, band_noise, bin_omegas, window, window_layout};
+use crate::spectral::{Band, Smoothed, band_noise, bin_omegas, window, window_layout};
 
 /// Second moments of the noise part of the regression rows, over the columns of one support.
 #[derive(Debug, Clone)]
@@ -60,6 +63,47 @@ fn seed(record: usize, draw: usize, dof: usize) -> u64 {
     0x5eed_0000 + 1_000_003 * record as u64 + 1_009 * draw as u64 + dof as u64
 }
 
+/// The noise draws of [`noise_moments`] (one per record, draw and DOF), made on first use and
+/// kept: they depend on the records' noise models and the seeds only, not on the library, so the
+/// passes of the backward elimination (which re-fit on fewer terms) share them.
+pub(crate) struct NoiseDraws {
+    draws: usize,
+    dofs: usize,
+    slots: Vec<OnceLock<Option<Smoothed>>>,
+}
+
+impl NoiseDraws {
+    /// Room for `draws` draws of `dofs` DOFs in each of `records` records.
+    pub(crate) fn new(records: usize, dofs: usize, draws: usize) -> Self {
+        Self {
+            draws,
+            dofs,
+            slots: (0..records * draws * dofs)
+                .map(|_| OnceLock::new())
+                .collect(),
+        }
+    }
+
+    /// Draw `m` of DOF `i` of record `r` (whose band is `band`, `n` samples long).
+    fn get(
+        &self,
+        band: &Band,
+        n: usize,
+        r: usize,
+        m: usize,
+        i: usize,
+    ) -> Cow<'_, Option<Smoothed>> {
+        let make = || band_noise(band, n, seed(r, m, i));
+        if m >= self.draws || i >= self.dofs {
+            return Cow::Owned(make());
+        }
+        match self.slots.get((r * self.draws + m) * self.dofs + i) {
+            Some(slot) => Cow::Borrowed(slot.get_or_init(make)),
+            None => Cow::Owned(make()),
+        }
+    }
+}
+
 /// The outcome of [`noise_moments`].
 #[derive(Debug, Clone)]
 pub(crate) enum Moments {
@@ -72,7 +116,8 @@ pub(crate) enum Moments {
 /// `D` and `d` of DOF `dof` for the library columns `cols` (the support, in order), estimated from
 /// `draws` antithetic noise draws per record. `transforms[r]` are the windows of record `r` at the
 /// chosen window count (their kept bins and weights are the rows the fit used), `qs[r]` its
-/// decimation, `delta` the chosen bin threshold. Unavailable for forms without a noise model, and
+/// decimation, `delta` the chosen bin threshold, `cache` the draws (made here on first use).
+/// Unavailable for forms without a noise model, and
 /// when some record's band reaches into the part of the spectrum its noise floor is fitted on
 /// (the floor is then partly signal, and a correction by it would overshoot).
 #[allow(clippy::too_many_arguments)]
@@ -87,6 +132,7 @@ pub(crate) fn noise_moments(
     delta: f64,
     opt: &TfsOptions,
     draws: usize,
+    cache: &NoiseDraws,
 ) -> Result<Moments> {
     let none = |why: &str| Ok(Moments::Unavailable(why.to_string()));
     if draws == 0 {
@@ -127,18 +173,18 @@ pub(crate) fn noise_moments(
         .map(|&(r, m)| -> Result<(Mat<f64>, Vec<f64>)> {
             let p = &preps[r];
             let n = p.rec.len();
-            let noise: Vec<Option<Smoothed>> = p
+            let noise: Vec<Cow<'_, Option<Smoothed>>> = p
                 .smooth
                 .iter()
                 .enumerate()
-                .map(|(i, s)| band_noise(&s.band, n, seed(r, m, i)))
+                .map(|(i, s)| cache.get(&s.band, n, r, m, i))
                 .collect();
             let shifted = |sign: f64| -> Prepared<'_> {
                 let smooth = p
                     .smooth
                     .iter()
                     .zip(&noise)
-                    .map(|(s, e)| match e {
+                    .map(|(s, e)| match e.as_ref() {
                         None => s.clone(),
                         Some(e) => {
                             let add = |a: &[f64], b: &[f64]| -> Vec<f64> {

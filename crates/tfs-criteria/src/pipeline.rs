@@ -522,6 +522,35 @@ pub(crate) fn dof_transforms(
     lib: &Library,
     keep: &[usize],
 ) -> Result<(Vec<usize>, Vec<Vec<Vec<WindowTransform>>>)> {
+    let (qs, mut transforms) = unweighted_transforms(preps, spec, d, lib)?;
+    reweight_all(&mut transforms, &spec.tfs, keep)?;
+    Ok((qs, transforms))
+}
+
+/// Per-window-count transforms as their rows are weighted: [`reweight`] by `opt.reweight` passes
+/// of feasible GLS over the columns `keep`, every window count in parallel.
+fn reweight_all(
+    transforms: &mut [Vec<Vec<WindowTransform>>],
+    opt: &TfsOptions,
+    keep: &[usize],
+) -> Result<()> {
+    if opt.reweight == 0 {
+        return Ok(());
+    }
+    let dmin = opt.deltas.iter().cloned().fold(f64::INFINITY, f64::min);
+    transforms
+        .par_iter_mut()
+        .try_for_each(|t| reweight(t, dmin, keep, opt.reweight))
+}
+
+/// [`dof_transforms`] before reweighting (every bin's weight 1).
+#[allow(clippy::type_complexity)]
+fn unweighted_transforms(
+    preps: &[Prepared<'_>],
+    spec: &IdentifySpec,
+    d: usize,
+    lib: &Library,
+) -> Result<(Vec<usize>, Vec<Vec<Vec<WindowTransform>>>)> {
     let opt = &spec.tfs;
     let dmin = opt.deltas.iter().cloned().fold(f64::INFINITY, f64::min);
     let qs: Vec<usize> = preps.iter().map(|p| decimation(p, lib, opt.form)).collect();
@@ -541,7 +570,7 @@ pub(crate) fn dof_transforms(
             )
         })
         .collect::<Result<_>>()?;
-    let mut transforms: Vec<Vec<_>> = opt
+    let transforms: Vec<Vec<_>> = opt
         .window_counts
         .par_iter()
         .map(|&wc| {
@@ -553,12 +582,80 @@ pub(crate) fn dof_transforms(
                 .collect()
         })
         .collect();
-    if opt.reweight > 0 {
-        transforms
-            .par_iter_mut()
-            .try_for_each(|t| reweight(t, dmin, keep, opt.reweight))?;
-    }
     Ok((qs, transforms))
+}
+
+/// What the first pass of [`identify_tfs`] computed for one DOF that a re-run on a subset of its
+/// terms can reuse. Each library column enters these one by one (its own time-domain column, its
+/// own windowed transform, with bins and the left-hand side shared by all), so the re-run's are
+/// column subsets of the first pass's — as long as the decimation, which depends on the highest
+/// degree offered, is unchanged. The bin weights are not kept: they come from a fit over the
+/// columns, and are recomputed for the re-run's.
+struct FirstPass {
+    /// The first pass's terms, in the column order of the products below.
+    terms: Vec<tfs_library::Term>,
+    /// Time-domain blocks of every record ([`DofData::td`]).
+    td: Vec<(Mat<f64>, Vec<f64>)>,
+    /// Decimation per record.
+    qs: Vec<usize>,
+    /// Windowed transforms per window count and record, every bin weighted 1.
+    unweighted: Vec<Vec<Vec<WindowTransform>>>,
+}
+
+impl FirstPass {
+    /// Where each term of `lib` sits among the first pass's columns (`None` if one is new).
+    fn columns(&self, lib: &Library) -> Option<Vec<usize>> {
+        lib.terms()
+            .iter()
+            .map(|t| self.terms.iter().position(|u| u == t))
+            .collect()
+    }
+
+    /// The time-domain blocks restricted to the columns `cols`.
+    fn td(&self, cols: &[usize]) -> Vec<(Mat<f64>, Vec<f64>)> {
+        self.td
+            .iter()
+            .map(|(a, y)| {
+                (
+                    Mat::from_fn(a.nrows(), cols.len(), |i, j| a[(i, cols[j])]),
+                    y.clone(),
+                )
+            })
+            .collect()
+    }
+
+    /// The unweighted transforms restricted to the columns `cols`.
+    fn unweighted(&self, cols: &[usize]) -> Vec<Vec<Vec<WindowTransform>>> {
+        self.unweighted
+            .iter()
+            .map(|by_rec| {
+                by_rec
+                    .iter()
+                    .map(|wins| {
+                        wins.iter()
+                            .map(|w| WindowTransform {
+                                freq: w.freq.clone(),
+                                rel_amp: w.rel_amp.clone(),
+                                lhs: w.lhs.clone(),
+                                cols: cols.iter().map(|&j| w.cols[j].clone()).collect(),
+                                weight: w.weight.clone(),
+                            })
+                            .collect()
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+}
+
+/// What the passes of one [`identify_tfs`] call share.
+struct Shared<'a> {
+    /// The errors-in-variables noise draws.
+    noise: &'a crate::eiv::NoiseDraws,
+    /// The first pass's products per DOF (the re-runs of the elimination), if kept.
+    first: Option<&'a [FirstPass]>,
+    /// Keep this pass's products for later passes.
+    keep_products: bool,
 }
 
 /// κ alone of time-domain blocks `(Θ, x'')` (constant columns excluded): from the Gram matrix
@@ -775,10 +872,25 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
         .collect::<Result<_>>()?;
     let recon_ms = ms(t0);
     let rounds = spec.tfs.prune_insignificant;
-    let once = |spec: &IdentifySpec, c1: Option<&[Criterion1]>, final_pass: bool| {
-        identify_tfs_once(&blocks, &preps, recon_ms, spec, c1, final_pass)
-    };
-    let mut id = once(spec, None, rounds == 0)?;
+    let noise = crate::eiv::NoiseDraws::new(
+        preps.len(),
+        spec.dofs.len(),
+        spec.tfs.noise_correction_draws,
+    );
+    let once =
+        |spec: &IdentifySpec, c1: Option<&[Criterion1]>, final_pass: bool, shared: &Shared<'_>| {
+            identify_tfs_once(&blocks, &preps, recon_ms, spec, c1, final_pass, shared)
+        };
+    let (mut id, first_pass) = once(
+        spec,
+        None,
+        rounds == 0,
+        &Shared {
+            noise: &noise,
+            first: None,
+            keep_products: rounds > 0,
+        },
+    )?;
     if rounds == 0 {
         return Ok(id);
     }
@@ -858,7 +970,17 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
         } else {
             first_c1.clone()
         };
-        id = once(&current, keep_c1.as_deref(), round == rounds)?;
+        id = once(
+            &current,
+            keep_c1.as_deref(),
+            round == rounds,
+            &Shared {
+                noise: &noise,
+                first: Some(&first_pass),
+                keep_products: false,
+            },
+        )?
+        .0;
     }
     let finals: Vec<Vec<String>> = spec
         .dofs
@@ -910,7 +1032,8 @@ fn i_of(dofs: &[String], dof: &str) -> usize {
 /// `given_c1`: Criterion 1 per DOF to report instead of computing it (the elimination re-runs).
 /// A pass that is not `final_pass` may be followed by an elimination round; where it will be (a
 /// kept term's interval includes 0), its bootstrap inclusion probabilities are not computed,
-/// since the next pass replaces its model.
+/// since the next pass replaces its model. `shared`: what the passes share; the products this
+/// pass keeps for later ones (per DOF) are returned with its result.
 fn identify_tfs_once(
     blocks: &[Record],
     preps: &[Prepared<'_>],
@@ -918,7 +1041,8 @@ fn identify_tfs_once(
     spec: &IdentifySpec,
     given_c1: Option<&[Criterion1]>,
     final_pass: bool,
-) -> Result<Identified> {
+    shared: &Shared<'_>,
+) -> Result<(Identified, Vec<FirstPass>)> {
     let t_all = Instant::now();
     let opt = &spec.tfs;
     validate_tfs(opt)?;
@@ -931,19 +1055,28 @@ fn identify_tfs_once(
     let stride = |p: &Prepared<'_>| (p.rec.len() / 4000).max(1);
     let mut equations = Vec::new();
     let mut dof_traces = Vec::new();
+    let mut products = Vec::new();
     for (d, lib) in libs.iter().enumerate() {
         let dof = &spec.dofs[d];
         let names = lib.names();
+        // The first pass's products where this pass's terms are among its own.
+        let reuse: Option<(&FirstPass, Vec<usize>)> = shared
+            .first
+            .and_then(|f| f.get(d))
+            .and_then(|fp| fp.columns(lib).map(|c| (fp, c)));
         // ---- time-domain blocks on the reconstruction (criteria 1, 2 and the held-out checks)
         // and Criterion 1.
         let given = given_c1.and_then(|c| c.get(d));
         let c1_stage = || -> Result<(DofData, Criterion1Out, f64)> {
             let t0 = Instant::now();
             let data = DofData {
-                td: preps
-                    .par_iter()
-                    .map(|p| time_domain(p, &spec.dofs, d, lib, trim(p), stride(p)))
-                    .collect::<Result<_>>()?,
+                td: match &reuse {
+                    Some((fp, cols)) => fp.td(cols),
+                    None => preps
+                        .par_iter()
+                        .map(|p| time_domain(p, &spec.dofs, d, lib, trim(p), stride(p)))
+                        .collect::<Result<_>>()?,
+                },
             };
             let c1 = match given {
                 Some(given) => {
@@ -962,8 +1095,14 @@ fn identify_tfs_once(
         let all: Vec<usize> = (0..lib.len()).collect();
         let transforms_stage = |keep: &[usize]| -> Result<_> {
             let t0 = Instant::now();
-            let tr = dof_transforms(preps, spec, d, lib, keep)?;
-            Ok((tr, ms(t0)))
+            let qs_now: Vec<usize> = preps.iter().map(|p| decimation(p, lib, opt.form)).collect();
+            let (qs, mut tr) = match &reuse {
+                Some((fp, cols)) if fp.qs == qs_now => (qs_now, fp.unweighted(cols)),
+                _ => unweighted_transforms(preps, spec, d, lib)?,
+            };
+            let kept = shared.keep_products.then(|| tr.clone());
+            reweight_all(&mut tr, opt, keep)?;
+            Ok(((qs, tr), kept, ms(t0)))
         };
         // Without pruning, Criterion 3 does not depend on Criterion 1's outcome: both run at
         // once (the calibration and the windowed transforms each leave cores idle on their own).
@@ -998,10 +1137,18 @@ fn identify_tfs_once(
         }
         timing.push((format!("{dof}: criterion 2"), ms(t0)));
         // ---- Criterion 3: transforms for each window count.
-        let ((qs, transforms), tr_ms) = match early {
+        let ((qs, transforms), unweighted, tr_ms) = match early {
             Some(t) => t,
             None => transforms_stage(&keep)?,
         };
+        if let Some(unweighted) = unweighted {
+            products.push(FirstPass {
+                terms: lib.terms().to_vec(),
+                td: data.td.clone(),
+                qs: qs.clone(),
+                unweighted,
+            });
+        }
         timing.push((format!("{dof}: criterion 3 transforms"), tr_ms));
         let t0 = Instant::now();
         // The constant term (if offered) is estimated in the time domain: see `fill_constant`.
@@ -1250,6 +1397,7 @@ fn identify_tfs_once(
                 delta,
                 opt,
                 opt.noise_correction_draws,
+                shared.noise,
             )? {
                 crate::eiv::Moments::Estimated(m) => {
                     match crate::eiv::corrected_fit(&rows, &cols, &m) {
@@ -1561,7 +1709,7 @@ fn identify_tfs_once(
     let mut model = Model::new(spec.dofs.clone(), equations, "tfs-sindy")?;
     model.trace =
         serde_json::to_value(&trace).map_err(|e| CriteriaError::Invalid(e.to_string()))?;
-    Ok(Identified { model, trace })
+    Ok((Identified { model, trace }, products))
 }
 
 pub(crate) fn validate_tfs(o: &TfsOptions) -> Result<()> {

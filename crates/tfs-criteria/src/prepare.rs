@@ -363,6 +363,7 @@ pub(crate) fn raw_columns_sg<'a>(
 }
 
 /// Windowed transforms of one DOF of one record, at the bins that can be selected.
+#[derive(Clone)]
 pub(crate) struct WindowTransform {
     /// Frequencies (Hz) of the stored bins.
     pub freq: Vec<f64>,
