@@ -2,7 +2,6 @@
 
 use crate::compress::Compressed;
 use crate::error::{RegressError, Result, check_param};
-use crate::fit::lstsq_support;
 use crate::stlsq::Stlsq;
 use std::collections::HashMap;
 
@@ -161,14 +160,14 @@ pub fn lambda_path(train: &Compressed, val: &Compressed, opts: &PathOptions) -> 
             i as f64 / (nt - 1) as f64
         };
         let threshold = top * opts.min_ratio.powf(frac);
-        let fit = Stlsq { threshold, ..base }.fit_cached(train, &mut cache)?;
-        let support = fit.support.clone();
+        // With the unbiased refit, STLSQ's coefficients are the least-squares ones on its
+        // support: the residuals are computed once per distinct support.
+        let (coef, ..) = Stlsq { threshold, ..base }.coef_cached(train, &mut cache)?;
+        let support: Vec<bool> = coef.iter().map(|&v| v != 0.0).collect();
         let (coef, rss_train, rss_val) = match seen.get(&support) {
             Some(v) => v.clone(),
             None => {
-                let refit = lstsq_support(train, &support)?;
-                let rv = val.rss(&refit.coef)?;
-                let v = (refit.coef, refit.rss, rv);
+                let v = (coef.clone(), train.rss(&coef)?, val.rss(&coef)?);
                 seen.insert(support.clone(), v.clone());
                 v
             }

@@ -150,6 +150,18 @@ impl Stlsq {
     /// [`Regressor::fit_compressed`] with a memo of subset solves shared across calls on the same
     /// problem `p` (same scaling); results are identical to an uncached fit.
     pub(crate) fn fit_cached(&self, p: &Compressed, cache: &mut SolveCache) -> Result<Fit> {
+        let (x, dependent, iterations, converged) = self.coef_cached(p, cache)?;
+        Fit::from_coef(p, x, dependent, iterations, converged)
+    }
+
+    /// [`Stlsq::fit_cached`] without the residual: (coefficients in original units, dependent
+    /// columns, iterations, converged). A λ path needs the residual only once per distinct
+    /// support, not at every threshold.
+    pub(crate) fn coef_cached(
+        &self,
+        p: &Compressed,
+        cache: &mut SolveCache,
+    ) -> Result<(Vec<f64>, Vec<usize>, usize, bool)> {
         self.validate()?;
         let n = p.ncols();
         let (cs, bs) = scales(p, self.scale_columns);
@@ -206,7 +218,7 @@ impl Stlsq {
             x[j] *= cs[j] / bs;
         }
         dependent.sort_unstable();
-        Fit::from_coef(p, x, dependent, iterations, converged)
+        Ok((x, dependent, iterations, converged))
     }
 }
 
