@@ -598,8 +598,9 @@ struct FirstPass {
     td: Vec<(Mat<f64>, Vec<f64>)>,
     /// Decimation per record.
     qs: Vec<usize>,
-    /// Windowed transforms per window count and record, every bin weighted 1.
-    unweighted: Vec<Vec<Vec<WindowTransform>>>,
+    /// Windowed transforms per window count and record (with the first pass's bin weights,
+    /// which [`FirstPass::unweighted`] resets).
+    transforms: Vec<Vec<Vec<WindowTransform>>>,
 }
 
 impl FirstPass {
@@ -624,13 +625,14 @@ impl FirstPass {
             .collect()
     }
 
-    /// The unweighted transforms restricted to the columns `cols`.
+    /// The transforms restricted to the columns `cols`, every bin weighted 1 (reweighting
+    /// changes nothing else).
     fn unweighted(&self, cols: &[usize]) -> Vec<Vec<Vec<WindowTransform>>> {
-        self.unweighted
-            .iter()
+        self.transforms
+            .par_iter()
             .map(|by_rec| {
                 by_rec
-                    .iter()
+                    .par_iter()
                     .map(|wins| {
                         wins.iter()
                             .map(|w| WindowTransform {
@@ -638,7 +640,7 @@ impl FirstPass {
                                 rel_amp: w.rel_amp.clone(),
                                 lhs: w.lhs.clone(),
                                 cols: cols.iter().map(|&j| w.cols[j].clone()).collect(),
-                                weight: w.weight.clone(),
+                                weight: vec![1.0; w.weight.len()],
                             })
                             .collect()
                     })
@@ -1100,9 +1102,8 @@ fn identify_tfs_once(
                 Some((fp, cols)) if fp.qs == qs_now => (qs_now, fp.unweighted(cols)),
                 _ => unweighted_transforms(preps, spec, d, lib)?,
             };
-            let kept = shared.keep_products.then(|| tr.clone());
             reweight_all(&mut tr, opt, keep)?;
-            Ok(((qs, tr), kept, ms(t0)))
+            Ok(((qs, tr), ms(t0)))
         };
         // Without pruning, Criterion 3 does not depend on Criterion 1's outcome: both run at
         // once (the calibration and the windowed transforms each leave cores idle on their own).
@@ -1137,18 +1138,10 @@ fn identify_tfs_once(
         }
         timing.push((format!("{dof}: criterion 2"), ms(t0)));
         // ---- Criterion 3: transforms for each window count.
-        let ((qs, transforms), unweighted, tr_ms) = match early {
+        let ((qs, transforms), tr_ms) = match early {
             Some(t) => t,
             None => transforms_stage(&keep)?,
         };
-        if let Some(unweighted) = unweighted {
-            products.push(FirstPass {
-                terms: lib.terms().to_vec(),
-                td: data.td.clone(),
-                qs: qs.clone(),
-                unweighted,
-            });
-        }
         timing.push((format!("{dof}: criterion 3 transforms"), tr_ms));
         let t0 = Instant::now();
         // The constant term (if offered) is estimated in the time domain: see `fill_constant`.
@@ -1699,6 +1692,14 @@ fn identify_tfs_once(
             assembly_verdict: verdict,
             held_out_record: blocks[hold].source().to_string(),
         });
+        if shared.keep_products {
+            products.push(FirstPass {
+                terms: lib.terms().to_vec(),
+                td: data.td,
+                qs,
+                transforms,
+            });
+        }
     }
     timing.push(("total".to_string(), ms(t_all)));
     let trace = Trace {
@@ -1852,6 +1853,8 @@ fn cluster_blocks(
     let k = keep.len();
     bin_clusters(rows, delta, keep)
         .into_values()
+        .collect::<Vec<_>>()
+        .into_par_iter()
         .map(|c| {
             let m = Mat::<f64>::from_fn(c.len(), k, |i, j| c[i].0[j]);
             let y: Vec<f64> = c.iter().map(|r| r.1).collect();
