@@ -484,14 +484,27 @@ pub(crate) fn criterion1_dof(
         .map(|r| criterion1_block(r, spec, d, lib))
         .collect::<Result<_>>()?;
     // The centred factor is needed only by Criterion 2's pruning; κ alone has a cheaper route.
-    let (kappa, factor) = if opt.prune {
-        criterion1_blocks(&td, &nonconst)?
-    } else {
-        (criterion1_kappa(&td, &nonconst)?, Mat::<f64>::zeros(0, 0))
-    };
-    let (kappa0, source, curve, knee) = match opt.kappa0 {
-        Kappa0Choice::Fixed(k) => (k, "given by the user".to_string(), Vec::new(), None),
-        Kappa0Choice::Calibrate => calibrate(blocks, spec, d, lib, &nonconst, kappa, opt)?,
+    // The calibration's noisy copies do not depend on the records' κ: both run at once.
+    let (records, points) = rayon::join(
+        || -> Result<_> {
+            Ok(if opt.prune {
+                criterion1_blocks(&td, &nonconst)?
+            } else {
+                (criterion1_kappa(&td, &nonconst)?, Mat::<f64>::zeros(0, 0))
+            })
+        },
+        || match opt.kappa0 {
+            Kappa0Choice::Fixed(_) => Ok(None),
+            Kappa0Choice::Calibrate => {
+                calibration_points(blocks, spec, d, lib, &nonconst).map(Some)
+            }
+        },
+    );
+    let (kappa, factor) = records?;
+    let (kappa0, source, curve, knee) = match (opt.kappa0, points?) {
+        (Kappa0Choice::Fixed(k), _) => (k, "given by the user".to_string(), Vec::new(), None),
+        (_, Some((seg_kappa, points))) => calibrate(kappa, seg_kappa, points, opt),
+        (_, None) => return invalid("κ0 calibration gave no points"),
     };
     let kv = kappa.get(opt.kappa_variant);
     let c1 = Criterion1 {
@@ -1915,22 +1928,18 @@ const MIN_CALIBRATION_DROP: f64 = 0.25;
 /// Most samples the κ0 calibration looks at (a central segment of the longest record).
 const CALIBRATION_SAMPLES: usize = 20_000;
 
-/// κ0 calibration: add white noise at each SNR to the DOF displacements and linear inputs of
-/// every record, recompute κ, and take κ at the knee of κ(SNR).
-#[allow(clippy::too_many_arguments)]
-fn calibrate(
+/// The κ0 calibration's measurements: white noise added at each SNR of
+/// `calibration_snrs_db` to the DOF displacements and linear inputs of the central ≤ 20,000
+/// samples of the longest record, and κ recomputed. Returns κ of that segment itself and the
+/// point of each level; the segment and every level are computed in parallel.
+fn calibration_points(
     blocks: &[Record],
     spec: &IdentifySpec,
     d: usize,
     lib: &Library,
     nonconst: &[usize],
-    kappa: crate::Kappa,
-    opt: &TfsOptions,
-) -> Result<(f64, String, Vec<CalibrationPoint>, Option<f64>)> {
-    let mut curve = vec![CalibrationPoint {
-        added_snr_db: None,
-        kappa,
-    }];
+) -> Result<(crate::Kappa, Vec<CalibrationPoint>)> {
+    let opt = &spec.tfs;
     let noisy_cols: Vec<String> = spec
         .dofs
         .iter()
@@ -1985,31 +1994,63 @@ fn calibrate(
                 .transpose()
         })
         .collect::<std::result::Result<_, _>>()?;
-    let points: Vec<CalibrationPoint> = opt
-        .calibration_snrs_db
+    // The segment as it is (no added noise) first, then every level.
+    let levels: Vec<Option<f64>> = std::iter::once(None)
+        .chain(opt.calibration_snrs_db.iter().map(|&v| Some(v)))
+        .collect();
+    let mut points: Vec<CalibrationPoint> = levels
         .par_iter()
         .map(|&snr| -> Result<CalibrationPoint> {
-            let scale = 10f64.powf(-(snr - reference_db) / 20.0);
-            let mut r2 = segment.clone();
-            for (c, n) in noisy_cols.iter().zip(&unit) {
-                if let (Some(v), Some(n)) = (segment.column(c), n) {
-                    let nv: Vec<f64> = v.iter().zip(n).map(|(a, b)| a + scale * b).collect();
-                    r2.set_column(c.clone(), nv)?;
+            let kappa = match snr {
+                None => criterion1_kappa(&[criterion1_block(&segment, spec, d, lib)?], nonconst)?,
+                Some(snr) => {
+                    let scale = 10f64.powf(-(snr - reference_db) / 20.0);
+                    let columns = segment
+                        .names()
+                        .iter()
+                        .map(|c| {
+                            let v = segment.column(c).expect("own column");
+                            let n = noisy_cols
+                                .iter()
+                                .position(|nc| nc == c)
+                                .and_then(|i| unit[i].as_ref());
+                            let v = match n {
+                                Some(n) => v.iter().zip(n).map(|(a, b)| a + scale * b).collect(),
+                                None => v.to_vec(),
+                            };
+                            (c.clone(), v)
+                        })
+                        .collect();
+                    let r2 = Record::new(segment.source(), segment.t().to_vec(), columns)?;
+                    criterion1_kappa(&[criterion1_block(&r2, spec, d, lib)?], nonconst)?
                 }
-            }
-            let td = [criterion1_block(&r2, spec, d, lib)?];
-            let k = criterion1_kappa(&td, nonconst)?;
+            };
             Ok(CalibrationPoint {
-                added_snr_db: Some(snr),
-                kappa: k,
+                added_snr_db: snr,
+                kappa,
             })
         })
         .collect::<Result<_>>()?;
+    let seg_kappa = points.remove(0).kappa;
+    Ok((seg_kappa, points))
+}
+
+/// κ0 from the calibration's measurements ([`calibration_points`]: κ of the segment and the
+/// points of every added-noise level), with `kappa` the records' own κ: κ at the knee of
+/// κ(SNR) plus a margin. Returns (κ0, how, the curve, the knee's SNR).
+fn calibrate(
+    kappa: crate::Kappa,
+    seg_kappa: crate::Kappa,
+    points: Vec<CalibrationPoint>,
+    opt: &TfsOptions,
+) -> (f64, String, Vec<CalibrationPoint>, Option<f64>) {
+    let mut curve = vec![CalibrationPoint {
+        added_snr_db: None,
+        kappa,
+    }];
     curve.extend(points);
     // The knee is found on the segment's own curve (the data point of `curve` is κ of every
     // record, a slightly different quantity).
-    let seg_td = criterion1_block(&segment, spec, d, lib)?;
-    let seg_kappa = criterion1_kappa(std::slice::from_ref(&seg_td), nonconst)?;
     let seg_top = seg_kappa.get(opt.kappa_variant);
     let mut seg_curve = vec![CalibrationPoint {
         added_snr_db: None,
@@ -2031,37 +2072,37 @@ fn calibrate(
             .iter()
             .cloned()
             .fold(f64::INFINITY, f64::min);
-        return Ok((
+        return (
             seg_top + MIN_CALIBRATION_DROP,
             format!(
                 "calibrated: κ fell by only {drop:.2} decades when noise down to {weakest} dB SNR was added, so the data are already about as noisy as that (low SNR); κ0 set {MIN_CALIBRATION_DROP} decades above the data's κ"
             ),
             curve,
             None,
-        ));
+        );
     }
     match kappa0_from_curve(&seg_curve, opt.kappa_variant) {
         // Data whose own noise already sits at the knee give a knee κ equal to their own κ; the
         // margin keeps such data on the low side instead of deciding by the scatter of κ.
-        Some((k0, snr)) => Ok((
+        Some((k0, snr)) => (
             k0 + MIN_CALIBRATION_DROP,
             format!(
                 "calibrated: κ at the knee of κ vs added-noise SNR (knee at {snr} dB, κ there {k0:.3}) plus a {MIN_CALIBRATION_DROP}-decade margin"
             ),
             curve,
             Some(snr),
-        )),
+        ),
         None => {
             let k0 = curve
                 .iter()
                 .map(|p| p.kappa.get(opt.kappa_variant))
                 .fold(f64::INFINITY, f64::min);
-            Ok((
+            (
                 k0,
                 "calibrated: κ never dropped with added noise, κ0 = lowest κ seen".into(),
                 curve,
                 None,
-            ))
+            )
         }
     }
 }
