@@ -133,14 +133,17 @@ impl Library {
     /// Velocity columns are looked up as `"x'"`, input velocities as `"xb_vel"`.
     /// Missing or short columns and non-finite results are errors naming the column and term.
     pub fn evaluate(&self, cols: &dyn Columns) -> Result<Mat<f64>> {
+        let mut powers = PowerCache::new();
         let columns: Vec<Vec<f64>> = self
             .terms
             .iter()
-            .map(|t| evaluate_term(t, cols))
+            .map(|t| evaluate_term_cached(t, cols, &mut powers))
             .collect::<Result<_>>()?;
-        Ok(Mat::from_fn(cols.rows(), self.terms.len(), |i, j| {
-            columns[j][i]
-        }))
+        let mut m = Mat::<f64>::zeros(cols.rows(), self.terms.len());
+        for (j, c) in columns.iter().enumerate() {
+            m.col_as_slice_mut(j).copy_from_slice(c);
+        }
+        Ok(m)
     }
 }
 
@@ -205,9 +208,20 @@ fn var_values<'c>(v: &Var, cols: &'c dyn Columns, term: &Term) -> Result<Cow<'c,
     }
 }
 
-/// `out[i] *= vals[i]^k`, with `vals[i]^k` by binary exponentiation done a whole column at a
-/// time: the same multiplications, in the same order, as `f64::powi` (so the same bits), but in
-/// loops the compiler vectorises instead of one library call per sample.
+/// `vals[i]^k` for every row, as [`evaluate_term`] computes it: `pow_u` for `k ≤ 3`, binary
+/// exponentiation done a whole column at a time above (the same multiplications, in the same
+/// order, as `f64::powi`, so the same bits, but in loops the compiler vectorises instead of one
+/// library call per sample).
+fn power_column(vals: &[f64], k: u32) -> Vec<f64> {
+    if k <= 3 {
+        return vals.iter().map(|&v| crate::term::pow_u(v, k)).collect();
+    }
+    let mut acc = vec![1.0; vals.len()];
+    mul_pow(&mut acc, vals, k);
+    acc
+}
+
+/// `out[i] *= vals[i]^k` with `vals[i]^k` by binary exponentiation (see [`power_column`]).
 fn mul_pow(out: &mut [f64], vals: &[f64], k: u32) {
     let mut base = vals.to_vec();
     let mut acc: Option<Vec<f64>> = None;
@@ -227,6 +241,46 @@ fn mul_pow(out: &mut [f64], vals: &[f64], k: u32) {
     }
     let acc = acc.unwrap_or_else(|| vec![1.0; vals.len()]);
     out.iter_mut().zip(&acc).for_each(|(o, a)| *o *= a);
+}
+
+/// Powers `v^k` (`k ≥ 2`) already computed by [`Library::evaluate`] for earlier terms: a
+/// polynomial library uses each power of a variable in many terms.
+type PowerCache = std::collections::HashMap<(crate::term::Var, u32), Vec<f64>>;
+
+/// [`evaluate_term`] taking the powers from (and adding them to) `cache`. Same values: the
+/// cached power is the factor the uncached evaluation multiplies by.
+fn evaluate_term_cached(
+    term: &Term,
+    cols: &dyn Columns,
+    cache: &mut PowerCache,
+) -> Result<Vec<f64>> {
+    let mut out = vec![1.0; cols.rows()];
+    for f in term.factors() {
+        match f {
+            Factor::Pow(v, k) if *k >= 2 => {
+                let key = (v.clone(), *k);
+                if !cache.contains_key(&key) {
+                    let vals = var_values(v, cols, term)?;
+                    cache.insert(key.clone(), power_column(&vals, *k));
+                }
+                let pw = &cache[&key];
+                out.iter_mut().zip(pw).for_each(|(o, p)| *o *= p);
+            }
+            _ => {
+                let vals = var_values(f.var(), cols, term)?;
+                for (o, v) in out.iter_mut().zip(vals.iter()) {
+                    *o *= f.apply(*v);
+                }
+            }
+        }
+    }
+    if let Some(row) = out.iter().position(|v| !v.is_finite()) {
+        return Err(LibraryError::NonFinite {
+            term: term.to_string(),
+            row,
+        });
+    }
+    Ok(out)
 }
 
 /// Evaluates one term on every row of `cols`.
@@ -313,7 +367,32 @@ impl Columns for ColumnSet<'_> {
 
 #[cfg(test)]
 mod tests {
-    use super::mul_pow;
+    use super::{Library, evaluate_term, mul_pow};
+
+    /// The library matrix (powers shared between terms) equals each term evaluated on its own,
+    /// to the bit.
+    #[test]
+    fn shared_powers_give_the_same_columns() {
+        let n = 300;
+        let t: Vec<f64> = (0..n).map(|i| i as f64 * 0.01).collect();
+        let x: Vec<f64> = t.iter().map(|v| 1.3 * (2.1 * v).sin() - 0.2).collect();
+        let xd: Vec<f64> = t.iter().map(|v| 2.7 * (2.1 * v).cos()).collect();
+        let u: Vec<f64> = t.iter().map(|v| (5.0 * v).sin()).collect();
+        let rec = tfs_data::Record::new(
+            "r",
+            t,
+            vec![("x".into(), x), ("x'".into(), xd), ("xb_acc".into(), u)],
+        )
+        .unwrap();
+        let lib = Library::parse("poly(x, x'; 0..7), abs(x')*x^2, xb_acc", &["x"]).unwrap();
+        let m = lib.evaluate(&rec).unwrap();
+        for (j, term) in lib.terms().iter().enumerate() {
+            let one = evaluate_term(term, &rec).unwrap();
+            for (i, v) in one.iter().enumerate() {
+                assert_eq!(m[(i, j)].to_bits(), v.to_bits(), "{term} row {i}");
+            }
+        }
+    }
 
     #[test]
     fn column_powers_match_powi() {

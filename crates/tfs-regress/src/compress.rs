@@ -537,10 +537,17 @@ impl<'a> CountedMerge<'a> {
         let m: usize = self.blocks.iter().zip(counts).map(|(b, &k)| b.m * k).sum();
         let (f, h) = self.whitened.as_ref()?;
         let n1 = f.nrows();
+        // Σ k_g H_g entry by entry: the blocks are many and small, and a matrix expression per
+        // block (a temporary and a dispatch each) cost more than the sums themselves.
         let mut g = Mat::<f64>::zeros(n1, n1);
         for (hg, &k) in h.iter().zip(counts) {
             if k > 0 {
-                g += faer::Scale(k as f64) * hg;
+                let kf = k as f64;
+                for j in 0..n1 {
+                    for (gv, hv) in g.col_as_slice_mut(j).iter_mut().zip(hg.col_as_slice(j)) {
+                        *gv += kf * hv;
+                    }
+                }
             }
         }
         // The diagonal of L bounds cond(Σ k_g H_g) from below; beyond 1e8 the perturbation
