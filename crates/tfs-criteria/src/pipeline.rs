@@ -1037,6 +1037,118 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
     Ok(id)
 }
 
+/// Criterion 3's products and the settings search of one pass on one DOF (see `identify_tfs_once`).
+struct Search {
+    /// Decimation per record.
+    qs: Vec<usize>,
+    /// Reweighted windowed transforms per window count and record.
+    transforms: Vec<Vec<Vec<WindowTransform>>>,
+    /// Compressed rows per window count, δ and record.
+    compressed: Vec<Vec<Vec<BlockRows>>>,
+    /// Held-out error of every setting (window count, δ), in grid order.
+    scores: Vec<f64>,
+    /// Milliseconds spent on the transforms and on the compression and scores.
+    ms: (f64, f64),
+}
+
+/// The frequency-domain rows of every window count, δ and record (`transforms[wi][record]`)
+/// over the columns `keep`, compressed: `out[wi][di][record]`. The bins kept at a smaller δ
+/// include those kept at a larger one, so each window is compressed once, from the largest δ
+/// down, appending only the rows each smaller δ adds.
+fn compress_settings(
+    transforms: &[Vec<Vec<WindowTransform>>],
+    opt: &TfsOptions,
+    keep: &[usize],
+    nb: usize,
+) -> Result<Vec<Vec<Vec<BlockRows>>>> {
+    let mut order: Vec<usize> = (0..opt.deltas.len()).collect();
+    order.sort_by(|&a, &b| opt.deltas[b].total_cmp(&opt.deltas[a]));
+    // One window layout of one block, compressed at every δ (indexed like `opt.deltas`).
+    let compress_block = |wins: &[WindowTransform]| -> Result<Vec<BlockRows>> {
+        let mut out: Vec<Option<BlockRows>> = vec![None; opt.deltas.len()];
+        let mut state: Vec<(Compressed, usize)> =
+            vec![(Compressed::empty(keep.len()), 0); wins.len()];
+        let mut rows = 0;
+        let mut freqs = Vec::new();
+        let mut hi = f64::INFINITY;
+        for &di in &order {
+            let lo = opt.deltas[di];
+            for (w, st) in wins.iter().zip(state.iter_mut()) {
+                let (a, y, f) = rows_for_band(w, lo, hi, keep);
+                if a.nrows() == 0 {
+                    continue;
+                }
+                rows += a.nrows();
+                freqs.extend(f);
+                st.0.append(a.as_ref(), &y)?;
+                st.1 += a.nrows();
+            }
+            hi = lo;
+            let mut parts: Vec<Compressed> = state
+                .iter()
+                .filter(|(_, m)| *m > 0)
+                .map(|(c, _)| c.clone())
+                .collect();
+            if parts.is_empty() {
+                parts.push(Compressed::empty(keep.len()));
+            }
+            out[di] = Some((Compressed::merge(&parts)?, parts, rows, freqs.clone()));
+        }
+        Ok(out
+            .into_iter()
+            .map(|o| o.expect("every δ visited"))
+            .collect())
+    };
+    let pairs: Vec<(usize, usize)> = (0..opt.window_counts.len())
+        .flat_map(|wi| (0..nb).map(move |b| (wi, b)))
+        .collect();
+    let mut per_pair: Vec<Vec<BlockRows>> = pairs
+        .par_iter()
+        .map(|&(wi, b)| compress_block(&transforms[wi][b]))
+        .collect::<Result<_>>()?;
+    let mut compressed: Vec<Vec<Vec<BlockRows>>> =
+        vec![vec![Vec::with_capacity(nb); opt.deltas.len()]; opt.window_counts.len()];
+    for (&(wi, _), by_delta) in pairs.iter().zip(per_pair.iter_mut()) {
+        for (di, br) in std::mem::take(by_delta).into_iter().enumerate() {
+            compressed[wi][di].push(br);
+        }
+    }
+    Ok(compressed)
+}
+
+/// Mean relative time-domain residual on each record in turn (its block of `td`), of the model
+/// `fit` makes from the other records' compressed rows (training rows, held-out rows), at every
+/// setting `(wi, di)` of `grid`; `const_j` is the constant's position in `keep`, if offered.
+fn held_out_scores(
+    compressed: &[Vec<Vec<BlockRows>>],
+    grid: &[(usize, usize)],
+    td: &[(Mat<f64>, Vec<f64>)],
+    keep: &[usize],
+    const_j: Option<usize>,
+    fit: &(dyn Fn(&Compressed, &Compressed) -> Result<Vec<f64>> + Sync),
+) -> Result<Vec<f64>> {
+    let nb = td.len();
+    grid.par_iter()
+        .map(|&(wi, di)| -> Result<f64> {
+            let cb = &compressed[wi][di];
+            let mut err = 0.0;
+            for f in 0..nb {
+                let train: Vec<Compressed> = (0..nb)
+                    .filter(|&k| k != f)
+                    .map(|k| cb[k].0.clone())
+                    .collect();
+                let mut coef = fit(&Compressed::merge(&train)?, &cb[f].0)?;
+                if let Some(cj) = const_j {
+                    let rest = (0..nb).filter(|&k| k != f).map(|k| &td[k]);
+                    fill_constant(&mut coef, cj, rest, keep);
+                }
+                err += held_out_relative_rss(&td[f], keep, &coef)?;
+            }
+            Ok(err / nb as f64)
+        })
+        .collect()
+}
+
 /// Index of `dof` in `dofs` (0 if absent).
 fn i_of(dofs: &[String], dof: &str) -> usize {
     dofs.iter().position(|d| d == dof).unwrap_or(0)
@@ -1082,17 +1194,19 @@ fn identify_tfs_once(
         // ---- time-domain blocks on the reconstruction (criteria 1, 2 and the held-out checks)
         // and Criterion 1.
         let given = given_c1.and_then(|c| c.get(d));
-        let c1_stage = || -> Result<(DofData, Criterion1Out, f64)> {
+        let t0 = Instant::now();
+        let data = DofData {
+            td: match &reuse {
+                Some((fp, cols)) => fp.td(cols),
+                None => preps
+                    .par_iter()
+                    .map(|p| time_domain(p, &spec.dofs, d, lib, trim(p), stride(p)))
+                    .collect::<Result<_>>()?,
+            },
+        };
+        let td_ms = ms(t0);
+        let c1_stage = || -> Result<(Criterion1Out, f64)> {
             let t0 = Instant::now();
-            let data = DofData {
-                td: match &reuse {
-                    Some((fp, cols)) => fp.td(cols),
-                    None => preps
-                        .par_iter()
-                        .map(|p| time_domain(p, &spec.dofs, d, lib, trim(p), stride(p)))
-                        .collect::<Result<_>>()?,
-                },
-            };
             let c1 = match given {
                 Some(given) => {
                     let nonconst: Vec<usize> = (0..lib.len())
@@ -1105,28 +1219,53 @@ fn identify_tfs_once(
                 }
                 None => criterion1_dof(blocks, preps, spec, d, lib)?,
             };
-            Ok((data, c1, ms(t0)))
+            Ok((c1, td_ms + ms(t0)))
         };
         let all: Vec<usize> = (0..lib.len()).collect();
-        let transforms_stage = |keep: &[usize]| -> Result<_> {
+        // The constant term (if offered) is estimated in the time domain: see `fill_constant`.
+        let const_of =
+            |keep: &[usize]| (0..keep.len()).find(|&j| lib.terms()[keep[j]].is_constant());
+        let grid: Vec<(usize, usize)> = (0..opt.window_counts.len())
+            .flat_map(|wi| (0..opt.deltas.len()).map(move |di| (wi, di)))
+            .collect();
+        // Criterion 3 and the choice of settings on the columns `keep`: windowed transforms,
+        // their rows compressed per setting and record, and each setting's held-out error.
+        let search = |keep: &[usize]| -> Result<Search> {
             let t0 = Instant::now();
             let qs_now: Vec<usize> = preps.iter().map(|p| decimation(p, lib, opt.form)).collect();
-            let (qs, mut tr) = match &reuse {
+            let (qs, mut transforms) = match &reuse {
                 Some((fp, cols)) if fp.qs == qs_now => (qs_now, fp.unweighted(cols)),
                 _ => unweighted_transforms(preps, spec, d, lib)?,
             };
-            reweight_all(&mut tr, opt, keep)?;
-            Ok(((qs, tr), ms(t0)))
+            reweight_all(&mut transforms, opt, keep)?;
+            let tr_ms = ms(t0);
+            let t0 = Instant::now();
+            let compressed = compress_settings(&transforms, opt, keep, nb)?;
+            let scores = held_out_scores(
+                &compressed,
+                &grid,
+                &data.td,
+                keep,
+                const_of(keep),
+                &|train, held| Ok(fit_select(train, held, opt.threshold, opt.n_thresholds)?.0),
+            )?;
+            Ok(Search {
+                qs,
+                transforms,
+                compressed,
+                scores,
+                ms: (tr_ms, ms(t0)),
+            })
         };
-        // Without pruning, Criterion 3 does not depend on Criterion 1's outcome: both run at
-        // once (the calibration and the windowed transforms each leave cores idle on their own).
+        // Without pruning, Criteria 3 and the settings search do not depend on Criterion 1's
+        // outcome (only the final verdict does): both run at once.
         let (c1_out, early) = if opt.prune {
             (c1_stage()?, None)
         } else {
-            let (a, b) = rayon::join(c1_stage, || transforms_stage(&all));
+            let (a, b) = rayon::join(c1_stage, || search(&all));
             (a?, Some(b?))
         };
-        let (data, (mut c1, factor, nonconst), c1_ms) = c1_out;
+        let ((mut c1, factor, nonconst), c1_ms) = c1_out;
         timing.push((format!("{dof}: criterion 1"), c1_ms));
         // ---- Criterion 2.
         let t0 = Instant::now();
@@ -1150,102 +1289,26 @@ fn identify_tfs_once(
             c2 = Some(res);
         }
         timing.push((format!("{dof}: criterion 2"), ms(t0)));
-        // ---- Criterion 3: transforms for each window count.
-        let ((qs, transforms), tr_ms) = match early {
+        // ---- Criterion 3 and the settings by leave-one-block-out held-out error.
+        let Search {
+            qs,
+            transforms,
+            compressed,
+            scores,
+            ms: (tr_ms, search_ms),
+        } = match early {
             Some(t) => t,
-            None => transforms_stage(&keep)?,
+            None => search(&keep)?,
         };
         timing.push((format!("{dof}: criterion 3 transforms"), tr_ms));
         let t0 = Instant::now();
-        // The constant term (if offered) is estimated in the time domain: see `fill_constant`.
-        let const_j = (0..keep.len()).find(|&j| lib.terms()[keep[j]].is_constant());
-        // Compressed rows per window count, delta and block. The bins kept at a smaller δ
-        // include those kept at a larger one, so each window is compressed once, from the
-        // largest δ down, appending only the rows each smaller δ adds.
-        let mut order: Vec<usize> = (0..opt.deltas.len()).collect();
-        order.sort_by(|&a, &b| opt.deltas[b].total_cmp(&opt.deltas[a]));
-        // One window layout of one block, compressed at every δ (indexed like `opt.deltas`).
-        let compress_block = |wins: &[WindowTransform]| -> Result<Vec<BlockRows>> {
-            let mut out: Vec<Option<BlockRows>> = vec![None; opt.deltas.len()];
-            let mut state: Vec<(Compressed, usize)> =
-                vec![(Compressed::empty(keep.len()), 0); wins.len()];
-            let mut rows = 0;
-            let mut freqs = Vec::new();
-            let mut hi = f64::INFINITY;
-            for &di in &order {
-                let lo = opt.deltas[di];
-                for (w, st) in wins.iter().zip(state.iter_mut()) {
-                    let (a, y, f) = rows_for_band(w, lo, hi, &keep);
-                    if a.nrows() == 0 {
-                        continue;
-                    }
-                    rows += a.nrows();
-                    freqs.extend(f);
-                    st.0.append(a.as_ref(), &y)?;
-                    st.1 += a.nrows();
-                }
-                hi = lo;
-                let mut parts: Vec<Compressed> = state
-                    .iter()
-                    .filter(|(_, m)| *m > 0)
-                    .map(|(c, _)| c.clone())
-                    .collect();
-                if parts.is_empty() {
-                    parts.push(Compressed::empty(keep.len()));
-                }
-                out[di] = Some((Compressed::merge(&parts)?, parts, rows, freqs.clone()));
-            }
-            Ok(out
-                .into_iter()
-                .map(|o| o.expect("every δ visited"))
-                .collect())
-        };
-        let pairs: Vec<(usize, usize)> = (0..opt.window_counts.len())
-            .flat_map(|wi| (0..nb).map(move |b| (wi, b)))
-            .collect();
-        let mut per_pair: Vec<Vec<BlockRows>> = pairs
-            .par_iter()
-            .map(|&(wi, b)| compress_block(&transforms[wi][b]))
-            .collect::<Result<_>>()?;
-        // compressed[wi][di][block]
-        let mut compressed: Vec<Vec<Vec<BlockRows>>> =
-            vec![vec![Vec::with_capacity(nb); opt.deltas.len()]; opt.window_counts.len()];
-        for (&(wi, _), by_delta) in pairs.iter().zip(per_pair.iter_mut()) {
-            for (di, br) in std::mem::take(by_delta).into_iter().enumerate() {
-                compressed[wi][di].push(br);
-            }
-        }
-        // ---- Settings by leave-one-block-out held-out error.
-        let grid: Vec<(usize, usize)> = (0..opt.window_counts.len())
-            .flat_map(|wi| (0..opt.deltas.len()).map(move |di| (wi, di)))
-            .collect();
+        let const_j = const_of(&keep);
         // Mean relative time-domain residual on each record in turn, of the model `fit` makes
         // from the other records' rows (training rows, held-out rows) at every setting.
         let held_out_scores =
             |fit: &(dyn Fn(&Compressed, &Compressed) -> Result<Vec<f64>> + Sync)| {
-                grid.par_iter()
-                    .map(|&(wi, di)| -> Result<f64> {
-                        let cb = &compressed[wi][di];
-                        let mut err = 0.0;
-                        for f in 0..nb {
-                            let train: Vec<Compressed> = (0..nb)
-                                .filter(|&k| k != f)
-                                .map(|k| cb[k].0.clone())
-                                .collect();
-                            let mut coef = fit(&Compressed::merge(&train)?, &cb[f].0)?;
-                            if let Some(cj) = const_j {
-                                let td = (0..nb).filter(|&k| k != f).map(|k| &data.td[k]);
-                                fill_constant(&mut coef, cj, td, &keep);
-                            }
-                            err += held_out_relative_rss(&data.td[f], &keep, &coef)?;
-                        }
-                        Ok(err / nb as f64)
-                    })
-                    .collect::<Result<Vec<f64>>>()
+                held_out_scores(&compressed, &grid, &data.td, &keep, const_j, fit)
             };
-        let scores = held_out_scores(&|train, held| {
-            Ok(fit_select(train, held, opt.threshold, opt.n_thresholds)?.0)
-        })?;
         let mut candidates = Vec::new();
         let mut best: Option<(f64, usize, usize)> = None;
         for (&(wi, di), &err) in grid.iter().zip(&scores) {
@@ -1261,7 +1324,7 @@ fn identify_tfs_once(
         }
         let (best_err, wi, di) = best.expect("at least one setting");
         let (wi0, di0) = (wi, di);
-        timing.push((format!("{dof}: settings selection"), ms(t0)));
+        timing.push((format!("{dof}: settings selection"), search_ms + ms(t0)));
         // ---- Data assembly + Criterion 4 (the last block is held out).
         let t0 = Instant::now();
         let cb = &compressed[wi][di];
