@@ -4,6 +4,8 @@
 //! upper-triangular `(n+1)×(n+1)` factor
 //! `[[R, c], [0, ρ]]` with `‖Aξ − b‖² = ‖Rξ − c‖² + ρ²` for every `ξ`.
 //! Everything in this crate works on that small factor, so the m-row decomposition is done once.
+//! New rows and other blocks' factors are zeroed into an existing factor by Householder
+//! reflections that keep its triangular structure (see [`Compressed::append`]).
 
 use crate::error::{RegressError, Result};
 use faer::dyn_stack::{MemBuffer, MemStack};
@@ -255,7 +257,9 @@ impl Compressed {
 
     /// Add more rows `(A, b)` without revisiting the rows already compressed.
     ///
-    /// Cost is one QR of an `(n+1+k)×(n+1)` matrix for `k` new rows.
+    /// Up to 512 rows at a time are zeroed into the current factor with one Householder
+    /// reflection per column (~2(k+1)n² flops for `k` rows); longer inputs go in chunks of up to
+    /// 2,048 rows through a dense QR of the factor stacked on the chunk.
     pub fn append(&mut self, a: MatRef<'_, f64>, b: &[f64]) -> Result<()> {
         let n = self.ncols();
         if a.ncols() != n {
@@ -270,9 +274,9 @@ impl Compressed {
         Ok(())
     }
 
-    /// Append rows in cache-sized chunks: each chunk is stacked under the current
-    /// `(n+1)×(n+1)` factor and re-factored (a sequential TSQR), so the m-row data is read
-    /// once and every QR works in cache.
+    /// Append rows in cache-sized chunks (a sequential TSQR, so the m-row data is read once and
+    /// every update works in cache): a short chunk is zeroed into the current factor by
+    /// [`absorb_rows`], a long one stacked under it and re-factored by a dense QR.
     fn append_unchecked(&mut self, a: MatRef<'_, f64>, b: &[f64]) {
         let n = self.ncols();
         let total = a.nrows();
