@@ -1506,8 +1506,10 @@ fn identify_tfs_once(
                 .enumerate()
                 .flat_map(|(r, wins)| wins.iter().enumerate().map(move |(w, t)| (r, w, t)))
                 .collect();
-            let parts = cluster_blocks(&rows, delta, &keep)?;
-            if parts.len() >= 3 {
+            // The clusters are compressed only for the bootstrap, which a pass the elimination
+            // replaces skips.
+            let n_parts = bin_clusters(&rows, delta, &[]).len();
+            if n_parts >= 3 {
                 // The constant is estimated in the time domain, not from the bins: no interval.
                 let sel: Vec<usize> = (0..keep.len())
                     .filter(|&j| support[j] && Some(j) != const_j)
@@ -1528,6 +1530,7 @@ fn identify_tfs_once(
                 let inclusion_note = if replaced {
                     "inclusion not computed in this pass (terms are removed and the selection re-run)".to_string()
                 } else {
+                    let parts = cluster_blocks(&rows, delta, &keep)?;
                     let s = bagging(
                         &parts,
                         &Stlsq {
@@ -1548,8 +1551,7 @@ fn identify_tfs_once(
                     }
                     format!(
                         "inclusion = share of {} bootstrap resamples of the same {} clusters in which STLSQ at the chosen threshold keeps the term",
-                        opt.bagging,
-                        parts.len()
+                        opt.bagging, n_parts
                     )
                 };
                 interval_note = match clusters {
@@ -1564,8 +1566,7 @@ fn identify_tfs_once(
                 };
             } else {
                 interval_note = format!(
-                    "no coefficient intervals: only {} independent window(s) to resample",
-                    parts.len()
+                    "no coefficient intervals: only {n_parts} independent window(s) to resample"
                 );
             }
         }
