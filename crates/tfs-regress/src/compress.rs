@@ -136,17 +136,9 @@ fn absorb_rows(w: &mut [f64], n1: usize, ld: usize, k: usize, trapezoid: bool) -
         if outside(alpha) || v.iter().any(|&x| outside(x)) {
             return false;
         }
-        let sigma: f64 = v.iter().map(|x| x * x).sum();
-        if sigma == 0.0 {
+        let Some((beta, tau)) = crate::fit::householder(alpha, v) else {
             continue;
-        }
-        let norm = (alpha * alpha + sigma).sqrt();
-        let beta = if alpha <= 0.0 { norm } else { -norm };
-        let v0 = alpha - beta;
-        let tau = -v0 / beta;
-        for x in v.iter_mut() {
-            *x /= v0;
-        }
+        };
         colj[j] = beta;
         let v = &colj[n1..n1 + a];
         for col in tail.chunks_exact_mut(ld) {

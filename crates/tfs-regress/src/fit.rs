@@ -260,6 +260,23 @@ pub(crate) fn subset_solve(
 /// The rank test is [`unpivoted_lstsq`]'s: every `|R_kk|` must stay [`UNPIVOTED_MARGIN`] above
 /// the pivoted QR's tolerance for a system of `r.nrows()` rows, relative to the largest scaled
 /// column norm.
+/// The Householder reflection `I − τ·u·uᵀ`, `u = [1; v]`, that maps the vector `[alpha; v]` to
+/// `[beta; 0]` (LAPACK's sign convention: `beta` opposite to `alpha`). Overwrites `v` with the
+/// tail of `u` and returns `(beta, τ)`; `None` when `v` is zero (nothing to reflect).
+pub(crate) fn householder(alpha: f64, v: &mut [f64]) -> Option<(f64, f64)> {
+    let sigma: f64 = v.iter().map(|x| x * x).sum();
+    if sigma == 0.0 {
+        return None;
+    }
+    let norm = (alpha * alpha + sigma).sqrt();
+    let beta = if alpha <= 0.0 { norm } else { -norm };
+    let v0 = alpha - beta;
+    for x in v.iter_mut() {
+        *x /= v0;
+    }
+    Some((beta, -v0 / beta))
+}
+
 fn staircase_lstsq(
     r: MatRef<'_, f64>,
     c: &[f64],
@@ -296,17 +313,9 @@ fn staircase_lstsq(
         let (head, tail) = w.split_at_mut((k + 1) * top);
         let colk = &mut head[k * top..];
         let alpha = colk[k];
-        let sigma: f64 = colk[k + 1..=last].iter().map(|v| v * v).sum();
-        if sigma == 0.0 {
+        let Some((beta, tau)) = householder(alpha, &mut colk[k + 1..=last]) else {
             continue;
-        }
-        let norm = (alpha * alpha + sigma).sqrt();
-        let beta = if alpha <= 0.0 { norm } else { -norm };
-        let v0 = alpha - beta;
-        let tau = -v0 / beta;
-        for v in &mut colk[k + 1..=last] {
-            *v /= v0;
-        }
+        };
         colk[k] = beta;
         let vk = &colk[k + 1..=last];
         let reflect = |x: &mut [f64]| {
