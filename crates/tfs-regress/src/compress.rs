@@ -340,18 +340,16 @@ impl Compressed {
         if used.is_empty() {
             return Ok(Self::empty(n));
         }
-        // A block of fewer than n+1 rows has a factor with only that many non-zero rows:
-        // stacking just those leaves the merged factor unchanged and the QR smaller.
-        let height = |b: &Compressed| b.m.min(n + 1);
         if let Some(f) = Self::merge_structured(&used, n) {
             return Ok(f);
         }
-        let total: usize = used.iter().map(|(b, _)| height(b)).sum();
+        // Only each block's `factor_rows` are stacked: the rest are zero.
+        let total: usize = used.iter().map(|(b, _)| b.factor_rows()).sum();
         let mut aug = Mat::<f64>::zeros(total.max(1), n + 1);
         let mut m = 0;
         let mut row = 0;
         for (b, k) in &used {
-            let h = height(b);
+            let h = b.factor_rows();
             aug.as_mut()
                 .get_mut(row..row + h, ..)
                 .copy_from(b.augmented((*k as f64).sqrt()).get(..h, ..));
@@ -366,19 +364,22 @@ impl Compressed {
     /// of a dense QR of every factor stacked). `None` where [`absorb_rows`] declines.
     fn merge_structured(used: &[&(&Compressed, usize)], n: usize) -> Option<Self> {
         let n1 = n + 1;
-        let height = |b: &Compressed| b.m.min(n1);
         let (first, k0) = used[0];
         // As in `append_unchecked`: fewer rows than n+1 in all go to the dense QR.
         if used.iter().map(|(b, k)| b.m * k).sum::<usize>() < n1 {
             return None;
         }
-        let hmax = used[1..].iter().map(|(b, _)| height(b)).max().unwrap_or(0);
+        let hmax = used[1..]
+            .iter()
+            .map(|(b, _)| b.factor_rows())
+            .max()
+            .unwrap_or(0);
         let ld = n1 + hmax;
         let mut buf = vec![0.0; ld * n1];
         first.write_augmented((*k0 as f64).sqrt(), n1, &mut buf, ld, 0);
         let mut m = first.m * k0;
         for (b, k) in &used[1..] {
-            let h = height(b);
+            let h = b.factor_rows();
             b.write_augmented((*k as f64).sqrt(), h, &mut buf, ld, n1);
             if !absorb_rows(&mut buf, n1, ld, h, true) {
                 return None;
@@ -386,6 +387,12 @@ impl Compressed {
             m += b.m * k;
         }
         Some(Self::from_buffer(&buf, n1, ld, m))
+    }
+
+    /// Rows of the augmented factor that can be non-zero: a block of fewer than n+1 rows has a
+    /// factor with only that many, so merging stacks just those.
+    fn factor_rows(&self) -> usize {
+        self.m.min(self.ncols() + 1)
     }
 
     /// Number of columns `n`.
@@ -499,7 +506,7 @@ impl<'a> CountedMerge<'a> {
             let h = blocks
                 .iter()
                 .map(|b| {
-                    let rows = b.m.min(n1);
+                    let rows = b.factor_rows();
                     // Xᵀ = F⁻ᵀ B_gᵀ, then H_g = XᵀX.
                     let mut xt = b.augmented(1.0).get(..rows, ..).transpose().to_owned();
                     faer::linalg::triangular_solve::solve_lower_triangular_in_place(
