@@ -11,7 +11,7 @@
 //! 1–2 % small, which lowers the barrier between the wells.
 //!
 //! The correction estimates `D` and `d` by simulation: draws of each record's own noise model
-//! (its fitted noise floor, limited to its cut-off; see [`band_noise`]) are pushed through the
+//! (its fitted noise floor, limited to its cut-off; see [`crate::spectral::band_noise`]) are pushed through the
 //! same term evaluation, windows, kept bins and bin weights as the data, and the coefficients of
 //! the selected structure solve `(AᵀA − D)β = Aᵀy − d`. Each draw is used as an antithetic pair
 //! (`x̂ ± δ`, half the difference), which keeps the part of every row that is odd in the noise —
@@ -33,9 +33,10 @@ use tfs_regress::Compressed;
 use crate::error::Result;
 use crate::pipeline::TfsOptions;
 use crate::prepare::{
-    Prepared, RecordSeries, Series, TransformForm, WindowTransform, record_series, rows_for,
+    Prepared, RecordSeries, Series, TransformForm, WindowTransform, decimate, decimated_inputs,
+    decimated_series, record_series, rows_for,
 };
-use crate::spectral::{Band, Smoothed, band_noise, bin_omegas, window, window_layout};
+use crate::spectral::{Band, Smoothed, band_noise_with, bin_omegas, window, window_layout};
 
 /// Second moments of the noise part of the regression rows, over the columns of one support.
 #[derive(Debug, Clone)]
@@ -69,15 +70,20 @@ fn seed(record: usize, draw: usize, dof: usize) -> u64 {
 pub(crate) struct NoiseDraws {
     draws: usize,
     dofs: usize,
+    /// Whether the draws carry their second derivative (only forms other than the weak one
+    /// read it).
+    with_acc: bool,
     slots: Vec<OnceLock<Option<Smoothed>>>,
 }
 
 impl NoiseDraws {
-    /// Room for `draws` draws of `dofs` DOFs in each of `records` records.
-    pub(crate) fn new(records: usize, dofs: usize, draws: usize) -> Self {
+    /// Room for `draws` draws of `dofs` DOFs in each of `records` records, for the transform
+    /// `form` (which decides whether the draws need their second derivative).
+    pub(crate) fn new(records: usize, dofs: usize, draws: usize, form: TransformForm) -> Self {
         Self {
             draws,
             dofs,
+            with_acc: form != TransformForm::Weak,
             slots: (0..records * draws * dofs)
                 .map(|_| OnceLock::new())
                 .collect(),
@@ -93,7 +99,7 @@ impl NoiseDraws {
         m: usize,
         i: usize,
     ) -> Cow<'_, Option<Smoothed>> {
-        let make = || band_noise(band, n, seed(r, m, i));
+        let make = || band_noise_with(band, n, seed(r, m, i), self.with_acc);
         if m >= self.draws || i >= self.dofs {
             return Cow::Owned(make());
         }
@@ -179,43 +185,66 @@ pub(crate) fn noise_moments(
                 .enumerate()
                 .map(|(i, s)| cache.get(&s.band, n, r, m, i))
                 .collect();
-            let shifted = |sign: f64| -> Prepared<'_> {
-                let smooth = p
-                    .smooth
+            let q = qs[r];
+            // Decimated series read only every q-th sample of the reconstruction: the shifted
+            // copy is made at those samples alone (the same sums as shifting, then decimating).
+            // A term that uses an input reads the reconstruction at the full rate.
+            let decimated = q > 1 && !sub.terms().iter().any(|t| t.uses_input());
+            let inputs = decimated.then(|| decimated_inputs(p, &sub, q));
+            let step = if decimated { q } else { 1 };
+            let shifted = |sign: f64| -> Vec<Smoothed> {
+                let add = |a: &[f64], b: &[f64]| -> Vec<f64> {
+                    a.iter()
+                        .step_by(step)
+                        .zip(b.iter().step_by(step))
+                        .map(|(u, v)| u + sign * v)
+                        .collect()
+                };
+                p.smooth
                     .iter()
                     .zip(&noise)
                     .map(|(s, e)| match e.as_ref() {
-                        None => s.clone(),
-                        Some(e) => {
-                            let add = |a: &[f64], b: &[f64]| -> Vec<f64> {
-                                a.iter().zip(b).map(|(u, v)| u + sign * v).collect()
-                            };
-                            Smoothed {
-                                x: add(&s.x, &e.x),
-                                v: add(&s.v, &e.v),
-                                a: add(&s.a, &e.a),
-                                band: s.band,
-                            }
-                        }
+                        None => Smoothed {
+                            x: decimate(&s.x, step),
+                            v: decimate(&s.v, step),
+                            a: decimate(&s.a, step),
+                            band: s.band,
+                        },
+                        Some(e) => Smoothed {
+                            x: add(&s.x, &e.x),
+                            v: add(&s.v, &e.v),
+                            a: add(&s.a, &e.a),
+                            band: s.band,
+                        },
                     })
-                    .collect();
-                Prepared {
-                    rec: p.rec,
-                    dt: p.dt,
-                    smooth,
-                }
+                    .collect()
             };
-            let series = |sign: f64| {
-                record_series(
-                    &shifted(sign),
+            let series = |sign: f64| match &inputs {
+                Some(base) => decimated_series(
+                    p,
+                    base,
+                    shifted(sign),
+                    dofs,
+                    dof,
+                    &sub,
+                    opt.form == TransformForm::Weak,
+                    q,
+                    opt.debias,
+                ),
+                None => record_series(
+                    &Prepared {
+                        rec: p.rec,
+                        dt: p.dt,
+                        smooth: shifted(sign),
+                    },
                     dofs,
                     dof,
                     &sub,
                     opt.form,
                     opt.savitzky_golay,
-                    qs[r],
+                    q,
                     opt.debias,
-                )
+                ),
             };
             let (plus, minus) = (series(1.0)?, series(-1.0)?);
             let half = |a: &[f64], b: &[f64]| -> Vec<f64> {

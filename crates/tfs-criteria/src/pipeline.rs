@@ -412,6 +412,15 @@ pub(crate) fn blocks_of(records: &[Record]) -> Result<Vec<Record>> {
     Ok(out)
 }
 
+/// The columns `cols` of `a` (in that order), copied a whole column at a time.
+pub(crate) fn columns_of(a: &Mat<f64>, cols: &[usize]) -> Mat<f64> {
+    let mut out = Mat::<f64>::zeros(a.nrows(), cols.len());
+    for (k, &j) in cols.iter().enumerate() {
+        out.col_as_slice_mut(k).copy_from_slice(a.col_as_slice(j));
+    }
+    out
+}
+
 /// Small centred factor of `[Θ | y]` over several blocks: compress `[1 | Θ]` against `y` and drop
 /// the constant's row and column.
 fn centred_factor(blocks: &[(Mat<f64>, Vec<f64>)], cols: &[usize]) -> Result<Mat<f64>> {
@@ -629,12 +638,7 @@ impl FirstPass {
     fn td(&self, cols: &[usize]) -> Vec<(Mat<f64>, Vec<f64>)> {
         self.td
             .iter()
-            .map(|(a, y)| {
-                (
-                    Mat::from_fn(a.nrows(), cols.len(), |i, j| a[(i, cols[j])]),
-                    y.clone(),
-                )
-            })
+            .map(|(a, y)| (columns_of(a, cols), y.clone()))
             .collect()
     }
 
@@ -891,6 +895,7 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
         preps.len(),
         spec.dofs.len(),
         spec.tfs.noise_correction_draws,
+        spec.tfs.form,
     );
     let once =
         |spec: &IdentifySpec, c1: Option<&[Criterion1]>, final_pass: bool, shared: &Shared<'_>| {
@@ -1128,25 +1133,33 @@ fn held_out_scores(
     fit: &(dyn Fn(&Compressed, &Compressed) -> Result<Vec<f64>> + Sync),
 ) -> Result<Vec<f64>> {
     let nb = td.len();
-    grid.par_iter()
-        .map(|&(wi, di)| -> Result<f64> {
+    if nb == 0 {
+        return Ok(vec![f64::NAN; grid.len()]);
+    }
+    // Every (setting, held-out record) pair is its own task: a setting's folds differ in cost,
+    // and whole settings as tasks left one thread idle at the end.
+    let jobs: Vec<(usize, usize)> = (0..grid.len())
+        .flat_map(|g| (0..nb).map(move |f| (g, f)))
+        .collect();
+    let errs: Vec<f64> = jobs
+        .par_iter()
+        .map(|&(g, f)| -> Result<f64> {
+            let (wi, di) = grid[g];
             let cb = &compressed[wi][di];
-            let mut err = 0.0;
-            for f in 0..nb {
-                let train: Vec<Compressed> = (0..nb)
-                    .filter(|&k| k != f)
-                    .map(|k| cb[k].0.clone())
-                    .collect();
-                let mut coef = fit(&Compressed::merge(&train)?, &cb[f].0)?;
-                if let Some(cj) = const_j {
-                    let rest = (0..nb).filter(|&k| k != f).map(|k| &td[k]);
-                    fill_constant(&mut coef, cj, rest, keep);
-                }
-                err += held_out_relative_rss(&td[f], keep, &coef)?;
+            let train: Vec<(&Compressed, usize)> =
+                (0..nb).filter(|&k| k != f).map(|k| (&cb[k].0, 1)).collect();
+            let mut coef = fit(&Compressed::merge_counted(&train)?, &cb[f].0)?;
+            if let Some(cj) = const_j {
+                let rest = (0..nb).filter(|&k| k != f).map(|k| &td[k]);
+                fill_constant(&mut coef, cj, rest, keep);
             }
-            Ok(err / nb as f64)
+            held_out_relative_rss(&td[f], keep, &coef)
         })
-        .collect()
+        .collect::<Result<_>>()?;
+    Ok(errs
+        .chunks(nb)
+        .map(|e| e.iter().fold(0.0, |a, v| a + v) / nb as f64)
+        .collect())
 }
 
 /// Index of `dof` in `dofs` (0 if absent).
@@ -1330,49 +1343,67 @@ fn identify_tfs_once(
         let cb = &compressed[wi][di];
         let hold = nb - 1;
         let (ha, hy) = &data.td[hold];
-        let hak = Mat::<f64>::from_fn(ha.nrows(), keep.len(), |i, j| ha[(i, keep[j])]);
+        let hak = columns_of(ha, &keep);
         let mut steps: Vec<AssemblyStep> = Vec::new();
         let mut fits: Vec<(Vec<f64>, f64)> = Vec::new();
         let mut stop = None;
-        for k in 1..=hold {
-            let train =
-                Compressed::merge(&cb[..k].iter().map(|c| c.0.clone()).collect::<Vec<_>>())?;
-            let (mut coef, thr) = fit_select(&train, &cb[hold].0, opt.threshold, opt.n_thresholds)?;
+        // Step k: the model from the first k records, scored on the held-out one.
+        let step = |k: usize| -> Result<(Vec<f64>, f64, f64, f64)> {
+            let train: Vec<(&Compressed, usize)> = cb[..k].iter().map(|c| (&c.0, 1)).collect();
+            let (mut coef, thr) = fit_select(
+                &Compressed::merge_counted(&train)?,
+                &cb[hold].0,
+                opt.threshold,
+                opt.n_thresholds,
+            )?;
             if let Some(cj) = const_j {
                 fill_constant(&mut coef, cj, &data.td[..k], &keep);
             }
             let (mu, sigma) = residual_stats(hak.as_ref(), hy, &coef);
-            steps.push(AssemblyStep {
-                records: blocks[..k].iter().map(|r| r.source().to_string()).collect(),
-                rows: cb[..k].iter().map(|c| c.2).sum(),
-                n_terms: coef.iter().filter(|c| **c != 0.0).count(),
-                mu,
-                sigma,
-            });
-            fits.push((coef, thr));
-            // An empty model explains nothing: it never meets Criterion 4, and a σ that stays
-            // at the spread of x'' because both steps are empty is not convergence.
-            let nonempty = |st: &AssemblyStep| st.n_terms > 0;
-            let ok = nonempty(&steps[k - 1])
-                && match (opt.mu0, opt.sigma0) {
-                    (Some(m0), Some(s0)) => mu <= m0 && sigma <= s0,
-                    (m0, s0) => {
-                        let m_ok = mu <= m0.unwrap_or(0.05);
-                        let s_ok = match s0 {
-                            Some(s0) => sigma <= s0,
-                            None => {
-                                k >= 2
-                                    && nonempty(&steps[k - 2])
-                                    && sigma >= 0.99 * steps[k - 2].sigma
-                            }
-                        };
-                        m_ok && s_ok
-                    }
-                };
-            if ok {
-                stop = Some(k);
-                break;
+            Ok((coef, thr, mu, sigma))
+        };
+        // The steps are computed as many at a time as there are threads (the steps do not
+        // depend on each other; only the stopping rule is sequential), then walked in order.
+        let width = rayon::current_num_threads().max(1);
+        let mut next = 1;
+        'assembly: while next <= hold {
+            let end = (next + width - 1).min(hold);
+            let batch: Vec<Result<_>> = (next..=end).into_par_iter().map(step).collect();
+            for (k, r) in (next..=end).zip(batch) {
+                let (coef, thr, mu, sigma) = r?;
+                steps.push(AssemblyStep {
+                    records: blocks[..k].iter().map(|r| r.source().to_string()).collect(),
+                    rows: cb[..k].iter().map(|c| c.2).sum(),
+                    n_terms: coef.iter().filter(|c| **c != 0.0).count(),
+                    mu,
+                    sigma,
+                });
+                fits.push((coef, thr));
+                // An empty model explains nothing: it never meets Criterion 4, and a σ that
+                // stays at the spread of x'' because both steps are empty is not convergence.
+                let nonempty = |st: &AssemblyStep| st.n_terms > 0;
+                let ok = nonempty(&steps[k - 1])
+                    && match (opt.mu0, opt.sigma0) {
+                        (Some(m0), Some(s0)) => mu <= m0 && sigma <= s0,
+                        (m0, s0) => {
+                            let m_ok = mu <= m0.unwrap_or(0.05);
+                            let s_ok = match s0 {
+                                Some(s0) => sigma <= s0,
+                                None => {
+                                    k >= 2
+                                        && nonempty(&steps[k - 2])
+                                        && sigma >= 0.99 * steps[k - 2].sigma
+                                }
+                            };
+                            m_ok && s_ok
+                        }
+                    };
+                if ok {
+                    stop = Some(k);
+                    break 'assembly;
+                }
             }
+            next = end + 1;
         }
         let (chosen, thr, used, verdict) = match stop {
             Some(k) if opt.refit_all_records && k < nb => {
@@ -1448,8 +1479,8 @@ fn identify_tfs_once(
         let mut no_correction = String::from("no kept term to correct");
         let mut fit_support = |c: &[f64], used: usize| -> Result<Vec<f64>> {
             let support: Vec<bool> = c.iter().map(|v| *v != 0.0).collect();
-            let rows =
-                Compressed::merge(&cb[..used].iter().map(|c| c.0.clone()).collect::<Vec<_>>())?;
+            let parts: Vec<(&Compressed, usize)> = cb[..used].iter().map(|c| (&c.0, 1)).collect();
+            let rows = Compressed::merge_counted(&parts)?;
             let mut f = lstsq_support(&rows, &support)?;
             let cols: Vec<usize> = (0..keep.len())
                 .filter(|&j| support[j] && Some(j) != const_j)

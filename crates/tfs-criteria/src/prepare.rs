@@ -165,34 +165,67 @@ pub(crate) fn record_series(
     }
     // Decimated: terms built only from the band-limited DOF signals are pointwise functions of
     // them, so evaluating them on every q-th sample equals decimating the full-rate series.
-    // Inputs are broadband: a term that uses one is evaluated at the full rate and low-passed
-    // below the new Nyquist before decimating.
-    let dec = |v: &[f64]| v.iter().step_by(q).copied().collect::<Vec<f64>>();
-    let rows = p.rec.len().div_ceil(q);
-    let base = OwnedColumns {
-        rows,
-        cols: lib
-            .required_columns()
-            .into_iter()
-            .filter_map(|c| p.rec.column(&c).map(|v| (c.clone(), dec(v))))
-            .collect(),
-    };
     let smooth: Vec<Smoothed> = p
         .smooth
         .iter()
         .map(|s| Smoothed {
-            x: dec(&s.x),
-            v: dec(&s.v),
-            a: dec(&s.a),
+            x: decimate(&s.x, q),
+            v: decimate(&s.v, q),
+            a: decimate(&s.a, q),
             band: s.band,
         })
         .collect();
-    let mut cs = ColumnSet::new(&base as &dyn Columns);
+    decimated_series(
+        p,
+        &decimated_inputs(p, lib, q),
+        smooth,
+        dofs,
+        dof,
+        lib,
+        form == TransformForm::Weak,
+        q,
+        debias,
+    )
+}
+
+/// Every `q`-th sample of `v`, from the first.
+pub(crate) fn decimate(v: &[f64], q: usize) -> Vec<f64> {
+    v.iter().step_by(q).copied().collect()
+}
+
+/// The record columns the library reads (inputs), at every `q`-th sample.
+pub(crate) fn decimated_inputs(p: &Prepared<'_>, lib: &Library, q: usize) -> OwnedColumns {
+    OwnedColumns {
+        rows: p.rec.len().div_ceil(q),
+        cols: lib
+            .required_columns()
+            .into_iter()
+            .filter_map(|c| p.rec.column(&c).map(|v| (c.clone(), decimate(v, q))))
+            .collect(),
+    }
+}
+
+/// [`record_series`] at decimation `q > 1` (a transform form with a reconstruction, `weak` or
+/// plain spectral) from the DOF reconstructions `smooth` and the input columns `base`, both
+/// already decimated. Inputs are broadband: a term that uses one is evaluated on `p` at the full
+/// rate and low-passed below the new Nyquist before decimating.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn decimated_series(
+    p: &Prepared<'_>,
+    base: &OwnedColumns,
+    smooth: Vec<Smoothed>,
+    dofs: &[String],
+    dof: usize,
+    lib: &Library,
+    weak: bool,
+    q: usize,
+    debias: bool,
+) -> Result<RecordSeries> {
+    let mut cs = ColumnSet::new(base as &dyn Columns);
     for (d, s) in dofs.iter().zip(&smooth) {
         cs.insert(d.clone(), s.x.clone())?;
         cs.insert(format!("{d}'"), s.v.clone())?;
     }
-    let weak = form == TransformForm::Weak;
     let nyq = 0.5 / (p.dt * q as f64);
     let mut full_cs = None;
     let mut terms = Vec::with_capacity(lib.len());
@@ -203,7 +236,7 @@ pub(crate) fn record_series(
             }
             let fcs = full_cs.as_ref().expect("just set");
             let ser = term_series(t, fcs, &p.smooth, dofs, weak, debias)?;
-            let lp = |v: &[f64]| dec(&low_pass(v, p.dt, 0.8 * nyq));
+            let lp = |v: &[f64]| decimate(&low_pass(v, p.dt, 0.8 * nyq), q);
             terms.push(match ser {
                 Series::Plain(v) => Series::Plain(lp(&v)),
                 Series::Transfer(v) => Series::Transfer(lp(&v)),
@@ -488,11 +521,14 @@ pub(crate) fn rows_for_band(
             rows.push((b, true));
         }
     }
-    let a = Mat::<f64>::from_fn(rows.len(), keep.len(), |i, j| {
-        let (b, im) = rows[i];
-        let c = w.cols[keep[j]][b] * w.weight[b];
-        if im { c.im } else { c.re }
-    });
+    let mut a = Mat::<f64>::zeros(rows.len(), keep.len());
+    for (k, &j) in keep.iter().enumerate() {
+        let col = &w.cols[j];
+        for (o, &(b, im)) in a.col_as_slice_mut(k).iter_mut().zip(&rows) {
+            let c = col[b] * w.weight[b];
+            *o = if im { c.im } else { c.re };
+        }
+    }
     let y = rows
         .iter()
         .map(|&(b, im)| {
@@ -504,7 +540,7 @@ pub(crate) fn rows_for_band(
 }
 
 /// Owned columns of equal length (a strided subsample of a [`ColumnSet`]).
-struct OwnedColumns {
+pub(crate) struct OwnedColumns {
     rows: usize,
     cols: Vec<(String, Vec<f64>)>,
 }

@@ -406,16 +406,19 @@ pub fn low_pass(x: &[f64], dt: f64, cutoff_hz: f64) -> Vec<f64> {
 
 /// The first `n` samples of the inverse transform (length `nn`, normalised) of the half spectrum
 /// `spec` limited to bins `0..=kc`, and of its first and second time derivatives (each bin times
-/// `iω` and `−ω²`, bin spacing `df` Hz), with the thread's work buffers.
+/// `iω` and `−ω²`, bin spacing `df` Hz), with the thread's work buffers. The second derivative
+/// is left empty unless `with_acc`.
 fn inverse_with_derivatives(
     spec: &[Complex<f64>],
     kc: usize,
     df: f64,
     nn: usize,
     n: usize,
+    with_acc: bool,
 ) -> [Vec<f64>; 3] {
     let inv = fft_inverse(nn);
     let mut outs = [Vec::new(), Vec::new(), Vec::new()];
+    let orders = if with_acc { 3 } else { 2 };
     WORK.with_borrow_mut(|work| {
         let Work {
             real,
@@ -423,7 +426,7 @@ fn inverse_with_derivatives(
             scratch,
         } = work;
         real.resize(nn, 0.0);
-        for (d, out) in outs.iter_mut().enumerate() {
+        for (d, out) in outs.iter_mut().enumerate().take(orders) {
             s.clear();
             s.extend(spec.iter().enumerate().map(|(k, &c)| {
                 if k > kc {
@@ -471,7 +474,7 @@ pub fn band_limit(x: &[f64], dt: f64, cutoff_hz: Option<f64>) -> Smoothed {
     let share = (noise_sum / total).min(1.0);
     // Parseval on the 2N-point extension: variance = 2·Σ_{1≤k≤kc} N̂_k / (2N)².
     let noise_var = 2.0 * noise_sum / (nn as f64 * nn as f64);
-    let [xs, v, a] = inverse_with_derivatives(&spec, kc, df, nn, n);
+    let [xs, v, a] = inverse_with_derivatives(&spec, kc, df, nn, n, true);
     Smoothed {
         x: xs,
         v,
@@ -495,6 +498,12 @@ pub fn band_limit(x: &[f64], dt: f64, cutoff_hz: Option<f64>) -> Smoothed {
 /// reconstruction is. Its variance is `band.noise_var` in expectation. Seeded: same seed, same
 /// draw. `None` when the band has no usable floor model.
 pub fn band_noise(band: &Band, n: usize, seed: u64) -> Option<Smoothed> {
+    band_noise_with(band, n, seed, true)
+}
+
+/// [`band_noise`], with the second derivative (`a`) left empty unless `with_acc`: the weak form
+/// never reads it, and it costs one of the draw's four transforms.
+pub fn band_noise_with(band: &Band, n: usize, seed: u64, with_acc: bool) -> Option<Smoothed> {
     let nn = band.mirror_len;
     if !band.floor_log_a.is_finite() || nn < 2 || n > nn || band.bin_hz <= 0.0 {
         return None;
@@ -516,7 +525,7 @@ pub fn band_noise(band: &Band, n: usize, seed: u64) -> Option<Smoothed> {
         };
         *c *= g;
     }
-    let [x, v, a] = inverse_with_derivatives(&spec, kc, band.bin_hz, nn, n);
+    let [x, v, a] = inverse_with_derivatives(&spec, kc, band.bin_hz, nn, n, with_acc);
     Some(Smoothed {
         x,
         v,
