@@ -90,6 +90,32 @@ impl NoiseDraws {
         }
     }
 
+    /// Makes, in parallel, every draw that [`noise_moments`] would ask for on `preps` with the
+    /// options `opt`, so that they can be made while other work runs (they do not depend on the
+    /// library). Nothing is drawn where [`noise_moments`] would not draw: no draws asked for, a
+    /// form without a noise model, or a band whose floor is not a noise estimate.
+    pub(crate) fn prefill(&self, preps: &[Prepared<'_>], opt: &TfsOptions) {
+        if self.draws == 0 || opt.form == TransformForm::PlainSavitzkyGolay {
+            return;
+        }
+        if preps
+            .iter()
+            .any(|p| p.smooth.iter().any(|s| !s.band.floor_is_noise_only()))
+        {
+            return;
+        }
+        let jobs: Vec<(usize, usize, usize)> = (0..preps.len())
+            .flat_map(|r| {
+                let dofs = preps[r].smooth.len().min(self.dofs);
+                (0..self.draws).flat_map(move |m| (0..dofs).map(move |i| (r, m, i)))
+            })
+            .collect();
+        jobs.par_iter().with_max_len(1).for_each(|&(r, m, i)| {
+            let p = &preps[r];
+            drop(self.get(&p.smooth[i].band, p.rec.len(), r, m, i));
+        });
+    }
+
     /// Draw `m` of DOF `i` of record `r` (whose band is `band`, `n` samples long).
     fn get(
         &self,
@@ -176,6 +202,7 @@ pub(crate) fn noise_moments(
         .collect();
     let parts: Vec<(Mat<f64>, Vec<f64>)> = jobs
         .par_iter()
+        .with_max_len(1)
         .map(|&(r, m)| -> Result<(Mat<f64>, Vec<f64>)> {
             let p = &preps[r];
             let n = p.rec.len();

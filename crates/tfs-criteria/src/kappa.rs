@@ -176,49 +176,60 @@ pub(crate) fn kappa_by_gram(
     if m < p + 1 || p < 2 {
         return Ok(None);
     }
-    let mut c = Mat::<f64>::zeros(m, p);
-    let mut norms = vec![0.0; p];
-    for (j, nj) in norms.iter_mut().enumerate() {
-        let out = c
-            .col_mut(j)
-            .try_as_col_major_mut()
-            .expect("faer columns are contiguous");
-        let out = out.as_slice_mut();
-        // Column j < p−1 is library column cols[j]; the last is the target.
-        let mut row = 0;
-        for (a, y) in blocks {
-            let v = if j + 1 == p {
+    // Column j < p−1 is library column cols[j] of every block; the last is the target.
+    let source = |j: usize| {
+        blocks.iter().map(move |(a, y)| {
+            if j + 1 == p {
                 y.as_slice()
             } else {
                 a.col_as_slice(cols[j])
-            };
-            out[row..row + v.len()].copy_from_slice(v);
+            }
+        })
+    };
+    let mut c = Mat::<f64>::zeros(m, p);
+    let mut norms = vec![0.0; p];
+    for (j, nj) in norms.iter_mut().enumerate() {
+        // One pass for the sum and the largest magnitude, one for the centred copy and its
+        // sum of squares, each with independent accumulators (vectorised).
+        let mut stats = Lanes::default();
+        for v in source(j) {
+            stats.sum_and_max(v);
+        }
+        let (sum, size) = stats.totals();
+        if !(sum.is_finite() && size.is_finite()) {
+            for (b, v) in source(j).enumerate() {
+                if let Some(i) = v.iter().position(|v| !v.is_finite()) {
+                    let row = blocks[..b].iter().map(|(a, _)| a.nrows()).sum::<usize>() + i;
+                    return Err(CriteriaError::Numerics(format!(
+                        "column {j} row {row} of the diagnostic matrix is {}",
+                        v[i]
+                    )));
+                }
+            }
+            // Finite entries whose sum overflows: the QR route scales before it sums.
+            return Ok(None);
+        }
+        let mean = sum / m as f64;
+        let out = c
+            .col_mut(j)
+            .try_as_col_major_mut()
+            .expect("faer columns are contiguous")
+            .as_slice_mut();
+        let mut sq = Lanes::default();
+        let mut row = 0;
+        for v in source(j) {
+            sq.centre_into(v, mean, &mut out[row..row + v.len()]);
             row += v.len();
         }
-        if let Some(i) = out.iter().position(|v| !v.is_finite()) {
-            return Err(CriteriaError::Numerics(format!(
-                "column {j} row {i} of the diagnostic matrix is {}",
-                out[i]
-            )));
-        }
-        let size = out.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-        let mean = out.iter().sum::<f64>() / m as f64;
-        let mut ss = 0.0;
-        for v in out.iter_mut() {
-            *v -= mean;
-            ss += *v * *v;
-        }
+        let ss = sq.totals().0;
         *nj = ss.sqrt();
         // A column constant up to rounding (the test of `centre`) has no variance to speak of.
         let sd = (ss / (m as f64 - 1.0)).sqrt();
         if sd <= 1e-14 * size.max(f64::MIN_POSITIVE) || !nj.is_finite() {
             return Ok(None);
         }
-        let f = 1.0 / *nj;
-        for v in out.iter_mut() {
-            *v *= f;
-        }
     }
+    // The Gram matrix of the centred columns, scaled to unit-norm columns afterwards.
     let mut g = Mat::<f64>::zeros(p, p);
     matmul(
         g.as_mut(),
@@ -231,6 +242,12 @@ pub(crate) fn kappa_by_gram(
         1.0,
         faer::Par::Seq,
     );
+    drop(c);
+    for k in 0..p {
+        for i in k..p {
+            g[(i, k)] /= norms[i] * norms[k];
+        }
+    }
     let Ok(llt) = g.as_ref().llt(faer::Side::Lower) else {
         return Ok(None);
     };
@@ -245,6 +262,61 @@ pub(crate) fn kappa_by_gram(
         raw: kappa_of_columns(rs.as_ref(), &all, Some(&inv))?,
         standardised,
     }))
+}
+
+/// Eight independent accumulators for column sums, sums of squares and magnitudes: a single
+/// running sum waits on every addition, eight let the compiler vectorise. (The lane loops index
+/// by lane on purpose: `l` picks the accumulator and the element alike.)
+#[derive(Default)]
+struct Lanes {
+    sum: [f64; 8],
+    max: [f64; 8],
+}
+
+impl Lanes {
+    /// Adds `v` to the sums and the largest magnitudes (a NaN leaves the magnitudes alone and
+    /// makes the sum NaN).
+    #[allow(clippy::needless_range_loop)]
+    fn sum_and_max(&mut self, v: &[f64]) {
+        let mut chunks = v.chunks_exact(8);
+        for ch in &mut chunks {
+            for l in 0..8 {
+                self.sum[l] += ch[l];
+                let a = ch[l].abs();
+                self.max[l] = if a > self.max[l] { a } else { self.max[l] };
+            }
+        }
+        for (l, &x) in chunks.remainder().iter().enumerate() {
+            self.sum[l] += x;
+            self.max[l] = self.max[l].max(x.abs());
+        }
+    }
+
+    /// Writes `v − mean` into `out` and adds its squares to the sums.
+    #[allow(clippy::needless_range_loop)]
+    fn centre_into(&mut self, v: &[f64], mean: f64, out: &mut [f64]) {
+        let mut src = v.chunks_exact(8);
+        let mut dst = out.chunks_exact_mut(8);
+        for (s, o) in (&mut src).zip(&mut dst) {
+            for l in 0..8 {
+                let d = s[l] - mean;
+                o[l] = d;
+                self.sum[l] += d * d;
+            }
+        }
+        for (l, (&x, o)) in src.remainder().iter().zip(dst.into_remainder()).enumerate() {
+            let d = x - mean;
+            *o = d;
+            self.sum[l] += d * d;
+        }
+    }
+
+    /// The sum over the lanes and the largest magnitude.
+    fn totals(&self) -> (f64, f64) {
+        let sum = ((self.sum[0] + self.sum[4]) + (self.sum[1] + self.sum[5]))
+            + ((self.sum[2] + self.sum[6]) + (self.sum[3] + self.sum[7]));
+        (sum, self.max.iter().fold(0.0f64, |a, &v| a.max(v)))
+    }
 }
 
 /// Euclidean norms of the columns of `r`.

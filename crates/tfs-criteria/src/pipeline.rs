@@ -490,6 +490,7 @@ pub(crate) fn criterion1_dof(
         .collect();
     let td: Vec<(Mat<f64>, Vec<f64>)> = blocks
         .par_iter()
+        .with_max_len(1)
         .map(|r| criterion1_block(r, spec, d, lib))
         .collect::<Result<_>>()?;
     // The centred factor is needed only by Criterion 2's pruning; κ alone has a cheaper route.
@@ -562,6 +563,7 @@ fn reweight_all(
     let dmin = opt.deltas.iter().cloned().fold(f64::INFINITY, f64::min);
     transforms
         .par_iter_mut()
+        .with_max_len(1)
         .try_for_each(|t| reweight(t, dmin, keep, opt.reweight))
 }
 
@@ -578,6 +580,7 @@ fn unweighted_transforms(
     let qs: Vec<usize> = preps.iter().map(|p| decimation(p, lib, opt.form)).collect();
     let series: Vec<_> = preps
         .par_iter()
+        .with_max_len(1)
         .zip(&qs)
         .map(|(p, &q)| {
             record_series(
@@ -595,9 +598,11 @@ fn unweighted_transforms(
     let transforms: Vec<Vec<_>> = opt
         .window_counts
         .par_iter()
+        .with_max_len(1)
         .map(|&wc| {
             series
                 .par_iter()
+                .with_max_len(1)
                 .map(|s| {
                     window_transforms(s, wc, dmin, opt.min_bin_snr, &mut RealFftPlanner::new())
                 })
@@ -631,14 +636,6 @@ impl FirstPass {
         lib.terms()
             .iter()
             .map(|t| self.terms.iter().position(|u| u == t))
-            .collect()
-    }
-
-    /// The time-domain blocks restricted to the columns `cols`.
-    fn td(&self, cols: &[usize]) -> Vec<(Mat<f64>, Vec<f64>)> {
-        self.td
-            .iter()
-            .map(|(a, y)| (columns_of(a, cols), y.clone()))
             .collect()
     }
 
@@ -865,9 +862,19 @@ type Criterion1Out = (Criterion1, Mat<f64>, Vec<usize>);
 type BlockRows = (Compressed, Vec<Compressed>, usize, Vec<f64>);
 
 /// Per-block data for one DOF.
-struct DofData {
-    /// Time-domain (Θ, x'') per block (band-limited, trimmed), full library.
-    td: Vec<(Mat<f64>, Vec<f64>)>,
+struct DofData<'a> {
+    /// Time-domain (Θ, x'') per block (band-limited, trimmed): this pass's own, or the first
+    /// pass's (whose library includes this one's; see `cols`).
+    td: std::borrow::Cow<'a, [(Mat<f64>, Vec<f64>)]>,
+    /// The column of `td` that holds each library term.
+    cols: Vec<usize>,
+}
+
+impl DofData<'_> {
+    /// The columns of `td` of the library terms `keep`.
+    fn columns(&self, keep: &[usize]) -> Vec<usize> {
+        keep.iter().map(|&j| self.cols[j]).collect()
+    }
 }
 
 /// T-F-S SINDy (criteria 1–4 with data assembly), then backward elimination by significance
@@ -880,6 +887,7 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
     let t0 = Instant::now();
     let preps: Vec<Prepared<'_>> = blocks
         .par_iter()
+        .with_max_len(1)
         .map(|r| {
             prepare(
                 r,
@@ -901,16 +909,24 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
         |spec: &IdentifySpec, c1: Option<&[Criterion1]>, final_pass: bool, shared: &Shared<'_>| {
             identify_tfs_once(&blocks, &preps, recon_ms, spec, c1, final_pass, shared)
         };
-    let (mut id, first_pass) = once(
-        spec,
-        None,
-        rounds == 0,
-        &Shared {
-            noise: &noise,
-            first: None,
-            keep_products: rounds > 0,
+    // The noise draws of the errors-in-variables correction are made alongside the first pass
+    // (it needs them only at its end), filling the gaps its own parallel work leaves.
+    let (first, ()) = rayon::join(
+        || {
+            once(
+                spec,
+                None,
+                rounds == 0,
+                &Shared {
+                    noise: &noise,
+                    first: None,
+                    keep_products: rounds > 0,
+                },
+            )
         },
-    )?;
+        || noise.prefill(&preps, &spec.tfs),
+    );
+    let (mut id, first_pass) = first?;
     if rounds == 0 {
         return Ok(id);
     }
@@ -1109,6 +1125,7 @@ fn compress_settings(
         .collect();
     let mut per_pair: Vec<Vec<BlockRows>> = pairs
         .par_iter()
+        .with_max_len(1)
         .map(|&(wi, b)| compress_block(&transforms[wi][b]))
         .collect::<Result<_>>()?;
     let mut compressed: Vec<Vec<Vec<BlockRows>>> =
@@ -1143,6 +1160,7 @@ fn held_out_scores(
         .collect();
     let errs: Vec<f64> = jobs
         .par_iter()
+        .with_max_len(1)
         .map(|&(g, f)| -> Result<f64> {
             let (wi, di) = grid[g];
             let cb = &compressed[wi][di];
@@ -1208,13 +1226,21 @@ fn identify_tfs_once(
         // and Criterion 1.
         let given = given_c1.and_then(|c| c.get(d));
         let t0 = Instant::now();
-        let data = DofData {
-            td: match &reuse {
-                Some((fp, cols)) => fp.td(cols),
-                None => preps
-                    .par_iter()
-                    .map(|p| time_domain(p, &spec.dofs, d, lib, trim(p), stride(p)))
-                    .collect::<Result<_>>()?,
+        // A re-run reads the first pass's blocks through a column map instead of copying them.
+        let data = match &reuse {
+            Some((fp, cols)) => DofData {
+                td: std::borrow::Cow::Borrowed(&fp.td[..]),
+                cols: cols.clone(),
+            },
+            None => DofData {
+                td: std::borrow::Cow::Owned(
+                    preps
+                        .par_iter()
+                        .with_max_len(1)
+                        .map(|p| time_domain(p, &spec.dofs, d, lib, trim(p), stride(p)))
+                        .collect::<Result<_>>()?,
+                ),
+                cols: (0..lib.len()).collect(),
             },
         };
         let td_ms = ms(t0);
@@ -1258,7 +1284,7 @@ fn identify_tfs_once(
                 &compressed,
                 &grid,
                 &data.td,
-                keep,
+                &data.columns(keep),
                 const_of(keep),
                 &|train, held| Ok(fit_select(train, held, opt.threshold, opt.n_thresholds)?.0),
             )?;
@@ -1316,11 +1342,13 @@ fn identify_tfs_once(
         timing.push((format!("{dof}: criterion 3 transforms"), tr_ms));
         let t0 = Instant::now();
         let const_j = const_of(&keep);
+        // The time-domain columns of the kept terms.
+        let td_keep = data.columns(&keep);
         // Mean relative time-domain residual on each record in turn, of the model `fit` makes
         // from the other records' rows (training rows, held-out rows) at every setting.
         let held_out_scores =
             |fit: &(dyn Fn(&Compressed, &Compressed) -> Result<Vec<f64>> + Sync)| {
-                held_out_scores(&compressed, &grid, &data.td, &keep, const_j, fit)
+                held_out_scores(&compressed, &grid, &data.td, &td_keep, const_j, fit)
             };
         let mut candidates = Vec::new();
         let mut best: Option<(f64, usize, usize)> = None;
@@ -1343,7 +1371,7 @@ fn identify_tfs_once(
         let cb = &compressed[wi][di];
         let hold = nb - 1;
         let (ha, hy) = &data.td[hold];
-        let hak = columns_of(ha, &keep);
+        let hak = columns_of(ha, &td_keep);
         let mut steps: Vec<AssemblyStep> = Vec::new();
         let mut fits: Vec<(Vec<f64>, f64)> = Vec::new();
         let mut stop = None;
@@ -1357,7 +1385,7 @@ fn identify_tfs_once(
                 opt.n_thresholds,
             )?;
             if let Some(cj) = const_j {
-                fill_constant(&mut coef, cj, &data.td[..k], &keep);
+                fill_constant(&mut coef, cj, &data.td[..k], &td_keep);
             }
             let (mu, sigma) = residual_stats(hak.as_ref(), hy, &coef);
             Ok((coef, thr, mu, sigma))
@@ -1518,7 +1546,7 @@ fn identify_tfs_once(
                 crate::eiv::Moments::Unavailable(why) => no_correction = why,
             }
             if let Some(cj) = const_j {
-                fill_constant(&mut f.coef, cj, &data.td[..used], &keep);
+                fill_constant(&mut f.coef, cj, &data.td[..used], &td_keep);
             }
             Ok(f.coef)
         };
@@ -1803,7 +1831,7 @@ fn identify_tfs_once(
         if shared.keep_products {
             products.push(FirstPass {
                 terms: lib.terms().to_vec(),
-                td: data.td,
+                td: data.td.into_owned(),
                 qs,
                 transforms,
             });
@@ -1963,6 +1991,7 @@ fn cluster_blocks(
         .into_values()
         .collect::<Vec<_>>()
         .into_par_iter()
+        .with_max_len(1)
         .map(|c| {
             let m = Mat::<f64>::from_fn(c.len(), k, |i, j| c[i].0[j]);
             let y: Vec<f64> = c.iter().map(|r| r.1).collect();
@@ -2095,6 +2124,7 @@ fn calibration_points(
         .collect();
     let mut points: Vec<CalibrationPoint> = levels
         .par_iter()
+        .with_max_len(1)
         .map(|&snr| -> Result<CalibrationPoint> {
             let kappa = match snr {
                 None => criterion1_kappa(&[criterion1_block(&segment, spec, d, lib)?], nonconst)?,

@@ -134,14 +134,9 @@ impl Library {
     /// Missing or short columns and non-finite results are errors naming the column and term.
     pub fn evaluate(&self, cols: &dyn Columns) -> Result<Mat<f64>> {
         let mut powers = PowerCache::new();
-        let columns: Vec<Vec<f64>> = self
-            .terms
-            .iter()
-            .map(|t| evaluate_term_cached(t, cols, &mut powers))
-            .collect::<Result<_>>()?;
         let mut m = Mat::<f64>::zeros(cols.rows(), self.terms.len());
-        for (j, c) in columns.iter().enumerate() {
-            m.col_as_slice_mut(j).copy_from_slice(c);
+        for (j, t) in self.terms.iter().enumerate() {
+            evaluate_term_into(t, cols, &mut powers, m.col_as_slice_mut(j))?;
         }
         Ok(m)
     }
@@ -254,7 +249,20 @@ fn evaluate_term_cached(
     cols: &dyn Columns,
     cache: &mut PowerCache,
 ) -> Result<Vec<f64>> {
-    let mut out = vec![1.0; cols.rows()];
+    let mut out = vec![0.0; cols.rows()];
+    evaluate_term_into(term, cols, cache, &mut out)?;
+    Ok(out)
+}
+
+/// [`evaluate_term_cached`] written into `out` (one value per row). The product starts from
+/// the first factor itself rather than from 1 times it (the same values).
+fn evaluate_term_into(
+    term: &Term,
+    cols: &dyn Columns,
+    cache: &mut PowerCache,
+    out: &mut [f64],
+) -> Result<()> {
+    let mut first = true;
     for f in term.factors() {
         match f {
             Factor::Pow(v, k) if *k >= 2 => {
@@ -264,15 +272,29 @@ fn evaluate_term_cached(
                     cache.insert(key.clone(), power_column(&vals, *k));
                 }
                 let pw = &cache[&key];
-                out.iter_mut().zip(pw).for_each(|(o, p)| *o *= p);
+                if first {
+                    out.copy_from_slice(pw);
+                } else {
+                    out.iter_mut().zip(pw).for_each(|(o, p)| *o *= p);
+                }
             }
             _ => {
                 let vals = var_values(f.var(), cols, term)?;
-                for (o, v) in out.iter_mut().zip(vals.iter()) {
-                    *o *= f.apply(*v);
+                if first {
+                    for (o, v) in out.iter_mut().zip(vals.iter()) {
+                        *o = f.apply(*v);
+                    }
+                } else {
+                    for (o, v) in out.iter_mut().zip(vals.iter()) {
+                        *o *= f.apply(*v);
+                    }
                 }
             }
         }
+        first = false;
+    }
+    if first {
+        out.fill(1.0);
     }
     if let Some(row) = out.iter().position(|v| !v.is_finite()) {
         return Err(LibraryError::NonFinite {
@@ -280,7 +302,7 @@ fn evaluate_term_cached(
             row,
         });
     }
-    Ok(out)
+    Ok(())
 }
 
 /// Evaluates one term on every row of `cols`.

@@ -85,6 +85,7 @@ pub fn bagging<R: Regressor + Sync + ?Sized>(
     let merger = crate::compress::CountedMerge::new(blocks)?;
     let draws: Vec<Result<(Vec<f64>, Vec<bool>)>> = (0..opts.n_boot)
         .into_par_iter()
+        .with_max_len(1)
         .map(|i| {
             let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
             rng.set_stream(i as u64);
