@@ -854,12 +854,12 @@ fn support_threshold(path: &tfs_regress::LambdaPath) -> f64 {
     }
 }
 
-/// One block's frequency-domain rows: merged, per window, row count, kept frequencies.
 /// Criterion 1 of one DOF: the verdict, the centred factor Criterion 2 prunes on and the
 /// non-constant columns (see [`criterion1_dof`]).
 type Criterion1Out = (Criterion1, Mat<f64>, Vec<usize>);
 
-type BlockRows = (Compressed, Vec<Compressed>, usize, Vec<f64>);
+/// One block's frequency-domain rows at one setting: compressed, row count, kept frequencies.
+type BlockRows = (Compressed, usize, Vec<f64>);
 
 /// Per-block data for one DOF.
 struct DofData<'a> {
@@ -1084,36 +1084,27 @@ fn compress_settings(
 ) -> Result<Vec<Vec<Vec<BlockRows>>>> {
     let mut order: Vec<usize> = (0..opt.deltas.len()).collect();
     order.sort_by(|&a, &b| opt.deltas[b].total_cmp(&opt.deltas[a]));
-    // One window layout of one block, compressed at every δ (indexed like `opt.deltas`).
+    // One window layout of one block, compressed at every δ (indexed like `opt.deltas`): one
+    // factor per block, to which each smaller δ appends the rows it adds in every window.
     let compress_block = |wins: &[WindowTransform]| -> Result<Vec<BlockRows>> {
         let mut out: Vec<Option<BlockRows>> = vec![None; opt.deltas.len()];
-        let mut state: Vec<(Compressed, usize)> =
-            vec![(Compressed::empty(keep.len()), 0); wins.len()];
+        let mut state = Compressed::empty(keep.len());
         let mut rows = 0;
         let mut freqs = Vec::new();
         let mut hi = f64::INFINITY;
         for &di in &order {
             let lo = opt.deltas[di];
-            for (w, st) in wins.iter().zip(state.iter_mut()) {
+            for w in wins {
                 let (a, y, f) = rows_for_band(w, lo, hi, keep);
                 if a.nrows() == 0 {
                     continue;
                 }
                 rows += a.nrows();
                 freqs.extend(f);
-                st.0.append(a.as_ref(), &y)?;
-                st.1 += a.nrows();
+                state.append(a.as_ref(), &y)?;
             }
             hi = lo;
-            let mut parts: Vec<Compressed> = state
-                .iter()
-                .filter(|(_, m)| *m > 0)
-                .map(|(c, _)| c.clone())
-                .collect();
-            if parts.is_empty() {
-                parts.push(Compressed::empty(keep.len()));
-            }
-            out[di] = Some((Compressed::merge(&parts)?, parts, rows, freqs.clone()));
+            out[di] = Some((state.clone(), rows, freqs.clone()));
         }
         Ok(out
             .into_iter()
@@ -1401,7 +1392,7 @@ fn identify_tfs_once(
                 let (coef, thr, mu, sigma) = r?;
                 steps.push(AssemblyStep {
                     records: blocks[..k].iter().map(|r| r.source().to_string()).collect(),
-                    rows: cb[..k].iter().map(|c| c.2).sum(),
+                    rows: cb[..k].iter().map(|c| c.1).sum(),
                     n_terms: coef.iter().filter(|c| **c != 0.0).count(),
                     mu,
                     sigma,
@@ -1709,13 +1700,13 @@ fn identify_tfs_once(
             .zip(blocks)
             .zip(&qs)
             .map(|(((c, p), r), &q)| {
-                let lo = c.3.iter().cloned().fold(f64::INFINITY, f64::min);
-                let hi = c.3.iter().cloned().fold(0.0, f64::max);
+                let lo = c.2.iter().cloned().fold(f64::INFINITY, f64::min);
+                let hi = c.2.iter().cloned().fold(0.0, f64::max);
                 RecordBins {
                     record: r.source().to_string(),
                     cutoff_hz: p.smooth[d].band.cutoff_hz,
                     in_band_noise_share: p.smooth[d].band.in_band_noise_share,
-                    kept_bins: c.3.len(),
+                    kept_bins: c.2.len(),
                     band_hz: [if lo.is_finite() { lo } else { 0.0 }, hi],
                     decimation: q,
                 }

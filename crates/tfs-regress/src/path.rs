@@ -152,6 +152,7 @@ pub fn lambda_path(train: &Compressed, val: &Compressed, opts: &PathOptions) -> 
     let nt = opts.n_thresholds;
     let mut seen: HashMap<Vec<bool>, (Vec<f64>, f64, f64)> = HashMap::new();
     let mut cache = crate::stlsq::SolveCache::new();
+    let sc = crate::stlsq::scales(train, base.scale_columns);
     let mut points = Vec::with_capacity(nt);
     for i in 0..nt {
         let frac = if nt == 1 {
@@ -162,7 +163,7 @@ pub fn lambda_path(train: &Compressed, val: &Compressed, opts: &PathOptions) -> 
         let threshold = top * opts.min_ratio.powf(frac);
         // With the unbiased refit, STLSQ's coefficients are the least-squares ones on its
         // support: the residuals are computed once per distinct support.
-        let (coef, ..) = Stlsq { threshold, ..base }.coef_cached(train, &mut cache)?;
+        let (coef, ..) = Stlsq { threshold, ..base }.coef_scaled(train, &mut cache, &sc)?;
         let support: Vec<bool> = coef.iter().map(|&v| v != 0.0).collect();
         let (coef, rss_train, rss_val) = match seen.get(&support) {
             Some(v) => v.clone(),

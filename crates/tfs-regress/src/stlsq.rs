@@ -162,13 +162,25 @@ impl Stlsq {
         p: &Compressed,
         cache: &mut SolveCache,
     ) -> Result<(Vec<f64>, Vec<usize>, usize, bool)> {
+        self.coef_scaled(p, cache, &scales(p, self.scale_columns))
+    }
+
+    /// [`Stlsq::coef_cached`] with the column and target scales of `p` already computed
+    /// ([`scales`] with this fit's `scale_columns`): a λ path computes them once, not at every
+    /// threshold.
+    pub(crate) fn coef_scaled(
+        &self,
+        p: &Compressed,
+        cache: &mut SolveCache,
+        (cs, bs): &(Vec<f64>, f64),
+    ) -> Result<(Vec<f64>, Vec<usize>, usize, bool)> {
         self.validate()?;
         let n = p.ncols();
-        let (cs, bs) = scales(p, self.scale_columns);
+        let (cs, bs) = (cs.as_slice(), *bs);
         // The memoised solve on `cols` copied into `x`; returns its dependent columns (almost
         // always none: an empty `Vec` does not allocate).
         let solve = |cols: &[usize], ridge: f64, cache: &mut SolveCache, x: &mut [f64]| {
-            let (xs, dep) = cache.get(cols, ridge > 0.0, || subset_solve(p, cols, &cs, bs, ridge));
+            let (xs, dep) = cache.get(cols, ridge > 0.0, || subset_solve(p, cols, cs, bs, ridge));
             x.copy_from_slice(xs);
             dep.clone()
         };
