@@ -503,6 +503,51 @@ pub(crate) fn rows_for(
     rows_for_band(w, delta, f64::INFINITY, keep)
 }
 
+/// The rows of [`rows_for`] of every window of `wins`, stacked in order (written straight into
+/// one matrix).
+fn stacked_rows<'w>(
+    wins: impl Iterator<Item = &'w WindowTransform> + Clone,
+    delta: f64,
+    keep: &[usize],
+) -> (Mat<f64>, Vec<f64>) {
+    // The bins `rows_for` keeps; each gives a real row, and an imaginary one unless it is DC.
+    let keeps =
+        |w: &WindowTransform, b: usize| w.rel_amp[b] >= delta && w.rel_amp[b] < f64::INFINITY;
+    let kept = |w: &WindowTransform| {
+        (0..w.lhs.len())
+            .filter(|&b| keeps(w, b))
+            .map(|b| if w.freq[b] > 0.0 { 2 } else { 1 })
+            .sum::<usize>()
+    };
+    let total: usize = wins.clone().map(kept).sum();
+    let mut a = Mat::<f64>::zeros(total, keep.len());
+    let mut y = Vec::with_capacity(total);
+    let mut rows: Vec<(usize, bool)> = Vec::new();
+    for w in wins {
+        rows.clear();
+        for b in (0..w.lhs.len()).filter(|&b| keeps(w, b)) {
+            rows.push((b, false));
+            if w.freq[b] > 0.0 {
+                rows.push((b, true));
+            }
+        }
+        let start = y.len();
+        for (k, &j) in keep.iter().enumerate() {
+            let col = &w.cols[j];
+            let out = &mut a.col_as_slice_mut(k)[start..start + rows.len()];
+            for (o, &(b, im)) in out.iter_mut().zip(&rows) {
+                let c = col[b] * w.weight[b];
+                *o = if im { c.im } else { c.re };
+            }
+        }
+        y.extend(rows.iter().map(|&(b, im)| {
+            let v = w.lhs[b] * w.weight[b];
+            if im { v.im } else { v.re }
+        }));
+    }
+    (a, y)
+}
+
 /// [`rows_for`] restricted to the bins with `lo ≤` relative amplitude `< hi`: the rows a smaller
 /// δ adds to a larger one's (the kept sets are nested in δ).
 pub(crate) fn rows_for_band(
@@ -686,25 +731,9 @@ pub(crate) fn reweight(
     for _ in 0..passes {
         // Every window's rows stacked and compressed in one call (its cache-sized chunks are
         // far cheaper than one small QR per window).
-        let parts: Vec<(Mat<f64>, Vec<f64>)> = recs
-            .iter()
-            .flatten()
-            .map(|w| {
-                let (a, y, _) = rows_for(w, delta, keep);
-                (a, y)
-            })
-            .collect();
-        let total: usize = parts.iter().map(|(a, _)| a.nrows()).sum();
-        if total == 0 {
+        let (a, y) = stacked_rows(recs.iter().flatten(), delta, keep);
+        if y.is_empty() {
             return Ok(());
-        }
-        let mut a = Mat::<f64>::zeros(total, keep.len());
-        let mut y = Vec::with_capacity(total);
-        for (pa, py) in &parts {
-            a.as_mut()
-                .get_mut(y.len()..y.len() + pa.nrows(), ..)
-                .copy_from(pa);
-            y.extend_from_slice(py);
         }
         let all = Compressed::from_rows(a.as_ref(), &y)?;
         let Ok(fit) = lstsq_support(&all, &vec![true; keep.len()]) else {
@@ -772,6 +801,50 @@ mod tests {
     use tfs_regress::{Compressed, lstsq_support};
     use tfs_signal::NoiseKind;
     use tfs_signal::noise::noise_for;
+
+    /// The reweighting's stacked rows are exactly the rows of every window one after another,
+    /// with DC bins giving one row and an infinite relative amplitude none (as `rows_for`).
+    #[test]
+    fn stacked_rows_are_the_windows_rows_in_order() {
+        let win = |k: usize, seed: f64| {
+            let c = |b: usize, j: usize| {
+                Complex::new(
+                    (seed + b as f64 * 0.7 + j as f64).sin(),
+                    (b as f64 - seed).cos(),
+                )
+            };
+            let rel_amp: Vec<f64> = (0..k)
+                .map(|b| match b {
+                    3 => f64::INFINITY,
+                    5 => f64::NAN,
+                    _ => ((b as f64 + seed) * 1.3).sin().abs(),
+                })
+                .collect();
+            WindowTransform {
+                freq: (0..k).map(|b| b as f64 * 0.1).collect(),
+                rel_amp,
+                lhs: (0..k).map(|b| c(b, 9)).collect(),
+                cols: (0..4).map(|j| (0..k).map(|b| c(b, j)).collect()).collect(),
+                weight: (0..k).map(|b| 1.0 + 0.01 * b as f64).collect(),
+            }
+        };
+        let wins = [win(12, 0.2), win(7, 1.1), win(20, 2.5)];
+        let keep = [0, 2, 3];
+        let (a, y) = stacked_rows(wins.iter(), 0.3, &keep);
+        let mut row = 0;
+        for w in &wins {
+            let (wa, wy, _) = rows_for(w, 0.3, &keep);
+            for i in 0..wa.nrows() {
+                assert_eq!(y[row + i], wy[i]);
+                for j in 0..keep.len() {
+                    assert_eq!(a[(row + i, j)], wa[(i, j)]);
+                }
+            }
+            row += wa.nrows();
+        }
+        assert_eq!((row, a.nrows(), y.len()), (a.nrows(), row, row));
+        assert!(row > 0);
+    }
 
     /// Criterion 1's block evaluates Savitzky–Golay derivatives only at the kept rows; it equals
     /// the full-length derivatives of `raw_columns_sg` (with asymmetric end fits) sampled there.
