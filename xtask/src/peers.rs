@@ -81,6 +81,12 @@ pub struct PeersArgs {
     /// the next. Use a separate `--out` per draw.
     #[arg(long, default_value_t = 0)]
     pub draw: u64,
+    /// Run noise realisations 0..N (draw 0 into `--out`, draw K into `<out>/draw-K`) and write
+    /// `peers_draws.md`/`.json`: every cell's median and range over the draws, and in how many
+    /// draws each tfs variant is at or below PySINDy weak. One draw decides little: the
+    /// oracle-chosen weak form swings by two orders of magnitude between draws.
+    #[arg(long, default_value_t = 1)]
+    pub draws: u64,
 }
 
 /// One noise case.
@@ -189,6 +195,12 @@ pub fn run(args: PeersArgs) -> Result<()> {
     if cases.is_empty() {
         bail!("--snr is empty; give at least one case, e.g. --snr 60,30");
     }
+    if args.draws == 0 {
+        bail!("--draws 0: give at least 1");
+    }
+    if args.draws > 1 && args.draw != 0 {
+        bail!("--draws {} runs draws 0..{} itself; leave out --draw", args.draws, args.draws);
+    }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating the output folder {}", args.out.display()))?;
     let scale = if args.quick { 0.3 } else { 1.0 };
@@ -201,16 +213,69 @@ pub fn run(args: PeersArgs) -> Result<()> {
     } else {
         Some(venv(&args)?)
     };
+    let mut all = Vec::new();
+    for k in 0..args.draws {
+        let (out, draw) = if args.draws == 1 {
+            (args.out.clone(), args.draw)
+        } else {
+            if k > 0 {
+                eprintln!("draw {k} of 0..{} …", args.draws);
+            }
+            let out = if k == 0 {
+                args.out.clone()
+            } else {
+                args.out.join(format!("draw-{k}"))
+            };
+            (out, k)
+        };
+        let ctx = DrawContext {
+            args: &args,
+            cases: &cases,
+            truth: &truth,
+            cfg: &cfg,
+            scale,
+            python: python.as_deref(),
+        };
+        all.push(run_draw(&ctx, &out, draw)?);
+    }
+    if args.draws > 1 {
+        write_draws_summary(&args.out, &all, args.quick)?;
+        eprintln!(
+            "wrote {}/peers_draws.md and peers_draws.json ({:.0} s)",
+            args.out.display(),
+            t_all.elapsed().as_secs_f64()
+        );
+    }
+    Ok(())
+}
+
+/// What every draw of one `cargo xtask peers` run shares.
+struct DrawContext<'a> {
+    args: &'a PeersArgs,
+    cases: &'a [Case],
+    truth: &'a TruthSet,
+    cfg: &'a BasinConfig,
+    scale: f64,
+    python: Option<&'a Path>,
+}
+
+/// One noise realisation `draw` of every case, written to `out` (records, models, table,
+/// figures); returns the table's rows.
+fn run_draw(ctx: &DrawContext<'_>, out: &Path, draw: u64) -> Result<Vec<Value>> {
+    let t_all = Instant::now();
+    let (args, cases, truth, cfg, scale) = (ctx.args, ctx.cases, ctx.truth, ctx.cfg, ctx.scale);
+    std::fs::create_dir_all(out)
+        .with_context(|| format!("creating the output folder {}", out.display()))?;
     let mut rows: Vec<Value> = Vec::new();
     for (ci, case) in cases.iter().enumerate() {
         eprintln!("[{}/{}] {} …", ci + 1, cases.len(), case.label());
-        let dir = args.out.join("data").join(case.key());
-        let clean_test = write_records(&truth, *case, scale, case.seed(args.draw), &dir)?;
+        let dir = out.join("data").join(case.key());
+        let clean_test = write_records(truth, *case, scale, case.seed(draw), &dir)?;
         let train: Vec<Record> = (1..=TRAIN.len())
             .map(|i| read_csv(dir.join(format!("train{i}.csv"))).map_err(anyhow::Error::from))
             .collect::<Result<_>>()?;
         let test = read_csv(dir.join("test.csv"))?;
-        let models_dir = args.out.join("models").join(case.key());
+        let models_dir = out.join("models").join(case.key());
         std::fs::create_dir_all(&models_dir)?;
         let mut fits: Vec<Fit> = Vec::new();
         let tfs_spec = |form: TransformForm, lib: &str| {
@@ -267,7 +332,7 @@ pub fn run(args: PeersArgs) -> Result<()> {
                 Value::Null,
             ));
         }
-        if let Some(py) = &python {
+        if let Some(py) = ctx.python {
             fits.extend(pysindy(py, &dir, &models_dir, &test, &clean_test)?);
         }
         for (name, fit, extra) in fits {
@@ -278,7 +343,7 @@ pub fn run(args: PeersArgs) -> Result<()> {
                         .write_path(&file)
                         .with_context(|| format!("writing {}", file.display()))?;
                     let t0 = Instant::now();
-                    let s = score(&model, &truth, &cfg, &test, &clean_test);
+                    let s = score(&model, truth, cfg, &test, &clean_test);
                     eprintln!(
                         "  {name:<26} force {:>9}  BOA {:>9}  R-MSE {:>9}  fit {secs:.2} s  (scored in {:.1} s)",
                         pct(s.force_error),
@@ -300,20 +365,129 @@ pub fn run(args: PeersArgs) -> Result<()> {
             rows.push(row);
         }
         // Rewrite the table after every case so an interrupted run keeps what it finished.
-        write_outputs(
-            &args.out,
-            &rows,
-            args.quick,
-            args.draw,
-            t_all.elapsed().as_secs_f64(),
-        )?;
+        write_outputs(out, &rows, args.quick, draw, t_all.elapsed().as_secs_f64())?;
     }
     let total = t_all.elapsed().as_secs_f64();
-    write_outputs(&args.out, &rows, args.quick, args.draw, total)?;
+    write_outputs(out, &rows, args.quick, draw, total)?;
     eprintln!(
         "wrote {}/peers.md, peers.json, peers_force_error.svg, peers_boa_error.svg ({total:.0} s)",
-        args.out.display()
+        out.display()
     );
+    Ok(rows)
+}
+
+/// A row's error `key` as a number for ranking: failures (and missing values) rank worst.
+fn rank_value(r: &Value, key: &str) -> f64 {
+    r.get(key).and_then(Value::as_f64).unwrap_or(f64::INFINITY)
+}
+
+/// The median of `v` (upper median for an even count; infinite entries are failures).
+fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    s.get(s.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+/// Percent with "failed" for an infinite (failed) value.
+fn pct_or_failed(v: f64) -> String {
+    if v.is_finite() { pct(v) } else { "failed".into() }
+}
+
+/// `peers_draws.md` and `peers_draws.json` of a `--draws N` run: per case and method the median
+/// and range of every error over the draws, and per case in how many draws each tfs variant is
+/// at or below the oracle-chosen PySINDy weak form.
+fn write_draws_summary(out: &Path, draws: &[Vec<Value>], quick: bool) -> Result<()> {
+    let n = draws.len();
+    let key_of = |r: &Value| {
+        let s = |k: &str| r.get(k).and_then(Value::as_str).unwrap_or("").to_string();
+        (s("case"), s("method"))
+    };
+    // Cells in first-seen order, each with its row from every draw that has one.
+    let mut cells: Vec<((String, String), Vec<Option<&Value>>)> = Vec::new();
+    for (d, rows) in draws.iter().enumerate() {
+        for r in rows {
+            let k = key_of(r);
+            let i = match cells.iter().position(|(c, _)| *c == k) {
+                Some(i) => i,
+                None => {
+                    cells.push((k, vec![None; n]));
+                    cells.len() - 1
+                }
+            };
+            cells[i].1[d] = Some(r);
+        }
+    }
+    let values = |rows: &[Option<&Value>], key: &str| -> Vec<f64> {
+        rows.iter()
+            .map(|r| r.map_or(f64::INFINITY, |r| rank_value(r, key)))
+            .collect()
+    };
+    let mut md = format!(
+        "# tfs vs PySINDy over {n} noise draws\n\nThe cases of `peers.md`{} with noise realisations 0..{n} (draw 0 is `peers.md`, draw K is `draw-K/peers.md`). Each cell: the median over the draws (the upper one for an even count) and the range; a failed fit or score counts as the worst value. PySINDy's settings are still chosen per draw by the lowest test R-MSE (an oracle); tfs chooses its own from the training records.\n\n| case | method | force error: median (range) | BOA error: median (range) | fit time (s), median |\n|---|---|---|---|---|\n",
+        if quick { " (--quick)" } else { "" }
+    );
+    let range = |v: &[f64]| {
+        let lo = v.iter().cloned().fold(f64::INFINITY, f64::min);
+        let hi = v.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+        format!("{}–{}", pct_or_failed(lo), pct_or_failed(hi))
+    };
+    let mut json_cells = Vec::new();
+    for ((case, method), rows) in &cells {
+        let fe = values(rows, "force_error");
+        let be = values(rows, "boa_error");
+        let ft: Vec<f64> = rows
+            .iter()
+            .filter_map(|r| r.and_then(|r| r.get("fit_seconds")).and_then(Value::as_f64))
+            .collect();
+        md += &format!(
+            "| {case} | {method} | {} ({}) | {} ({}) | {} |\n",
+            pct_or_failed(median(&fe)),
+            range(&fe),
+            pct_or_failed(median(&be)),
+            range(&be),
+            if ft.is_empty() { "—".to_string() } else { format!("{:.3}", median(&ft)) }
+        );
+        let num_or_null = |v: f64| if v.is_finite() { num(v) } else { Value::Null };
+        json_cells.push(json!({"case": case, "method": method,
+            "force_error": fe.iter().map(|&v| num_or_null(v)).collect::<Vec<_>>(),
+            "boa_error": be.iter().map(|&v| num_or_null(v)).collect::<Vec<_>>(),
+            "fit_seconds": ft}));
+    }
+    md += "\nDraws in which a tfs variant is at or below PySINDy weak (force error, BOA error):\n\n| case | method | force error | BOA error |\n|---|---|---|---|\n";
+    let cases: Vec<&String> = cells
+        .iter()
+        .map(|((c, _), _)| c)
+        .fold(Vec::new(), |mut v, c| {
+            if !v.contains(&c) {
+                v.push(c);
+            }
+            v
+        });
+    for case in cases {
+        let find = |m: &str| cells.iter().find(|((c, mm), _)| c == case && mm == m);
+        let Some((_, weak)) = find("PySINDy weak") else {
+            continue;
+        };
+        for m in ["tfs", "tfs (classical library)"] {
+            let Some((_, ours)) = find(m) else { continue };
+            let wins = |key: &str| {
+                let (a, b) = (values(ours, key), values(weak, key));
+                a.iter().zip(&b).filter(|(a, b)| a <= b).count()
+            };
+            md += &format!(
+                "| {case} | {m} | {} of {n} | {} of {n} |\n",
+                wins("force_error"),
+                wins("boa_error")
+            );
+        }
+    }
+    std::fs::write(out.join("peers_draws.md"), md)?;
+    std::fs::write(
+        out.join("peers_draws.json"),
+        serde_json::to_string_pretty(
+            &json!({"format": "tfs-peers-draws/1", "quick": quick, "draws": n, "cells": json_cells}),
+        )?,
+    )?;
     Ok(())
 }
 
