@@ -379,7 +379,7 @@ pub(crate) fn blocks_of(records: &[Record]) -> Result<Vec<Record>> {
     }
     if records.len() > 1 {
         return records
-            .iter()
+            .par_iter()
             .map(|r| {
                 let m = crate::spectral::smooth_len(r.len());
                 if m == r.len() {
@@ -672,6 +672,8 @@ struct Shared<'a> {
     first: Option<&'a [FirstPass]>,
     /// Keep this pass's products for later passes.
     keep_products: bool,
+    /// Write the trace into the model (the caller rewrites it after an elimination anyway).
+    write_trace: bool,
 }
 
 /// κ alone of time-domain blocks `(Θ, x'')` (constant columns excluded): from the Gram matrix
@@ -921,6 +923,7 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
                     noise: &noise,
                     first: None,
                     keep_products: rounds > 0,
+                    write_trace: rounds == 0,
                 },
             )
         },
@@ -1014,6 +1017,7 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
                 noise: &noise,
                 first: Some(&first_pass),
                 keep_products: false,
+                write_trace: false,
             },
         )?
         .0;
@@ -1053,8 +1057,13 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
         n.append(&mut d.settings.why);
         d.settings.why = n;
     }
-    id.model.trace =
-        serde_json::to_value(&id.trace).map_err(|e| CriteriaError::Invalid(e.to_string()))?;
+    // The first pass's products and the noise draws (several MB) are freed while the trace is
+    // written, instead of after it on one core.
+    let (trace, ()) = rayon::join(
+        || serde_json::to_value(&id.trace),
+        move || drop((first_pass, noise)),
+    );
+    id.model.trace = trace.map_err(|e| CriteriaError::Invalid(e.to_string()))?;
     Ok(id)
 }
 
@@ -1835,8 +1844,10 @@ fn identify_tfs_once(
         timing_ms: timing,
     };
     let mut model = Model::new(spec.dofs.clone(), equations, "tfs-sindy")?;
-    model.trace =
-        serde_json::to_value(&trace).map_err(|e| CriteriaError::Invalid(e.to_string()))?;
+    if shared.write_trace {
+        model.trace =
+            serde_json::to_value(&trace).map_err(|e| CriteriaError::Invalid(e.to_string()))?;
+    }
     Ok((Identified { model, trace }, products))
 }
 
