@@ -834,23 +834,32 @@ fn write_outputs(out: &Path, rows: &[Value], quick: bool, draw: u64, total: f64)
         },
         if quick { "61×61" } else { "200×200" }
     );
-    md += "| case | method | force error | BOA error | test R-MSE | fit time (s) |\n|---|---|---|---|---|---|\n";
+    md += "| case | method | force error | BOA error | test R-MSE | fit time (ms) | PySINDy weak's fit time / this one's |\n|---|---|---|---|---|---|---|\n";
+    let fit_secs = |r: &Value| r.get("fit_seconds").and_then(Value::as_f64);
     for r in rows {
         let s = |k: &str| r.get(k).and_then(Value::as_str).unwrap_or("").to_string();
-        let secs = r
-            .get("fit_seconds")
-            .and_then(Value::as_f64)
-            .map_or("—".into(), |v| format!("{v:.2}"));
+        let weak = rows
+            .iter()
+            .find(|w| {
+                w.get("case") == r.get("case")
+                    && w.get("method").and_then(Value::as_str) == Some("PySINDy weak")
+            })
+            .and_then(fit_secs);
+        let ratio = match (weak, fit_secs(r)) {
+            (Some(w), Some(t)) if t > 0.0 => format!("{:.1}×", w / t),
+            _ => "—".into(),
+        };
+        let secs = fit_secs(r).map_or("—".into(), |v| format!("{:.1}", 1000.0 * v));
         if let Some(f) = r.get("failure").and_then(Value::as_str) {
             md += &format!(
-                "| {} | {} | failed: {} | | | |\n",
+                "| {} | {} | failed: {} | | | | |\n",
                 s("case"),
                 s("method"),
                 f.replace('|', "/")
             );
         } else {
             md += &format!(
-                "| {} | {} | {} | {} | {} | {secs} |\n",
+                "| {} | {} | {} | {} | {} | {secs} | {ratio} |\n",
                 s("case"),
                 s("method"),
                 cell(r, "force_error"),
