@@ -94,14 +94,8 @@ impl NoiseDraws {
     /// options `opt`, so that they can be made while other work runs (they do not depend on the
     /// library). Nothing is drawn where [`noise_moments`] would not draw: no draws asked for, a
     /// form without a noise model, or a band whose floor is not a noise estimate.
-    pub(crate) fn prefill(&self, preps: &[Prepared<'_>], opt: &TfsOptions) {
-        if self.draws == 0 || opt.form == TransformForm::PlainSavitzkyGolay {
-            return;
-        }
-        if preps
-            .iter()
-            .any(|p| p.smooth.iter().any(|s| !s.band.floor_is_noise_only()))
-        {
+    pub(crate) fn prefill(&self, preps: &[Prepared<'_>], dofs: &[String], opt: &TfsOptions) {
+        if no_noise_model(preps, dofs, opt, self.draws).is_some() {
             return;
         }
         let jobs: Vec<(usize, usize, usize)> = (0..preps.len())
@@ -136,6 +130,35 @@ impl NoiseDraws {
     }
 }
 
+/// Why no noise draws can be made on `preps` with `draws` draws under the options `opt` (none
+/// asked for, a form without a noise model, or a band whose floor is not a noise estimate), or
+/// `None` when they can. Shared by [`noise_moments`] and [`NoiseDraws::prefill`].
+fn no_noise_model(
+    preps: &[Prepared<'_>],
+    dofs: &[String],
+    opt: &TfsOptions,
+    draws: usize,
+) -> Option<String> {
+    if draws == 0 {
+        return Some("tfs.noise_correction_draws = 0".into());
+    }
+    if opt.form == TransformForm::PlainSavitzkyGolay {
+        return Some("the plain Savitzky–Golay form has no noise model".into());
+    }
+    for p in preps {
+        for (s, name) in p.smooth.iter().zip(dofs) {
+            if !s.band.floor_is_noise_only() {
+                return Some(format!(
+                    "the band of '{name}' in record '{}' reaches {:.3} Hz, into the upper half of the spectrum where its noise floor is fitted, so the floor is partly signal and not a noise estimate",
+                    p.rec.source(),
+                    s.band.cutoff_hz
+                ));
+            }
+        }
+    }
+    None
+}
+
 /// The outcome of [`noise_moments`].
 #[derive(Debug, Clone)]
 pub(crate) enum Moments {
@@ -166,29 +189,14 @@ pub(crate) fn noise_moments(
     draws: usize,
     cache: &NoiseDraws,
 ) -> Result<Moments> {
-    let none = |why: &str| Ok(Moments::Unavailable(why.to_string()));
-    if draws == 0 {
-        return none("tfs.noise_correction_draws = 0");
-    }
-    if opt.form == TransformForm::PlainSavitzkyGolay {
-        return none("the plain Savitzky–Golay form has no noise model");
+    if let Some(why) = no_noise_model(preps, dofs, opt, draws) {
+        return Ok(Moments::Unavailable(why));
     }
     let k = cols.len();
     // Only terms that use a DOF carry its noise; the others have δ = 0.
     let noisy_at: Vec<usize> = (0..k).filter(|&j| noisy(&lib.terms()[cols[j]])).collect();
     if noisy_at.is_empty() {
-        return none("no kept term uses a DOF");
-    }
-    for p in preps {
-        for (s, name) in p.smooth.iter().zip(dofs) {
-            if !s.band.floor_is_noise_only() {
-                return Ok(Moments::Unavailable(format!(
-                    "the band of '{name}' in record '{}' reaches {:.3} Hz, into the upper half of the spectrum where its noise floor is fitted, so the floor is partly signal and not a noise estimate",
-                    p.rec.source(),
-                    s.band.cutoff_hz
-                )));
-            }
-        }
+        return Ok(Moments::Unavailable("no kept term uses a DOF".into()));
     }
     let sub = Library::new(
         dofs,

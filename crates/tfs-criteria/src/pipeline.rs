@@ -856,6 +856,12 @@ fn support_threshold(path: &tfs_regress::LambdaPath) -> f64 {
     }
 }
 
+/// The compressed rows of `blocks` merged into one problem (by reference, no copies).
+fn merged<'a>(blocks: impl IntoIterator<Item = &'a BlockRows>) -> Result<Compressed> {
+    let parts: Vec<(&Compressed, usize)> = blocks.into_iter().map(|b| (&b.0, 1)).collect();
+    Ok(Compressed::merge_counted(&parts)?)
+}
+
 /// Criterion 1 of one DOF: the verdict, the centred factor Criterion 2 prunes on and the
 /// non-constant columns (see [`criterion1_dof`]).
 type Criterion1Out = (Criterion1, Mat<f64>, Vec<usize>);
@@ -927,7 +933,7 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
                 },
             )
         },
-        || noise.prefill(&preps, &spec.tfs),
+        || noise.prefill(&preps, &spec.dofs, &spec.tfs),
     );
     let (mut id, first_pass) = first?;
     if rounds == 0 {
@@ -1164,9 +1170,8 @@ fn held_out_scores(
         .map(|&(g, f)| -> Result<f64> {
             let (wi, di) = grid[g];
             let cb = &compressed[wi][di];
-            let train: Vec<(&Compressed, usize)> =
-                (0..nb).filter(|&k| k != f).map(|k| (&cb[k].0, 1)).collect();
-            let mut coef = fit(&Compressed::merge_counted(&train)?, &cb[f].0)?;
+            let train = merged((0..nb).filter(|&k| k != f).map(|k| &cb[k]))?;
+            let mut coef = fit(&train, &cb[f].0)?;
             if let Some(cj) = const_j {
                 let rest = (0..nb).filter(|&k| k != f).map(|k| &td[k]);
                 fill_constant(&mut coef, cj, rest, keep);
@@ -1377,9 +1382,8 @@ fn identify_tfs_once(
         let mut stop = None;
         // Step k: the model from the first k records, scored on the held-out one.
         let step = |k: usize| -> Result<(Vec<f64>, f64, f64, f64)> {
-            let train: Vec<(&Compressed, usize)> = cb[..k].iter().map(|c| (&c.0, 1)).collect();
             let (mut coef, thr) = fit_select(
-                &Compressed::merge_counted(&train)?,
+                &merged(&cb[..k])?,
                 &cb[hold].0,
                 opt.threshold,
                 opt.n_thresholds,
@@ -1507,8 +1511,7 @@ fn identify_tfs_once(
         let mut no_correction = String::from("no kept term to correct");
         let mut fit_support = |c: &[f64], used: usize| -> Result<Vec<f64>> {
             let support: Vec<bool> = c.iter().map(|v| *v != 0.0).collect();
-            let parts: Vec<(&Compressed, usize)> = cb[..used].iter().map(|c| (&c.0, 1)).collect();
-            let rows = Compressed::merge_counted(&parts)?;
+            let rows = merged(&cb[..used])?;
             let mut f = lstsq_support(&rows, &support)?;
             let cols: Vec<usize> = (0..keep.len())
                 .filter(|&j| support[j] && Some(j) != const_j)

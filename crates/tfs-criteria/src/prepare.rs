@@ -510,42 +510,51 @@ fn stacked_rows<'w>(
     delta: f64,
     keep: &[usize],
 ) -> (Mat<f64>, Vec<f64>) {
-    // The bins `rows_for` keeps; each gives a real row, and an imaginary one unless it is DC.
-    let keeps =
-        |w: &WindowTransform, b: usize| w.rel_amp[b] >= delta && w.rel_amp[b] < f64::INFINITY;
-    let kept = |w: &WindowTransform| {
-        (0..w.lhs.len())
-            .filter(|&b| keeps(w, b))
-            .map(|b| if w.freq[b] > 0.0 { 2 } else { 1 })
-            .sum::<usize>()
-    };
-    let total: usize = wins.clone().map(kept).sum();
+    let rows: Vec<Vec<(usize, bool)>> = wins
+        .clone()
+        .map(|w| bin_rows(w, delta, f64::INFINITY))
+        .collect();
+    let total: usize = rows.iter().map(Vec::len).sum();
     let mut a = Mat::<f64>::zeros(total, keep.len());
     let mut y = Vec::with_capacity(total);
-    let mut rows: Vec<(usize, bool)> = Vec::new();
-    for w in wins {
-        rows.clear();
-        for b in (0..w.lhs.len()).filter(|&b| keeps(w, b)) {
-            rows.push((b, false));
-            if w.freq[b] > 0.0 {
-                rows.push((b, true));
-            }
-        }
-        let start = y.len();
-        for (k, &j) in keep.iter().enumerate() {
-            let col = &w.cols[j];
-            let out = &mut a.col_as_slice_mut(k)[start..start + rows.len()];
-            for (o, &(b, im)) in out.iter_mut().zip(&rows) {
-                let c = col[b] * w.weight[b];
-                *o = if im { c.im } else { c.re };
-            }
-        }
-        y.extend(rows.iter().map(|&(b, im)| {
-            let v = w.lhs[b] * w.weight[b];
-            if im { v.im } else { v.re }
-        }));
+    for (w, rows) in wins.zip(&rows) {
+        write_rows(w, rows, keep, &mut a, &mut y);
     }
     (a, y)
+}
+
+/// The rows of the bins of `w` with `lo ≤` relative amplitude `< hi`: `(bin, imaginary part)`,
+/// a real row for every bin and an imaginary one unless it is DC.
+fn bin_rows(w: &WindowTransform, lo: f64, hi: f64) -> Vec<(usize, bool)> {
+    let mut rows = Vec::new();
+    for b in (0..w.lhs.len()).filter(|&b| w.rel_amp[b] >= lo && w.rel_amp[b] < hi) {
+        rows.push((b, false));
+        if w.freq[b] > 0.0 {
+            rows.push((b, true));
+        }
+    }
+    rows
+}
+
+/// Writes the weighted rows `rows` of `w` over the columns `keep` into `a` from row `y.len()`
+/// on, and their left-hand sides onto `y`.
+fn write_rows(
+    w: &WindowTransform,
+    rows: &[(usize, bool)],
+    keep: &[usize],
+    a: &mut Mat<f64>,
+    y: &mut Vec<f64>,
+) {
+    let start = y.len();
+    let part = |c: Complex<f64>, im: bool| if im { c.im } else { c.re };
+    for (k, &j) in keep.iter().enumerate() {
+        let col = &w.cols[j];
+        let out = &mut a.col_as_slice_mut(k)[start..start + rows.len()];
+        for (o, &(b, im)) in out.iter_mut().zip(rows) {
+            *o = part(col[b] * w.weight[b], im);
+        }
+    }
+    y.extend(rows.iter().map(|&(b, im)| part(w.lhs[b] * w.weight[b], im)));
 }
 
 /// [`rows_for`] restricted to the bins with `lo ≤` relative amplitude `< hi`: the rows a smaller
@@ -556,32 +565,16 @@ pub(crate) fn rows_for_band(
     hi: f64,
     keep: &[usize],
 ) -> (Mat<f64>, Vec<f64>, Vec<f64>) {
-    let sel: Vec<usize> = (0..w.lhs.len())
-        .filter(|&b| w.rel_amp[b] >= lo && w.rel_amp[b] < hi)
-        .collect();
-    let mut rows: Vec<(usize, bool)> = Vec::with_capacity(2 * sel.len());
-    for &b in &sel {
-        rows.push((b, false));
-        if w.freq[b] > 0.0 {
-            rows.push((b, true));
-        }
-    }
+    let rows = bin_rows(w, lo, hi);
     let mut a = Mat::<f64>::zeros(rows.len(), keep.len());
-    for (k, &j) in keep.iter().enumerate() {
-        let col = &w.cols[j];
-        for (o, &(b, im)) in a.col_as_slice_mut(k).iter_mut().zip(&rows) {
-            let c = col[b] * w.weight[b];
-            *o = if im { c.im } else { c.re };
-        }
-    }
-    let y = rows
+    let mut y = Vec::with_capacity(rows.len());
+    write_rows(w, &rows, keep, &mut a, &mut y);
+    let freqs = rows
         .iter()
-        .map(|&(b, im)| {
-            let v = w.lhs[b] * w.weight[b];
-            if im { v.im } else { v.re }
-        })
+        .filter(|(_, im)| !im)
+        .map(|&(b, _)| w.freq[b])
         .collect();
-    (a, y, sel.iter().map(|&b| w.freq[b]).collect())
+    (a, y, freqs)
 }
 
 /// Owned columns of equal length (a strided subsample of a [`ColumnSet`]).
