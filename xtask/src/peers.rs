@@ -57,9 +57,13 @@ const LOG_FLOOR_PCT: f64 = 0.001;
 /// Arguments of `cargo xtask peers`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct PeersArgs {
-    /// Output folder (CSVs, models, venv, table, figure).
+    /// Output folder (CSVs, models, table, figure).
     #[arg(long, default_value = "target/peers")]
     pub out: PathBuf,
+    /// Python virtual environment with pysindy, created on first use and shared by every `--out`
+    /// (reinstalled only when `xtask/peers/requirements.txt` changes).
+    #[arg(long, default_value = "target/peers/venv")]
+    pub venv: PathBuf,
     /// Shorter records (30%) and a 61×61 basin grid.
     #[arg(long)]
     pub quick: bool,
@@ -673,9 +677,9 @@ fn peers_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("peers")
 }
 
-/// Creates (once) `<out>/venv` with the pinned requirements; returns its Python.
+/// Creates (once) the `--venv` environment with the pinned requirements; returns its Python.
 fn venv(args: &PeersArgs) -> Result<PathBuf> {
-    let dir = args.out.join("venv");
+    let dir = &args.venv;
     let py = dir.join("bin").join("python");
     let req = peers_dir().join("requirements.txt");
     let stamp = dir.join(".tfs-requirements");
@@ -686,9 +690,13 @@ fn venv(args: &PeersArgs) -> Result<PathBuf> {
     }
     if !py.exists() {
         eprintln!("creating {} …", dir.display());
+        if let Some(parent) = dir.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent)
+                .with_context(|| format!("creating {} for --venv", parent.display()))?;
+        }
         let st = Command::new(&args.python)
             .args(["-m", "venv"])
-            .arg(&dir)
+            .arg(dir)
             .status()
             .with_context(|| {
                 format!(
