@@ -60,7 +60,7 @@ fn force_error(m: &Model) -> f64 {
 }
 
 /// Option overrides from the environment (`TFS_REWEIGHT=passes`, `TFS_PRUNE=rounds`,
-/// `TFS_EIV=draws` of the errors-in-variables correction, `TFS_RESELECT=0` for one choice of
+/// `TFS_EIV=draws` of the errors-in-variables correction, `TFS_GUARD=octaves` above the cut-off, `TFS_RESELECT=0` for one choice of
 /// settings, …); `TFS_TIMING` prints stage times.
 fn tweak(spec: &mut IdentifySpec) {
     if let Some(v) = std::env::var("TFS_REWEIGHT")
@@ -85,6 +85,9 @@ fn tweak(spec: &mut IdentifySpec) {
     }
     if std::env::var("TFS_NODEBIAS").is_ok() {
         spec.tfs.debias = false;
+    }
+    if let Some(g) = list("TFS_GUARD") {
+        spec.tfs.guard_octaves = g.first().copied().unwrap_or(0.0);
     }
     if let Some(c) = list("TFS_CUTOFF") {
         spec.tfs.cutoff_hz = c.first().copied();

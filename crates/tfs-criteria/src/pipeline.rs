@@ -56,6 +56,14 @@ pub struct TfsOptions {
     pub window_counts: Vec<usize>,
     /// Fixed reconstruction cut-off (Hz); `None` chooses it per record and DOF from the spectrum.
     pub cutoff_hz: Option<f64>,
+    /// Guard band above a data-chosen cut-off, in octaves (default 0.5: the cut-off that best
+    /// reconstructs `x` times √2). That cut-off balances noise let in against signal lost, as
+    /// a denoiser should; the regression on `x̂^k` needs the weak harmonics above it more than
+    /// it fears the noise, whose bias the errors-in-variables correction removes (see
+    /// [`crate::spectral::band_limit_guarded`]). 0 = the reconstruction's own cut-off; ignored
+    /// when `cutoff_hz` is given.
+    #[serde(default = "default_guard_octaves")]
+    pub guard_octaves: f64,
     /// Fixed STLSQ threshold (scaled units); `None` selects it on a λ path by held-out error.
     pub threshold: Option<f64>,
     /// Points of the λ path.
@@ -120,6 +128,10 @@ fn default_noise_draws() -> usize {
     2
 }
 
+fn default_guard_octaves() -> f64 {
+    0.5
+}
+
 fn default_true() -> bool {
     true
 }
@@ -137,6 +149,7 @@ impl Default for TfsOptions {
             deltas: vec![0.01, 0.03, 0.1, 0.3],
             window_counts: vec![1, 3, 7],
             cutoff_hz: None,
+            guard_octaves: default_guard_octaves(),
             threshold: None,
             n_thresholds: 40,
             mu0: None,
@@ -232,6 +245,10 @@ pub struct RecordBins {
     pub record: String,
     /// Reconstruction cut-off (Hz) of this DOF in this record.
     pub cutoff_hz: f64,
+    /// The cut-off that best reconstructs the displacement itself (Hz); `cutoff_hz` adds the
+    /// guard band of [`TfsOptions::guard_octaves`] to it.
+    #[serde(default)]
+    pub mse_cutoff_hz: f64,
     /// Estimated in-band noise share of the displacement power.
     pub in_band_noise_share: f64,
     /// Bins kept (over all windows).
@@ -896,14 +913,7 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
     let preps: Vec<Prepared<'_>> = blocks
         .par_iter()
         .with_max_len(1)
-        .map(|r| {
-            prepare(
-                r,
-                &spec.dofs,
-                spec.tfs.cutoff_hz,
-                &mut RealFftPlanner::new(),
-            )
-        })
+        .map(|r| prepare(r, &spec.dofs, spec.tfs.cutoff_hz, spec.tfs.guard_octaves))
         .collect::<Result<_>>()?;
     let recon_ms = ms(t0);
     let rounds = spec.tfs.prune_insignificant;
@@ -1717,6 +1727,7 @@ fn identify_tfs_once(
                 RecordBins {
                     record: r.source().to_string(),
                     cutoff_hz: p.smooth[d].band.cutoff_hz,
+                    mse_cutoff_hz: p.smooth[d].band.mse_cutoff_hz,
                     in_band_noise_share: p.smooth[d].band.in_band_noise_share,
                     kept_bins: c.2.len(),
                     band_hz: [if lo.is_finite() { lo } else { 0.0 }, hi],
@@ -1871,6 +1882,12 @@ pub(crate) fn validate_tfs(o: &TfsOptions) -> Result<()> {
         && (c.is_nan() || c <= 0.0)
     {
         return invalid(format!("tfs.cutoff_hz = {c}: must be positive"));
+    }
+    if !(o.guard_octaves.is_finite() && (0.0..=4.0).contains(&o.guard_octaves)) {
+        return invalid(format!(
+            "tfs.guard_octaves = {}: give a guard band between 0 and 4 octaves (default 0.5)",
+            o.guard_octaves
+        ));
     }
     if let Some(t) = o.threshold
         && (t.is_nan() || t < 0.0)

@@ -9,7 +9,7 @@ use tfs_library::{ColumnSet, Factor, Library, Term, Var, evaluate_term};
 
 use crate::error::{CriteriaError, Result, invalid};
 use crate::spectral::{
-    Band, Smoothed, band_limit, bin_omegas, hermite_power, low_pass, weak_first_derivative,
+    Band, Smoothed, band_limit_guarded, bin_omegas, hermite_power, low_pass, weak_first_derivative,
     weak_second_derivative, window, window_layout, windowed_fft,
 };
 
@@ -69,18 +69,25 @@ pub(crate) struct Prepared<'a> {
     pub smooth: Vec<Smoothed>,
 }
 
-/// Validates a record and reconstructs every DOF. (`_planner` is unused — FFT plans come from
-/// the process-wide cache of [`crate::spectral`] — and kept so existing callers compile.)
+/// Validates a record and reconstructs every DOF: band-limited at `cutoff_hz`, or at the
+/// data-chosen cut-off raised by `guard_octaves` (see [`band_limit_guarded`]).
 pub(crate) fn prepare<'a>(
     rec: &'a Record,
     dofs: &[String],
     cutoff_hz: Option<f64>,
-    _planner: &mut RealFftPlanner<f64>,
+    guard_octaves: f64,
 ) -> Result<Prepared<'a>> {
     let dt = check_record(rec, dofs)?;
     let smooth = dofs
         .iter()
-        .map(|d| band_limit(rec.column(d).expect("checked"), dt, cutoff_hz))
+        .map(|d| {
+            band_limit_guarded(
+                rec.column(d).expect("checked"),
+                dt,
+                cutoff_hz,
+                guard_octaves,
+            )
+        })
         .collect();
     Ok(Prepared { rec, dt, smooth })
 }

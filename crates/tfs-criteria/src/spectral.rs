@@ -62,6 +62,11 @@ fn inverse_with(
 pub struct Band {
     /// Cut-off frequency (Hz): bins above are set to zero.
     pub cutoff_hz: f64,
+    /// The cut-off that minimises the reconstruction error of the signal itself (Hz): the one
+    /// [`choose_cutoff`] gives, or the given one; `cutoff_hz` is higher by the guard band of
+    /// [`band_limit_guarded`].
+    #[serde(default)]
+    pub mse_cutoff_hz: f64,
     /// Estimated white-noise floor of the (mirror-extended) power spectrum, per bin.
     pub noise_floor: f64,
     /// Estimated in-band noise share of the signal power (noise power below the cut-off over total power).
@@ -455,6 +460,27 @@ fn inverse_with_derivatives(
 /// Band-limited reconstruction of `x` sampled at `dt`, with spectral derivatives; the band is
 /// chosen by [`choose_cutoff`] (or given by `cutoff_hz`).
 pub fn band_limit(x: &[f64], dt: f64, cutoff_hz: Option<f64>) -> Smoothed {
+    band_limit_guarded(x, dt, cutoff_hz, 0.0)
+}
+
+/// [`band_limit`] for a regression on nonlinear terms: a data-chosen cut-off is raised by
+/// `guard_octaves` (the cut-off times `2^guard_octaves`, within the spectrum); a given
+/// `cutoff_hz` is used as it is. [`Smoothed::band`] records both cut-offs, and its noise share
+/// and variance cover the widened band.
+///
+/// [`choose_cutoff`] minimises the reconstruction error of `x` itself, counting a noise bin let
+/// in and a signal bin thrown away alike. For a regression on `x̂^k` they are not alike: the
+/// noise let in is removed from the coefficients on average by the errors-in-variables
+/// correction (and noise-dominated bins are gated out of the rows), so what remains of it is
+/// variance; the weak harmonics above the cut-off are missing from every `x̂^k` in every window,
+/// a bias that no amount of data averages away (`x^k` mixes a harmonic of relative size `r` into
+/// the band with weight about `k·r`).
+pub fn band_limit_guarded(
+    x: &[f64],
+    dt: f64,
+    cutoff_hz: Option<f64>,
+    guard_octaves: f64,
+) -> Smoothed {
     let n = x.len();
     let (spec, nn) = mirror_spectrum(x);
     let df = 1.0 / (nn as f64 * dt);
@@ -471,6 +497,18 @@ pub fn band_limit(x: &[f64], dt: f64, cutoff_hz: Option<f64>) -> Smoothed {
         }
         None => choose_cutoff(&power, 1),
     };
+    let mse_cutoff_hz = kc as f64 * df;
+    let (kc, floor, noise_sum) = if cutoff_hz.is_none() && guard_octaves > 0.0 {
+        let k2 = ((kc as f64 * guard_octaves.exp2()).round() as usize).clamp(kc, spec.len() - 1);
+        // The guard band's noise: the fitted floor over the added bins.
+        let (a, b) = fit_floor(&power);
+        let at = |k: usize| (a + b * (k.max(1) as f64).ln()).exp();
+        let added: f64 = (kc + 1..=k2).map(at).sum();
+        let ns = noise_sum + if added.is_finite() { added } else { 0.0 };
+        (k2, if at(k2).is_finite() { at(k2) } else { floor }, ns)
+    } else {
+        (kc, floor, noise_sum)
+    };
     let floor_model = fit_floor(&power);
     let total: f64 = power.iter().skip(1).sum::<f64>().max(f64::MIN_POSITIVE);
     let share = (noise_sum / total).min(1.0);
@@ -483,6 +521,7 @@ pub fn band_limit(x: &[f64], dt: f64, cutoff_hz: Option<f64>) -> Smoothed {
         a,
         band: Band {
             cutoff_hz: kc as f64 * df,
+            mse_cutoff_hz,
             noise_floor: floor,
             in_band_noise_share: share,
             noise_var,
@@ -761,6 +800,54 @@ mod tests {
             "rms acceleration error {ea}, band {:?}",
             sm.band
         );
+    }
+
+    /// The guard band widens a data-chosen cut-off by its octaves (to the bin), keeps the
+    /// reconstruction's own cut-off on record, accounts for the noise of the added bins, and
+    /// leaves a given cut-off alone.
+    #[test]
+    fn guard_band_widens_only_a_data_chosen_cutoff_and_counts_its_noise() {
+        let n = 20_000;
+        let dt = 0.005;
+        let mut seed = 7u64;
+        let mut gauss = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let u1 = ((seed >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let u2 = ((seed >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
+            (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+        };
+        // A sweep 0.2 → 1.2 Hz under white noise.
+        let x: Vec<f64> = (0..n)
+            .map(|i| {
+                let t = i as f64 * dt;
+                (2.0 * std::f64::consts::PI * (0.2 * t + 0.5 * t * t / 100.0)).sin() + 0.1 * gauss()
+            })
+            .collect();
+        let plain = band_limit(&x, dt, None).band;
+        let guarded = band_limit_guarded(&x, dt, None, 0.5).band;
+        assert_eq!(plain.mse_cutoff_hz, plain.cutoff_hz);
+        assert_eq!(guarded.mse_cutoff_hz, plain.cutoff_hz);
+        let want = plain.cutoff_hz * 2f64.sqrt();
+        assert!(
+            (guarded.cutoff_hz - want).abs() <= plain.bin_hz,
+            "{} vs {want}",
+            guarded.cutoff_hz
+        );
+        // White noise: the noise let in grows with the band.
+        let ratio = guarded.noise_var / plain.noise_var;
+        let bands = guarded.cutoff_hz / plain.cutoff_hz;
+        assert!((ratio / bands - 1.0).abs() < 0.05, "{ratio} vs {bands}");
+        // No guard: the same reconstruction as `band_limit`.
+        assert_eq!(band_limit_guarded(&x, dt, None, 0.0).band, plain);
+        // A given cut-off is used as it is.
+        let fixed = band_limit_guarded(&x, dt, Some(3.0), 0.5).band;
+        assert!((fixed.cutoff_hz - 3.0).abs() <= fixed.bin_hz);
+        assert_eq!(fixed.mse_cutoff_hz, fixed.cutoff_hz);
     }
 
     #[test]

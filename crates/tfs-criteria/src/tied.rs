@@ -14,7 +14,6 @@
 use std::time::Instant;
 
 use faer::Mat;
-use realfft::RealFftPlanner;
 use serde::{Deserialize, Serialize};
 use tfs_data::Record;
 use tfs_library::{Coord, Equation, Library, Model, ModelTerm, Term, Var};
@@ -294,7 +293,7 @@ pub fn identify_tfs_tied(
     let t0 = Instant::now();
     let preps: Vec<Prepared<'_>> = blocks
         .iter()
-        .map(|r| prepare(r, &spec.dofs, opt.cutoff_hz, &mut RealFftPlanner::new()))
+        .map(|r| prepare(r, &spec.dofs, opt.cutoff_hz, opt.guard_octaves))
         .collect::<Result<_>>()?;
     timing.push(("band-limited reconstruction".to_string(), ms(t0)));
     // ---- Time-domain validation rows per block and DOF.
@@ -546,6 +545,7 @@ pub fn identify_tfs_tied(
                 RecordBins {
                     record: r.source().to_string(),
                     cutoff_hz: p.smooth[d].band.cutoff_hz,
+                    mse_cutoff_hz: p.smooth[d].band.mse_cutoff_hz,
                     in_band_noise_share: p.smooth[d].band.in_band_noise_share,
                     kept_bins: f.len(),
                     band_hz: [if lo.is_finite() { lo } else { 0.0 }, hi],
