@@ -61,7 +61,7 @@ pub struct TfsOptions {
     /// a denoiser should; the regression on `x̂^k` needs the weak harmonics above it more than
     /// it fears the noise, whose bias the errors-in-variables correction removes (see
     /// [`crate::spectral::band_limit_guarded`]). 0 = the reconstruction's own cut-off; ignored
-    /// when `cutoff_hz` is given.
+    /// when `cutoff_hz` is given and by the paper's plain Savitzky–Golay form.
     #[serde(default = "default_guard_octaves")]
     pub guard_octaves: f64,
     /// Fixed STLSQ threshold (scaled units); `None` selects it on a λ path by held-out error.
@@ -134,6 +134,18 @@ fn default_guard_octaves() -> f64 {
 
 fn default_true() -> bool {
     true
+}
+
+impl TfsOptions {
+    /// The guard band the reconstruction uses: [`TfsOptions::guard_octaves`], except for the
+    /// paper's plain Savitzky–Golay form, whose terms are evaluated on the raw data (the band
+    /// only selects its bins), which is kept as the paper has it.
+    pub(crate) fn reconstruction_guard(&self) -> f64 {
+        match self.form {
+            TransformForm::PlainSavitzkyGolay => 0.0,
+            _ => self.guard_octaves,
+        }
+    }
 }
 
 impl Default for TfsOptions {
@@ -913,7 +925,14 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
     let preps: Vec<Prepared<'_>> = blocks
         .par_iter()
         .with_max_len(1)
-        .map(|r| prepare(r, &spec.dofs, spec.tfs.cutoff_hz, spec.tfs.guard_octaves))
+        .map(|r| {
+            prepare(
+                r,
+                &spec.dofs,
+                spec.tfs.cutoff_hz,
+                spec.tfs.reconstruction_guard(),
+            )
+        })
         .collect::<Result<_>>()?;
     let recon_ms = ms(t0);
     let rounds = spec.tfs.prune_insignificant;

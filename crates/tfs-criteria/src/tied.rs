@@ -293,7 +293,7 @@ pub fn identify_tfs_tied(
     let t0 = Instant::now();
     let preps: Vec<Prepared<'_>> = blocks
         .iter()
-        .map(|r| prepare(r, &spec.dofs, opt.cutoff_hz, opt.guard_octaves))
+        .map(|r| prepare(r, &spec.dofs, opt.cutoff_hz, opt.reconstruction_guard()))
         .collect::<Result<_>>()?;
     timing.push(("band-limited reconstruction".to_string(), ms(t0)));
     // ---- Time-domain validation rows per block and DOF.
