@@ -809,23 +809,13 @@ mod tests {
     fn guard_band_widens_only_a_data_chosen_cutoff_and_counts_its_noise() {
         let n = 20_000;
         let dt = 0.005;
-        let mut seed = 7u64;
-        let mut gauss = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            let u1 = ((seed >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            let u2 = ((seed >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
-            (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
-        };
+        let noise = tfs_signal::noise::standard_normal(n, 7);
         // A sweep 0.2 → 1.2 Hz under white noise.
         let x: Vec<f64> = (0..n)
             .map(|i| {
                 let t = i as f64 * dt;
-                (2.0 * std::f64::consts::PI * (0.2 * t + 0.5 * t * t / 100.0)).sin() + 0.1 * gauss()
+                (2.0 * std::f64::consts::PI * (0.2 * t + 0.5 * t * t / 100.0)).sin()
+                    + 0.1 * noise[i]
             })
             .collect();
         let plain = band_limit(&x, dt, None).band;
