@@ -60,8 +60,8 @@ fn force_error(m: &Model) -> f64 {
 }
 
 /// Option overrides from the environment (`TFS_REWEIGHT=passes`, `TFS_PRUNE=rounds`,
-/// `TFS_EIV=draws` of the errors-in-variables correction, `TFS_GUARD=octaves` above the cut-off, `TFS_RESELECT=0` for one choice of
-/// settings, …); `TFS_TIMING` prints stage times.
+/// `TFS_EIV=draws` of the errors-in-variables correction, `TFS_GUARD=octaves` above the
+/// cut-off, `TFS_RESELECT=0` for one choice of settings, …); `TFS_TIMING` prints stage times.
 fn tweak(spec: &mut IdentifySpec) {
     if let Some(v) = std::env::var("TFS_REWEIGHT")
         .ok()

@@ -485,31 +485,31 @@ pub fn band_limit_guarded(
     let (spec, nn) = mirror_spectrum(x);
     let df = 1.0 / (nn as f64 * dt);
     let power: Vec<f64> = spec.iter().map(|c| c.norm_sqr()).collect();
+    let floor_model = fit_floor(&power);
+    // The fitted floor at bin k; the noise let in by bins is its sum over them (for a coloured
+    // floor the level at one bin times the bin count would misstate it).
+    let floor_at = |k: usize| (floor_model.0 + floor_model.1 * (k.max(1) as f64).ln()).exp();
+    let floor_sum = |ks: std::ops::RangeInclusive<usize>| {
+        let s: f64 = ks.map(floor_at).sum();
+        if s.is_finite() { s } else { 0.0 }
+    };
     let (kc, floor, noise_sum) = match cutoff_hz {
         Some(f) => {
             let (_, floor, _) = choose_cutoff(&power, 0);
             let kc = ((f / df).round() as usize).min(spec.len() - 1);
-            // The noise let in is the fitted floor summed over the kept bins (for a coloured
-            // floor the level at one bin times the bin count would misstate it).
-            let (a, b) = fit_floor(&power);
-            let ns: f64 = (1..=kc).map(|k| (a + b * (k as f64).ln()).exp()).sum();
-            (kc, floor, if ns.is_finite() { ns } else { 0.0 })
+            (kc, floor, floor_sum(1..=kc))
         }
         None => choose_cutoff(&power, 1),
     };
     let mse_cutoff_hz = kc as f64 * df;
     let (kc, floor, noise_sum) = if cutoff_hz.is_none() && guard_octaves > 0.0 {
         let k2 = ((kc as f64 * guard_octaves.exp2()).round() as usize).clamp(kc, spec.len() - 1);
-        // The guard band's noise: the fitted floor over the added bins.
-        let (a, b) = fit_floor(&power);
-        let at = |k: usize| (a + b * (k.max(1) as f64).ln()).exp();
-        let added: f64 = (kc + 1..=k2).map(at).sum();
-        let ns = noise_sum + if added.is_finite() { added } else { 0.0 };
-        (k2, if at(k2).is_finite() { at(k2) } else { floor }, ns)
+        let at_k2 = floor_at(k2);
+        let floor = if at_k2.is_finite() { at_k2 } else { floor };
+        (k2, floor, noise_sum + floor_sum(kc + 1..=k2))
     } else {
         (kc, floor, noise_sum)
     };
-    let floor_model = fit_floor(&power);
     let total: f64 = power.iter().skip(1).sum::<f64>().max(f64::MIN_POSITIVE);
     let share = (noise_sum / total).min(1.0);
     // Parseval on the 2N-point extension: variance = 2·Σ_{1≤k≤kc} N̂_k / (2N)².
