@@ -61,7 +61,8 @@ fn force_error(m: &Model) -> f64 {
 
 /// Option overrides from the environment (`TFS_REWEIGHT=passes`, `TFS_PRUNE=rounds`,
 /// `TFS_EIV=draws` of the errors-in-variables correction, `TFS_GUARD=octaves` above the
-/// cut-off, `TFS_RESELECT=0` for one choice of settings, …); `TFS_TIMING` prints stage times.
+/// cut-off, `TFS_RESELECT=0` for one choice of settings, …); `TFS_TIMING` prints stage times;
+/// `TFS_SAVE=dir` (Monte-Carlo mode) writes each seed's model there.
 fn tweak(spec: &mut IdentifySpec) {
     if let Some(v) = std::env::var("TFS_REWEIGHT")
         .ok()
@@ -269,6 +270,11 @@ fn monte_carlo(
                     .unwrap_or(0.0)
             })
             .collect();
+        if let Ok(dir) = std::env::var("TFS_SAVE") {
+            // Each seed's model, for scoring outside (e.g. `tfs basin --truth kresling:surrogate`).
+            std::fs::create_dir_all(&dir)?;
+            id.model.write_path(format!("{dir}/seed{seed}.json"))?;
+        }
         let fe = force_error(&id.model);
         let st = &id.trace.dofs[0].settings;
         let cuts: Vec<String> = id.trace.dofs[0]
