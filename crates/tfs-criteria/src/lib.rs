@@ -19,8 +19,10 @@
 //!   ([`TfsOptions::noise_correction_draws`]): draws of each record's estimated noise, pushed
 //!   through the same reconstruction, windows, bins and weights ([`spectral::band_noise`]),
 //!   estimate the noise's share of the normal equations, which is removed before solving.
-//! * Every kept coefficient gets a 95 % interval (cluster-robust standard errors over groups of
-//!   neighbouring bins) and an inclusion probability (bootstrap over non-overlapping windows);
+//! * Every kept coefficient gets a 95 % interval (a jackknife over clusters of neighbouring bins)
+//!   and an inclusion probability (bootstrap over the same clusters); a kept term must pass the
+//!   [`TermTest`] (significance shared among every candidate term of the library), else the
+//!   least significant is removed and the selection re-run;
 //!   [`Criterion1::supported`] and [`Trace::warnings`] say when the data are too noisy for the
 //!   library instead of presenting a wrong model with confidence.
 //! * Chains ([`identify_tfs_tied`]): the same rows for every DOF stacked, with each element's

@@ -706,7 +706,7 @@ pub(crate) fn raw_time_domain(
 }
 
 /// Stored bins on each side of a bin whose residual powers are averaged by [`reweight`].
-const REWEIGHT_HALF: usize = 16;
+pub(crate) const REWEIGHT_HALF: usize = 16;
 
 /// Feasible generalised least squares on the frequency-domain rows of one window layout (`recs`:
 /// the windows of every record). The rows of different bins carry very different noise — the

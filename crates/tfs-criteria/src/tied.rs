@@ -637,6 +637,7 @@ pub fn identify_tfs_tied(
             assembly: steps[d].clone(),
             assembly_verdict: verdict_d,
             held_out_record: blocks[hold].source().to_string(),
+            term_test: None,
         });
     }
     timing.push(("total".to_string(), ms(t_all)));

@@ -68,7 +68,7 @@ fn intervals_cover_the_truth_at_about_the_stated_rate() {
     coverage(0);
 }
 
-/// The same with weighted frequency-domain rows (feasible GLS): the cluster-robust intervals
+/// The same with weighted frequency-domain rows (feasible GLS): the cluster-jackknife intervals
 /// must stay honest when the weights come from the data.
 #[test]
 fn weighted_rows_keep_the_intervals_honest() {

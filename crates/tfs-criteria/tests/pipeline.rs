@@ -45,6 +45,8 @@ fn criterion2_runs_inside_the_pipeline_and_the_trace_serialises() {
     spec.tfs.prune = true;
     spec.tfs.kappa0 = Kappa0Choice::Fixed(0.0);
     spec.tfs.window_counts = vec![3];
+    // Criterion 2 on the library as offered (the elimination's re-runs prune reduced ones).
+    spec.tfs.prune_insignificant = 0;
     let id = identify_tfs(&recs, &spec).unwrap();
     let t = &id.trace.dofs[0];
     let c2 = t.criterion2.as_ref().expect("criterion 2 ran");
@@ -250,7 +252,7 @@ fn coefficients_are_refit_on_every_record_once_criterion4_is_met() {
     assert_eq!(terms(&a.model), terms(&b.model));
     // More data narrows the intervals on the whole (geometric mean of the width ratios well
     // below 1); a single interval may come out about as wide, since its width is itself an
-    // estimate (cluster-robust over a handful of windows) and the settings are chosen again
+    // estimate (a jackknife over a handful of clusters) and the settings are chosen again
     // for the refit, but none may grow beyond that scatter.
     let w = |t: &tfs_library::ModelTerm| t.interval.map(|[lo, hi]| hi - lo).unwrap();
     let ratios: Vec<f64> = a.model.equations[0]

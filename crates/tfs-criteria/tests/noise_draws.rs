@@ -1,0 +1,97 @@
+//! Over repeated noise draws of the peers records (the paper's cell, four base-acceleration
+//! sweeps at 200 Hz, 20 dB white noise on `x` and `xb_acc`), with the 9-column library:
+//! spurious terms do not survive, and the 95 % intervals of the true terms cover the truth at
+//! about the stated rate. One draw proves little either way; sixteen separate an honest method
+//! from one that is overconfident (intervals from a plain sandwich on GLS-weighted rows covered
+//! 56 of 80 true coefficients, and spurious low powers stayed in 2 of the 16 models).
+
+use tfs_criteria::synthetic::{NoiseSpec, Surrogate, SweepSpec, surrogate_record};
+use tfs_criteria::{IdentifySpec, identify_tfs};
+use tfs_signal::NoiseKind;
+
+/// The peers system: m = 1, c = 2, the surrogate force of DESIGN.md §2.
+const SYS: Surrogate = Surrogate {
+    c: 2.0,
+    a: [12.145, -18.0618, 6.5625],
+};
+
+/// The four training sweeps of the peers benchmark: (f0 Hz, f1 Hz, T s, amplitude).
+const SWEEPS: [(f64, f64, f64, f64); 4] = [
+    (0.05, 1.5, 100.0, 3.0),
+    (0.05, 1.5, 60.0, 4.0),
+    (0.1, 1.2, 80.0, 5.0),
+    (0.05, 2.0, 120.0, 6.0),
+];
+
+#[test]
+fn no_spurious_terms_and_honest_intervals_over_noise_draws_at_20_db() {
+    let truth: [(&str, f64); 5] = [
+        ("x^5", -SYS.a[0]),
+        ("x^6", -SYS.a[1]),
+        ("x^7", -SYS.a[2]),
+        ("x'", -SYS.c),
+        ("xb_acc", -1.0),
+    ];
+    let spec = IdentifySpec::new(&["x"], "x^1..7, x', xb_acc");
+    let draws = 16;
+    let (mut covered, mut total, mut spurious) = (0, 0, Vec::new());
+    for seed in 0..draws {
+        let recs: Vec<_> = SWEEPS
+            .iter()
+            .enumerate()
+            .map(|(i, &(f0, f1, duration, amplitude))| {
+                surrogate_record(
+                    &format!("r{i}"),
+                    &SYS,
+                    SweepSpec {
+                        f0,
+                        f1,
+                        duration,
+                        amplitude,
+                    },
+                    200.0,
+                    Some(NoiseSpec {
+                        snr_db: 20.0,
+                        kind: NoiseKind::White,
+                        seed: 1000 * seed + 17 * i as u64,
+                    }),
+                )
+                .unwrap()
+            })
+            .collect();
+        let id = identify_tfs(&recs, &spec).unwrap();
+        let eq = &id.model.equations[0];
+        let extra: Vec<String> = eq
+            .terms
+            .iter()
+            .map(|t| t.term.to_string())
+            .filter(|n| !truth.iter().any(|(m, _)| m == n))
+            .collect();
+        if !extra.is_empty() {
+            spurious.push(format!("seed {seed}: {}", id.model.equation_string()));
+        }
+        for (name, want) in truth {
+            let Some(t) = eq.terms.iter().find(|t| t.term.to_string() == name) else {
+                continue;
+            };
+            let [lo, hi] = t.interval.expect("every kept term has an interval");
+            total += 1;
+            covered += usize::from(lo <= want && want <= hi);
+        }
+    }
+    eprintln!("coverage {covered}/{total}; spurious: {spurious:?}");
+    assert!(
+        spurious.len() <= 1,
+        "spurious terms survived in {} of {draws} models: {spurious:#?}",
+        spurious.len()
+    );
+    assert!(
+        total >= 4 * draws as usize,
+        "true terms missing: only {total} found in {draws} models"
+    );
+    let rate = covered as f64 / total as f64;
+    assert!(
+        rate >= 0.8,
+        "95% intervals covered the truth in only {covered}/{total}"
+    );
+}
