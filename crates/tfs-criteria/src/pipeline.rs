@@ -1738,10 +1738,20 @@ fn identify_tfs_once(
             ))
         } else if let (false, Some(t)) = (weak_terms.is_empty(), &term_test) {
             Some(format!(
-                "{} fail the term test (|coefficient| ≥ {:.2}·SE, {} candidate terms), so the data cannot pin these terms down",
+                "{} {} the term test (|coefficient| ≥ {:.2}·SE, {} candidate terms), so the data cannot pin {} down",
                 weak_terms.join(", "),
+                if weak_terms.len() == 1 {
+                    "fails"
+                } else {
+                    "fail"
+                },
                 t.t_critical,
-                t.candidates
+                t.candidates,
+                if weak_terms.len() == 1 {
+                    "it"
+                } else {
+                    "these terms"
+                }
             ))
         } else {
             None
