@@ -65,7 +65,8 @@ pub use kappa::{
 };
 pub use pipeline::{
     AssemblyStep, ChosenSettings, DofTrace, Identified, IdentifySpec, Kappa0Choice, RecordBins,
-    SettingScore, SindyOptions, TfsOptions, Trace, identify_sindy, identify_tfs, residual_stats,
+    SettingScore, SindyOptions, TermTest, TfsOptions, Trace, identify_sindy, identify_tfs,
+    residual_stats,
 };
 pub use prepare::TransformForm;
 pub use prune::{Criterion2, PruneStep, prune_factor, prune_library};

@@ -2521,6 +2521,28 @@ pub fn identify_sindy(records: &[Record], spec: &IdentifySpec) -> Result<Identif
 mod tests {
     use super::*;
 
+    /// Student's t quantiles (tabulated values) and the term test's Bonferroni level: with one
+    /// candidate the test is the 95 % interval itself; with 36 it asks for about 3.2·SE on
+    /// many degrees of freedom, and more on few.
+    #[test]
+    fn term_test_shares_five_percent_among_the_candidates() {
+        assert!((student_t_quantile(10.0, 0.95) - 2.228).abs() < 1e-3);
+        assert!((student_t_quantile(1e6, 0.95) - 1.960).abs() < 1e-3);
+        assert!((student_t_quantile(30.0, 0.99) - 2.750).abs() < 1e-3);
+        let one = TermTest::new(1, 40.0);
+        assert!((one.half_widths - 1.0).abs() < 1e-12);
+        assert!(one.passes(1.0, [0.0, 2.0]) && !one.passes(0.99, [-0.01, 1.99]));
+        let many = TermTest::new(36, 1e6);
+        assert!((many.level - (1.0 - 0.05 / 36.0)).abs() < 1e-15);
+        // z at 1 − 0.05/72 = 0.99931 is 3.20.
+        assert!((many.t_critical - 3.20).abs() < 0.01, "{}", many.t_critical);
+        assert!(TermTest::new(36, 20.0).t_critical > many.t_critical);
+        // A term 2.5 SE from 0 has a 95 % interval clear of 0 but fails the 36-term test.
+        let iv = [2.5 - 1.96, 2.5 + 1.96];
+        assert!(iv[0] > 0.0 && !many.passes(2.5, iv) && many.margin(2.5, iv) < 1.0);
+        assert!(many.passes(3.3, [3.3 - 1.96, 3.3 + 1.96]));
+    }
+
     /// The held-out score read straight off the rows equals the compressed problem's
     /// `rss / ‖y‖²` on the kept columns, zero coefficients skipped or not.
     #[test]
