@@ -344,7 +344,8 @@ pub struct DofTrace {
     pub assembly_verdict: String,
     /// Held-out record of Criterion 4.
     pub held_out_record: String,
-    /// The significance test every kept term passed (absent without intervals).
+    /// The significance test applied to the kept terms (absent without intervals); a kept term
+    /// that fails it makes [`Criterion1::supported`] false.
     #[serde(default)]
     pub term_test: Option<TermTest>,
 }
@@ -1647,7 +1648,8 @@ fn identify_tfs_once(
                             .is_some_and(|(iv, t)| !t.passes(coef[j], iv))
                     })
                     .count();
-                let replaced = !final_pass && weak > 0 && weak < lib.len();
+                // (`identify_tfs` re-runs whenever a term can go and one is left.)
+                let replaced = !final_pass && weak > 0 && lib.len() > 1;
                 let inclusion_note = if replaced {
                     "inclusion not computed in this pass (terms are removed and the selection re-run)".to_string()
                 } else {
@@ -2054,8 +2056,8 @@ impl TermTest {
     }
 
     /// Does a coefficient `coef` with the 95 % interval `[lo, hi]` pass?
-    pub fn passes(&self, coef: f64, [lo, hi]: [f64; 2]) -> bool {
-        coef.abs() >= self.half_widths * 0.5 * (hi - lo)
+    pub fn passes(&self, coef: f64, interval: [f64; 2]) -> bool {
+        self.margin(coef, interval) >= 1.0
     }
 
     /// `|coef|` over the critical value: below 1 fails; the smallest is the least significant.

@@ -4,6 +4,7 @@
 //! about the stated rate. One draw proves little either way; sixteen separate an honest method
 //! from one that is overconfident (intervals from a plain sandwich on GLS-weighted rows covered
 //! 56 of 80 true coefficients, and spurious low powers stayed in 2 of the 16 models).
+//! Also: a model that no input drives is flagged, not presented as identified.
 
 use tfs_criteria::synthetic::{NoiseSpec, Surrogate, SweepSpec, surrogate_record};
 use tfs_criteria::{IdentifySpec, identify_tfs};
@@ -93,5 +94,66 @@ fn no_spurious_terms_and_honest_intervals_over_noise_draws_at_20_db() {
     assert!(
         rate >= 0.8,
         "95% intervals covered the truth in only {covered}/{total}"
+    );
+}
+
+/// Driven records, and a library whose only input is a channel unrelated to the motion: the
+/// model keeps no input term, and the trace says the data do not support the library rather
+/// than presenting an undriven model as identified. With the true input offered as well, that
+/// rule stays quiet.
+#[test]
+fn a_model_that_no_input_drives_is_flagged() {
+    let recs: Vec<_> = SWEEPS
+        .iter()
+        .enumerate()
+        .map(|(i, &(f0, f1, duration, amplitude))| {
+            let r = surrogate_record(
+                &format!("r{i}"),
+                &SYS,
+                SweepSpec {
+                    f0,
+                    f1,
+                    duration: 0.5 * duration,
+                    amplitude,
+                },
+                200.0,
+                Some(NoiseSpec {
+                    snr_db: 40.0,
+                    kind: NoiseKind::White,
+                    seed: 7 + i as u64,
+                }),
+            )
+            .unwrap();
+            let acc = r.column("xb_acc").unwrap();
+            // A channel of the same power, unrelated to the motion.
+            let u =
+                tfs_signal::noise::noise_for(acc, 0.0, NoiseKind::White, 99 + i as u64).unwrap();
+            let mut cols: Vec<(String, Vec<f64>)> = r
+                .names()
+                .iter()
+                .map(|n| (n.clone(), r.column(n).unwrap().to_vec()))
+                .collect();
+            cols.push(("u".into(), u));
+            tfs_data::Record::new(r.source(), r.t().to_vec(), cols).unwrap()
+        })
+        .collect();
+    let rule = "no input term survives selection";
+    let verdict = |lib: &str| {
+        let id = identify_tfs(&recs, &IdentifySpec::new(&["x"], lib)).unwrap();
+        let d = &id.trace.dofs[0];
+        let c1 = d.criterion1.as_ref().unwrap();
+        (
+            id.model.equation_string(),
+            c1.supported,
+            d.assembly_verdict.clone(),
+        )
+    };
+    let (eq, supported, text) = verdict("x^5..7, x', u");
+    assert!(!eq.contains('u'), "the unrelated channel was kept: {eq}");
+    assert!(!supported && text.contains(rule), "{eq}: {text}");
+    let (eq, _, text) = verdict("x^5..7, x', xb_acc, u");
+    assert!(
+        eq.contains("xb_acc") && !text.contains(rule),
+        "{eq}: {text}"
     );
 }
