@@ -2077,13 +2077,18 @@ const CLUSTER_BINS: usize = 2 * crate::prepare::REWEIGHT_HALF;
 
 /// Half-widths (level [`INTERVAL_LEVEL`]) of the coefficients `sel` of `coef` (over `keep`) from a
 /// cluster jackknife on the frequency-domain rows of `rows` (record, window, transform): the rows
-/// are grouped into `C` clusters of neighbouring bins (windows paired so overlapping windows
-/// share a cluster); leaving cluster `g` out moves the least-squares coefficients by exactly
+/// are grouped into `C` clusters of neighbouring bins (windows 0–1, 2–3, … of a record paired;
+/// the paired windows share a cluster); leaving cluster `g` out moves the least-squares
+/// coefficients by exactly
 /// `z_g = (G − G_g)⁻¹ A_gᵀ e_g` (`G = AᵀA`; `G_g`, `e_g` the cluster's Gram matrix and
 /// residuals), and `V = (C−1)/C · Σ_g (z_g − z̄)(z_g − z̄)ᵀ`, with a Student-t quantile on `C − 1`
 /// degrees of freedom. The plain sandwich `G⁻¹ (Σ_g A_gᵀe_g e_gᵀA_g) G⁻¹` understates the spread
 /// when a few clusters carry most of the weight (the bins the GLS weights favour): their own
-/// residuals are small because the fit leans towards them. Returns the half-widths and `C`, or
+/// residuals are small because the fit leans towards them. Known limit: the jackknife holds the
+/// estimated GLS weights fixed, so the variance the weights' own noise adds is missing; the 95 %
+/// intervals cover the truth 86–93 % of the time on repeated noise draws of the peers records
+/// (without the weights they are calibrated, but the fit is several times less accurate).
+/// Returns the half-widths and `C`, or
 /// `None` with fewer than 3 clusters or when leaving one cluster out leaves the fit undetermined.
 fn cluster_intervals(
     rows: &[(usize, usize, &crate::prepare::WindowTransform)],
@@ -2152,8 +2157,9 @@ fn cluster_intervals(
 /// Blocks for bagging: the frequency-domain rows (bins with relative amplitude ≥ `delta`,
 /// columns `keep`) of `rows` (record, window, transform), grouped into the clusters of
 /// [`cluster_intervals`]: `CLUSTER_BINS` neighbouring bins of one pair of overlapping windows.
-/// Clusters share no bins and (nearly) no samples, so resampling them does not understate the
-/// variance, and there are tens of them: resampling a handful of whole windows instead left many
+/// Clusters share no bins; a window also overlaps its neighbour in the next pair, so clusters
+/// of neighbouring pairs share samples, but one cluster per record over all its windows gave
+/// the same interval coverage on repeated noise draws. There are tens of clusters: resampling a handful of whole windows instead left many
 /// draws without the snap-through part of the records, and STLSQ then dropped well-determined
 /// terms (inclusion 0.8 for terms known to ±0.02 %).
 fn cluster_blocks(
