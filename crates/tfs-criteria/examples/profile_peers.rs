@@ -62,7 +62,8 @@ fn force_error(m: &Model) -> f64 {
 /// Option overrides from the environment (`TFS_REWEIGHT=passes`, `TFS_PRUNE=rounds`,
 /// `TFS_EIV=draws` of the errors-in-variables correction, `TFS_GUARD=octaves` above the
 /// cut-off, `TFS_RESELECT=0` for one choice of settings, …); `TFS_TIMING` prints stage times;
-/// `TFS_SAVE=dir` (Monte-Carlo mode) writes each seed's model there.
+/// `TFS_SAVE=dir` (Monte-Carlo mode) writes each seed's model there, and `TFS_SEED0=n` starts
+/// its seeds at `n` (to look at one draw again).
 fn tweak(spec: &mut IdentifySpec) {
     if let Some(v) = std::env::var("TFS_REWEIGHT")
         .ok()
@@ -187,7 +188,11 @@ fn monte_carlo(
     tweak(&mut spec);
     let names = ["x^5", "x^6", "x^7", "x'", "xb_acc"];
     let mut all = Vec::new();
-    for seed in 0..seeds {
+    let first: u64 = std::env::var("TFS_SEED0")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0);
+    for seed in first..first + seeds {
         let mut recs = Vec::new();
         for (i, &(f0, f1, duration, amplitude)) in sweeps.iter().enumerate() {
             let sw = (f0, f1, duration, amplitude);

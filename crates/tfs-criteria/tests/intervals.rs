@@ -123,8 +123,11 @@ fn coverage(reweight: usize) {
     let rate = covered as f64 / total as f64;
     let mean_rel = rel_width / total as f64;
     eprintln!("coverage {covered}/{total} = {rate:.2}, mean relative half-width {mean_rel:.4}");
+    // 95 % within the sampling error of 60 intervals. With weighted rows, intervals on the
+    // jackknife's clusters less one (not each coefficient's effective degrees of freedom)
+    // covered 52/60.
     assert!(
-        rate >= 0.8,
+        rate >= 0.9,
         "95% intervals covered the truth in only {covered}/{total}"
     );
     // A term the intervals pin down is one that resampling keeps.
