@@ -873,14 +873,23 @@ pub(crate) fn fit_select(
 /// depend on it (least squares on the support).
 fn support_threshold(path: &tfs_regress::LambdaPath) -> f64 {
     let b = path.best();
-    threshold_for_support(path, &b.support).unwrap_or(b.threshold)
+    threshold_for_support(path, &b.support, None).unwrap_or(b.threshold)
 }
 
 /// The geometric middle of the range of `path`'s thresholds that give `support` (from the
-/// smallest such threshold up to the next larger point), or `None` if no point gives it.
-fn threshold_for_support(path: &tfs_regress::LambdaPath, support: &[bool]) -> Option<f64> {
+/// smallest such threshold up to the next larger point), or `None` if no point gives it. Column
+/// `ignore` (the constant, which is estimated in the time domain) is not compared.
+fn threshold_for_support(
+    path: &tfs_regress::LambdaPath,
+    support: &[bool],
+    ignore: Option<usize>,
+) -> Option<f64> {
     let same: Vec<usize> = (0..path.points.len())
-        .filter(|&i| path.points[i].support == support)
+        .filter(|&i| {
+            let p = &path.points[i].support;
+            p.len() == support.len()
+                && (0..p.len()).all(|j| Some(j) == ignore || p[j] == support[j])
+        })
         .collect();
     let first = *same.iter().min()?;
     let lo = same
@@ -943,6 +952,10 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
                 spec.tfs.reconstruction_guard(),
             )
         })
+        // Collected in order so the error reported is the first record's (rayon's own
+        // collection into a `Result` keeps whichever failed first in time).
+        .collect::<Vec<_>>()
+        .into_iter()
         .collect::<Result<_>>()?;
     let recon_ms = ms(t0);
     let rounds = spec.tfs.prune_insignificant;
@@ -1669,7 +1682,7 @@ fn identify_tfs_once(
                     let all_rows = Compressed::merge(&parts)?;
                     let boot_thr = lambda_path(&all_rows, &all_rows, &path_opts(opt.n_thresholds))
                         .ok()
-                        .and_then(|p| threshold_for_support(&p, &support));
+                        .and_then(|p| threshold_for_support(&p, &support, const_j));
                     let s = bagging(
                         &parts,
                         &Stlsq {
