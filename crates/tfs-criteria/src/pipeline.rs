@@ -2247,8 +2247,8 @@ fn cluster_intervals(
 /// rows of equal variance, the cluster variance of the coefficient `ℓᵀβ` is a quadratic form
 /// in the errors whose eigenvalues are those of the `C × C` matrix
 /// `B_gh = δ_gh vᵀG_g v − (G_g v)ᵀ G⁻¹ (G_h v)`, `v = G⁻¹ℓ`, and its Satterthwaite degrees of
-/// freedom are `(tr B)² / ‖B‖²_F`. Equal clusters give `C − 1`; one cluster that carries the
-/// coefficient gives about 1. They depend on the design (`gram = G` and the clusters' Gram
+/// freedom are `(tr B)² / ‖B‖²_F`. Equal clusters give `C − 1`; clusters of unequal weight
+/// give fewer (3–6 of 20–40 on the peers records). They depend on the design (`gram = G` and the clusters' Gram
 /// matrices `own`), not on the residuals, so they are not themselves noisy. Clamped to
 /// `[1, C − 1]`; `C − 1` for every coefficient if `G` cannot be factored.
 fn effective_dof(gram: &Mat<f64>, own: &[Mat<f64>]) -> Vec<f64> {
