@@ -19,7 +19,7 @@ use tfs::basin::{BasinConfig, BasinMap, WellInfo, basin_sdof, compare};
 use tfs::criteria::{IdentifySpec, TransformForm, identify_sindy, identify_tfs};
 use tfs::data::{Record, read_csv, write_csv};
 use tfs::dynamics::{SimulateOptions, rmse_ratio, simulate_model_on_record};
-use tfs::library::Model;
+use tfs::library::{Equation, Model, ModelTerm, Term};
 use tfs::origami::{
     CellForce, CellSpec, DatasetConfig, Excitation, NoiseKind, SystemSpec, Truth, build_system,
     generate,
@@ -46,6 +46,8 @@ const FIT_TIMINGS: usize = 5;
 /// Classical library (Appendix B: 35 monomials of x, x' plus the input = 36 columns); PySINDy uses
 /// the same columns.
 const CLASSICAL_LIBRARY: &str = "poly(x, x'; 1..7), xb_acc";
+/// Method name of the reference row: the true model, scored like the identified ones.
+const TRUTH_ROW: &str = "truth (reference)";
 /// Force-error range of h.
 const FORCE_RANGE: (f64, f64) = (0.0, 1.8);
 /// Equilibrium search range.
@@ -285,7 +287,15 @@ fn run_draw(ctx: &DrawContext<'_>, out: &Path, draw: u64) -> Result<Vec<Value>> 
         let test = read_csv(dir.join("test.csv"))?;
         let models_dir = out.join("models").join(case.key());
         std::fs::create_dir_all(&models_dir)?;
-        let mut fits: Vec<Fit> = Vec::new();
+        // The truth itself, scored by the same code: its test R-MSE is what the noise on the
+        // measured test input alone costs a perfect model (a snap-through sweep amplifies it).
+        let mut fits: Vec<Fit> = vec![(
+            TRUTH_ROW.to_string(),
+            truth_model(truth)
+                .map(|m| (m, f64::NAN))
+                .map_err(|e| format!("{e:#}")),
+            Value::Null,
+        )];
         let tfs_spec = |form: TransformForm, lib: &str| {
             let mut s = IdentifySpec::new(&["x"], lib);
             s.tfs.form = form;
@@ -352,8 +362,13 @@ fn run_draw(ctx: &DrawContext<'_>, out: &Path, draw: u64) -> Result<Vec<Value>> 
                         .with_context(|| format!("writing {}", file.display()))?;
                     let t0 = Instant::now();
                     let s = score(&model, truth, cfg, &test, &clean_test);
+                    let fit = if secs.is_finite() {
+                        format!("{secs:.2} s")
+                    } else {
+                        "—".into()
+                    };
                     eprintln!(
-                        "  {name:<26} force {:>9}  BOA {:>9}  R-MSE {:>9}  fit {secs:.2} s  (scored in {:.1} s)",
+                        "  {name:<26} force {:>9}  BOA {:>9}  R-MSE {:>9}  fit {fit}  (scored in {:.1} s)",
                         pct(s.force_error),
                         s.boa_error.as_ref().map_or("failed".into(), |v| pct(*v)),
                         s.r_mse.as_ref().map_or("failed".into(), |v| pct(*v)),
@@ -557,6 +572,35 @@ fn truth_set(cfg: &BasinConfig) -> Result<TruthSet> {
         mass,
         map,
     })
+}
+
+/// The truth written as a model (`x'' = −(c/m)·x' − F(x)/m − xb_acc`, the surrogate's powers and
+/// coefficients as computed at run time): scored beside the identified models, its test R-MSE
+/// is the floor that the measured (noisy) test input alone sets.
+fn truth_model(truth: &TruthSet) -> Result<Model> {
+    let sys = build_system(&truth.spec)?;
+    let cell = &sys.cells()[0];
+    let CellForce::Surrogate(sur) = &truth.law else {
+        bail!("the peers truth is the surrogate force law");
+    };
+    let m = cell.mass();
+    let dofs = ["x".to_string()];
+    let term = |t: &str| Term::parse(t, &dofs).map_err(anyhow::Error::from);
+    let mut terms = vec![
+        ModelTerm::new(term("x'")?, -cell.damping() / m),
+        ModelTerm::new(term("xb_acc")?, -1.0),
+    ];
+    for (&p, &c) in sur.spec.powers.iter().zip(&sur.coefs) {
+        terms.push(ModelTerm::new(term(&format!("x^{p}"))?, -c / m));
+    }
+    Ok(Model::new(
+        dofs.to_vec(),
+        vec![Equation {
+            dof: "x".into(),
+            terms,
+        }],
+        "truth",
+    )?)
 }
 
 /// Simulates the five records of `case`, writes `train1..4.csv` and `test.csv` (t, x, xb_acc:
@@ -834,7 +878,7 @@ fn write_outputs(out: &Path, rows: &[Value], quick: bool, draw: u64, total: f64)
         );
     }
     md += &format!(
-        "S-DOF Kresling cell, surrogate truth (γ0 = 30°, m = 1, c = 2). Four training sweeps {TRAIN:?} and test sweep {TEST:?} (f0 Hz, f1 Hz, T s, amplitude), {RAMP} s ramps, 200 Hz{}; noise on x and xb_acc at the SNR of each signal. Force error: relative RMS over 0 ≤ h ≤ 1.8. BOA error: share of a {} grid of (x0, v0) ∈ [0, 2] × [−3, 3] labelled differently from the truth. Test R-MSE: model driven by the measured test input, against the noise-free test displacement. PySINDy settings (weak: test-function half-width and threshold; classical: threshold) are chosen by the lowest test R-MSE — an oracle that sees the test record; tfs and SINDy (tfs) choose theirs from the training data only. Fit time: tfs and SINDy (tfs), the median of five identical calls in this process; PySINDy, the selected candidate's velocity smoothing, library rows and STLSQ fit (no import or start-up). Total run time {total:.0} s.\n\n",
+        "S-DOF Kresling cell, surrogate truth (γ0 = 30°, m = 1, c = 2). Four training sweeps {TRAIN:?} and test sweep {TEST:?} (f0 Hz, f1 Hz, T s, amplitude), {RAMP} s ramps, 200 Hz{}; noise on x and xb_acc at the SNR of each signal. Force error: relative RMS over 0 ≤ h ≤ 1.8. BOA error: share of a {} grid of (x0, v0) ∈ [0, 2] × [−3, 3] labelled differently from the truth. Test R-MSE: model driven by the measured test input, against the noise-free test displacement; the row `{TRUTH_ROW}` is the true model scored the same way, so its R-MSE is what the noise on the measured input alone costs (snap-through makes the sweep sensitive to it). PySINDy settings (weak: test-function half-width and threshold; classical: threshold) are chosen by the lowest test R-MSE — an oracle that sees the test record; tfs and SINDy (tfs) choose theirs from the training data only. Fit time: tfs and SINDy (tfs), the median of five identical calls in this process; PySINDy, the selected candidate's velocity smoothing, library rows and STLSQ fit (no import or start-up). Total run time {total:.0} s.\n\n",
         if quick {
             ", records shortened to 30% (--quick)"
         } else {
@@ -934,7 +978,6 @@ fn write_outputs(out: &Path, rows: &[Value], quick: bool, draw: u64, total: f64)
 #[cfg(test)]
 mod tests {
     use super::*;
-    use tfs::library::{Equation, ModelTerm, Term};
 
     /// The draws summary takes the median over draws (a failure counting as the worst value)
     /// and counts the draws in which tfs is at or below PySINDy weak.
@@ -1037,31 +1080,7 @@ mod tests {
     fn the_truth_as_a_model_scores_zero() {
         let cfg = BasinConfig::new(21, 21, (0.0, 2.0), (-3.0, 3.0));
         let truth = truth_set(&cfg).unwrap();
-        let sys = build_system(&truth.spec).unwrap();
-        let cell = &sys.cells()[0];
-        let CellForce::Surrogate(sur) = &truth.law else {
-            panic!("surrogate truth expected")
-        };
-        let m = cell.mass();
-        let mut terms = vec![
-            ModelTerm::new(Term::parse("x'", &["x"]).unwrap(), -cell.damping() / m),
-            ModelTerm::new(Term::parse("xb_acc", &["x"]).unwrap(), -1.0),
-        ];
-        for (&p, &c) in sur.spec.powers.iter().zip(&sur.coefs) {
-            terms.push(ModelTerm::new(
-                Term::parse(&format!("x^{p}"), &["x"]).unwrap(),
-                -c / m,
-            ));
-        }
-        let model = Model::new(
-            vec!["x".into()],
-            vec![Equation {
-                dof: "x".into(),
-                terms,
-            }],
-            "truth",
-        )
-        .unwrap();
+        let model = truth_model(&truth).unwrap();
         // A short noise-free sweep as the test record.
         let dir = tempfile::tempdir().unwrap();
         let short = DatasetConfig {
