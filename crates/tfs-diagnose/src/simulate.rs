@@ -9,7 +9,7 @@
 use tfs_data::Record;
 use tfs_dynamics::{
     Dopri5, Integrator, SampledInput, SecondOrderSystem, SimulateOptions, Trajectory,
-    initial_velocity, rmse_ratio, simulate_model_on_record,
+    choose_initial_state, initial_velocity, rmse_ratio, simulate_model_on_record,
 };
 use tfs_library::{CompiledModel, Model};
 use tfs_signal::spectral_derivative;
@@ -160,6 +160,22 @@ pub fn simulate(model: &Model, record: &Record) -> Result<Trajectory> {
     };
     x0.extend(std::iter::repeat_n(0.0, aux_v0.len()));
     v0.extend(aux_v0);
+    // The measured DOFs' start fitted to the record, as for models without a Maxwell column.
+    let measured: Vec<&[f64]> = compiled
+        .dof_names()
+        .iter()
+        .map(|d| record.column(d).ok_or_else(|| missing(model, &record, d)))
+        .collect::<Result<_>>()?;
+    let (x0, v0) = choose_initial_state(
+        SimulateOptions::default().initial_state,
+        &sys,
+        &Dopri5::default(),
+        &input,
+        &measured,
+        t,
+        x0,
+        v0,
+    )?;
     let mut tr = Dopri5::default().integrate(&sys, &input, &x0, &v0, t)?;
     tr.x.truncate(n);
     tr.v.truncate(n);

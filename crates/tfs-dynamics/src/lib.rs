@@ -11,7 +11,8 @@
 //! * [`equilibria`], [`barriers`], [`potential_from_force`]: 1-DOF statics.
 //! * [`rmse_ratio`] (the paper's R-MSE) and [`rms_error`].
 //! * [`simulate_model_on_record`]: a `tfs_library::Model` simulated under a record's inputs
-//!   (`tfs_library::CompiledModel` implements [`SecondOrderSystem`]).
+//!   (`tfs_library::CompiledModel` implements [`SecondOrderSystem`]), from an initial state
+//!   fitted to the start of the record ([`InitialState`], [`choose_initial_state`]).
 //!
 //! ```
 //! use tfs_dynamics::{Dopri5, FnSystem, Integrator, SampledInput, rmse_ratio};
@@ -36,6 +37,7 @@
 mod dopri5;
 mod equilibria;
 mod error;
+mod initial;
 mod input;
 mod integrate;
 mod metrics;
@@ -46,6 +48,7 @@ mod system;
 pub use dopri5::{Dopri5, Dopri5Solver};
 pub use equilibria::{Barrier, Equilibrium, barriers, equilibria, potential_from_force};
 pub use error::{DynError, Result};
+pub use initial::{InitialFit, InitialState, choose_initial_state, fit_horizon, fit_initial_state};
 pub use input::{Interpolation, SampledInput};
 pub use integrate::{Integrator, Stats, Trajectory};
 pub use metrics::{rms_error, rmse_ratio};

@@ -1,5 +1,6 @@
 //! Adapter from `tfs_library` models to this crate: simulate a fitted model on a measured record.
 
+use crate::initial::{InitialState, choose_initial_state, start_of};
 use crate::{Dopri5, DynError, Integrator, Result, SampledInput, SecondOrderSystem, Trajectory};
 use tfs_data::Record;
 use tfs_library::{CompiledModel, Model};
@@ -26,6 +27,9 @@ pub struct SimulateOptions {
     pub velocity_window: usize,
     /// Take the initial velocity from the column `"<dof>'"` when the record has one (default true).
     pub use_velocity_column: bool,
+    /// How the initial state is chosen (default [`InitialState::Fitted`] over two periods: the
+    /// first-samples state, refined by fitting the model's response to the start of the record).
+    pub initial_state: InitialState,
 }
 
 impl Default for SimulateOptions {
@@ -34,6 +38,7 @@ impl Default for SimulateOptions {
             integrator: Dopri5::default(),
             velocity_window: 5,
             use_velocity_column: true,
+            initial_state: InitialState::default(),
         }
     }
 }
@@ -57,20 +62,7 @@ pub fn initial_velocity(y: &[f64], dt: f64, m: usize) -> Result<f64> {
             ),
         });
     }
-    let s_bar = (m - 1) as f64 / 2.0;
-    let p1: Vec<f64> = (0..m).map(|k| k as f64 - s_bar).collect();
-    let c = p1.iter().map(|p| p * p).sum::<f64>() / m as f64;
-    let a1 =
-        p1.iter().zip(y).map(|(p, y)| p * y).sum::<f64>() / p1.iter().map(|p| p * p).sum::<f64>();
-    let mut slope = a1;
-    if m >= 3 {
-        let p2: Vec<f64> = p1.iter().map(|p| p * p - c).collect();
-        let a2 = p2.iter().zip(y).map(|(p, y)| p * y).sum::<f64>()
-            / p2.iter().map(|p| p * p).sum::<f64>();
-        // d/ds [(s − s̄)² − c] at s = 0 is −2 s̄.
-        slope += a2 * (-2.0 * s_bar);
-    }
-    Ok(slope / dt)
+    Ok(start_of(y, dt, m).1)
 }
 
 /// Simulates `model` under the input columns of `record` at the record's sample times.
@@ -79,7 +71,10 @@ pub fn initial_velocity(y: &[f64], dt: f64, m: usize) -> Result<f64> {
 ///   by a cubic spline ([`SampledInput`]); a missing column is a [`DynError::MissingColumn`].
 /// * Initial state: `x(t_0)` from each DOF's displacement column (named like the DOF);
 ///   `v(t_0)` from the column `"<dof>'"` if present and allowed, otherwise from a least-squares
-///   quadratic fit to the first `velocity_window` samples ([`initial_velocity`]).
+///   quadratic fit to the first `velocity_window` samples ([`initial_velocity`]); then, by
+///   default ([`InitialState::Fitted`]), refined so that the model's own response matches the
+///   measured displacements over the first periods of the record (noise in the first samples
+///   otherwise decides the start, and with it the well a multi-stable model ends up in).
 /// * Blow-up gives [`DynError::BlowUp`] with the time and state.
 pub fn simulate_model_on_record(
     model: &Model,
@@ -124,6 +119,21 @@ pub fn simulate_model_on_record(
         };
         v0.push(v);
     }
+    let measured: Vec<&[f64]> = compiled
+        .dof_names()
+        .iter()
+        .map(|d| record.column(d).ok_or_else(|| missing(d)))
+        .collect::<Result<_>>()?;
+    let (x0, v0) = choose_initial_state(
+        opts.initial_state,
+        &compiled,
+        &opts.integrator,
+        &input,
+        &measured,
+        t,
+        x0,
+        v0,
+    )?;
     opts.integrator.integrate(&compiled, &input, &x0, &v0, t)
 }
 

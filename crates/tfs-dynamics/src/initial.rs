@@ -1,0 +1,405 @@
+//! Initial states of a simulation estimated from noisy measurements: the model's own response
+//! fitted to the first periods of the record (the usual practice of system identification when a
+//! model is compared with data), instead of a derivative of the first few samples.
+//!
+//! Why it matters: at 20 dB SNR the first five samples of a displacement give a velocity off by
+//! several times the signal's own velocity scale, and a multi-stable model started there can jump
+//! into the other well and stay in it: the paper's own cell, simulated with its *true* equation,
+//! then showed a test R-MSE of 33 % against a noise floor of 1 %.
+
+use nalgebra::{DMatrix, DVector};
+
+use crate::{DynError, Integrator, Result, SampledInput, SecondOrderSystem};
+
+/// How a simulation of a measured record chooses its initial state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum InitialState {
+    /// `x(t₀)` is the first sample; `v(t₀)` comes from the record's velocity column or from a
+    /// least-squares quadratic through the first few samples ([`crate::initial_velocity`]).
+    /// Exact on clean data; on noisy data the velocity carries the noise amplified by `1/dt`.
+    FirstSamples,
+    /// Starts from [`InitialState::FirstSamples`]' state and from a smoothed one (a quadratic
+    /// through the first quarter period), then fits the displacements and velocities of the
+    /// measured DOFs by Levenberg–Marquardt so that the model's simulation matches the measured
+    /// displacements over the first `periods` periods of the record (period: from crossings of
+    /// the displacement about its mean, with hysteresis so noise does not count). The best of the
+    /// two fits is used. The default, with `periods = 2`.
+    Fitted {
+        /// Length of the fitted stretch in periods of the displacement (> 0).
+        periods: f64,
+    },
+}
+
+impl Default for InitialState {
+    fn default() -> Self {
+        Self::Fitted { periods: 2.0 }
+    }
+}
+
+/// Result of [`fit_initial_state`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct InitialFit {
+    /// Fitted initial displacements (all DOFs of the system; unmeasured ones as given).
+    pub x0: Vec<f64>,
+    /// Fitted initial velocities (all DOFs of the system; unmeasured ones as given).
+    pub v0: Vec<f64>,
+    /// Mean squared scaled misfit over the stretch from the given start (`+∞` if it blew up).
+    pub cost_start: f64,
+    /// The same for the fitted start; never above `cost_start`.
+    pub cost: f64,
+}
+
+/// Least-squares quadratic through the first `m` samples of `y` (a line for `m = 2`), in
+/// orthogonal polynomials on the sample grid: its value and slope (per second) at the first
+/// sample. Exact for quadratics.
+pub(crate) fn start_of(y: &[f64], dt: f64, m: usize) -> (f64, f64) {
+    let m = m.min(y.len()).max(1);
+    if m == 1 {
+        return (y[0], 0.0);
+    }
+    let s_bar = (m - 1) as f64 / 2.0;
+    let p1: Vec<f64> = (0..m).map(|k| k as f64 - s_bar).collect();
+    let mean = y[..m].iter().sum::<f64>() / m as f64;
+    let a1 =
+        p1.iter().zip(y).map(|(p, y)| p * y).sum::<f64>() / p1.iter().map(|p| p * p).sum::<f64>();
+    let (mut value, mut slope) = (mean + a1 * (-s_bar), a1);
+    if m >= 3 {
+        let c = p1.iter().map(|p| p * p).sum::<f64>() / m as f64;
+        let p2: Vec<f64> = p1.iter().map(|p| p * p - c).collect();
+        let a2 = p2.iter().zip(y).map(|(p, y)| p * y).sum::<f64>()
+            / p2.iter().map(|p| p * p).sum::<f64>();
+        // At s = 0: (s − s̄)² − c = s̄² − c, and its derivative is −2 s̄.
+        value += a2 * (s_bar * s_bar - c);
+        slope += a2 * (-2.0 * s_bar);
+    }
+    (value, slope / dt)
+}
+
+/// Period of `y` in samples from its crossings of the mean with hysteresis of half its standard
+/// deviation (noise below that level does not add crossings); `None` with fewer than two
+/// crossings or a constant signal.
+pub(crate) fn period_samples(y: &[f64]) -> Option<f64> {
+    let n = y.len() as f64;
+    if y.len() < 4 {
+        return None;
+    }
+    let mean = y.iter().sum::<f64>() / n;
+    let sd = (y.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n).sqrt();
+    if !(sd > 0.0 && sd.is_finite()) {
+        return None;
+    }
+    let (hi, lo) = (mean + 0.5 * sd, mean - 0.5 * sd);
+    let mut state = 0i8;
+    let mut crossings = 0usize;
+    let (mut first, mut last) = (0usize, 0usize);
+    for (k, &v) in y.iter().enumerate() {
+        let s = if v > hi {
+            1
+        } else if v < lo {
+            -1
+        } else {
+            continue;
+        };
+        if state != 0 && s != state {
+            if crossings == 0 {
+                first = k;
+            }
+            crossings += 1;
+            last = k;
+        }
+        state = s;
+    }
+    // Two crossings per period, measured between the first and the last one.
+    (crossings >= 3).then(|| 2.0 * (last - first) as f64 / (crossings - 1) as f64)
+}
+
+/// Samples of the fitted stretch for [`InitialState::Fitted`]: `periods` periods of the
+/// measured displacement with the most crossings ([`period_samples`]), or a tenth of the record
+/// when none oscillates; at least 16 samples (or the whole record if shorter).
+pub fn fit_horizon(measured: &[&[f64]], periods: f64) -> usize {
+    let n = measured.iter().map(|m| m.len()).min().unwrap_or(0);
+    let period = measured
+        .iter()
+        .filter_map(|m| period_samples(m))
+        .fold(f64::INFINITY, f64::min);
+    let h = if period.is_finite() {
+        (periods * period).round() as usize
+    } else {
+        n / 10
+    };
+    h.max(16).min(n)
+}
+
+/// Fits the initial displacements and velocities of the first `measured.len()` DOFs of `sys` so
+/// that its simulation under `input` matches `measured` at the times `t` (one slice per DOF, each
+/// at least `t.len()` long): Levenberg–Marquardt on residuals scaled by each DOF's standard
+/// deviation, Jacobian by forward differences, starting from `(x0, v0)` (all DOFs; the others stay
+/// as given). A start that blows up has cost `+∞` and is returned unchanged.
+///
+/// Errors: `measured` longer than the system's DOFs, or a slice shorter than `t`.
+#[allow(clippy::too_many_arguments)]
+pub fn fit_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator>(
+    sys: &S,
+    integrator: &I,
+    input: &SampledInput,
+    measured: &[&[f64]],
+    t: &[f64],
+    x0: &[f64],
+    v0: &[f64],
+) -> Result<InitialFit> {
+    let m = measured.len();
+    if m > sys.dofs() || x0.len() != sys.dofs() || v0.len() != sys.dofs() {
+        return Err(DynError::Dimension {
+            name: "measured",
+            got: m,
+            expected: sys.dofs(),
+            hint: "give at most one measured displacement per DOF and a full initial state",
+        });
+    }
+    if let Some(short) = measured.iter().find(|y| y.len() < t.len()) {
+        return Err(DynError::Dimension {
+            name: "measured",
+            got: short.len(),
+            expected: t.len(),
+            hint: "every measured displacement needs a sample at every fitted time",
+        });
+    }
+    // Scales: each DOF's standard deviation over the stretch (its mean magnitude if constant);
+    // velocities by the same over the stretch's duration.
+    let dur = (t.last().copied().unwrap_or(0.0) - t.first().copied().unwrap_or(0.0))
+        .max(f64::MIN_POSITIVE);
+    let sx: Vec<f64> = measured
+        .iter()
+        .map(|y| {
+            let y = &y[..t.len()];
+            let n = y.len() as f64;
+            let mean = y.iter().sum::<f64>() / n;
+            let sd = (y.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n).sqrt();
+            if sd > 0.0 && sd.is_finite() {
+                sd
+            } else {
+                mean.abs().max(1.0)
+            }
+        })
+        .collect();
+    let sv: Vec<f64> = sx.iter().map(|s| s * std::f64::consts::TAU / dur).collect();
+    let to_state = |p: &[f64]| -> (Vec<f64>, Vec<f64>) {
+        let (mut x, mut v) = (x0.to_vec(), v0.to_vec());
+        for i in 0..m {
+            x[i] = p[i] * sx[i];
+            v[i] = p[m + i] * sv[i];
+        }
+        (x, v)
+    };
+    let residuals = |p: &[f64]| -> Option<Vec<f64>> {
+        let (x, v) = to_state(p);
+        let tr = integrator.integrate(sys, input, &x, &v, t).ok()?;
+        let mut r = Vec::with_capacity(m * t.len());
+        for i in 0..m {
+            for (a, b) in tr.x[i].iter().zip(measured[i]) {
+                r.push((a - b) / sx[i]);
+            }
+        }
+        r.iter().all(|v| v.is_finite()).then_some(r)
+    };
+    let cost_of = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>() / r.len().max(1) as f64;
+    let mut p: Vec<f64> = (0..m)
+        .map(|i| x0[i] / sx[i])
+        .chain((0..m).map(|i| v0[i] / sv[i]))
+        .collect();
+    let Some(mut r) = residuals(&p) else {
+        return Ok(InitialFit {
+            x0: x0.to_vec(),
+            v0: v0.to_vec(),
+            cost_start: f64::INFINITY,
+            cost: f64::INFINITY,
+        });
+    };
+    let cost_start = cost_of(&r);
+    let mut cost = cost_start;
+    let np = 2 * m;
+    let mut mu = 1e-3;
+    const STEP: f64 = 1e-6;
+    for _ in 0..50 {
+        // Forward-difference Jacobian in the scaled parameters.
+        let mut jac = DMatrix::<f64>::zeros(r.len(), np);
+        let mut ok = true;
+        for j in 0..np {
+            let mut q = p.clone();
+            let h = STEP * p[j].abs().max(1.0);
+            q[j] += h;
+            match residuals(&q) {
+                Some(rq) => {
+                    for (k, (a, b)) in rq.iter().zip(&r).enumerate() {
+                        jac[(k, j)] = (a - b) / h;
+                    }
+                }
+                None => {
+                    ok = false;
+                    break;
+                }
+            }
+        }
+        if !ok {
+            break;
+        }
+        let jtj = jac.transpose() * &jac;
+        let g = jac.transpose() * DVector::from_column_slice(&r);
+        let mut accepted = false;
+        while mu < 1e12 {
+            let mut a = jtj.clone();
+            for j in 0..np {
+                a[(j, j)] += mu * jtj[(j, j)].max(1e-12);
+            }
+            let Some(ch) = a.cholesky() else {
+                mu *= 4.0;
+                continue;
+            };
+            let step = ch.solve(&(-&g));
+            let q: Vec<f64> = p.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
+            match residuals(&q) {
+                Some(rq) if cost_of(&rq) < cost => {
+                    let c = cost_of(&rq);
+                    let gain = (cost - c) / cost.max(f64::MIN_POSITIVE);
+                    p = q;
+                    r = rq;
+                    cost = c;
+                    mu = (mu / 3.0).max(1e-12);
+                    accepted = gain > 1e-10;
+                    break;
+                }
+                _ => mu *= 4.0,
+            }
+        }
+        if !accepted {
+            break;
+        }
+    }
+    let (x, v) = to_state(&p);
+    Ok(InitialFit {
+        x0: x,
+        v0: v,
+        cost_start,
+        cost,
+    })
+}
+
+/// The initial state of a simulation of `sys` on measured displacements (`measured`, the first
+/// DOFs of `sys`, sampled at `t`) by `how`: the first-samples state `(x0, v0)` as given, or for
+/// [`InitialState::Fitted`] the better of the fits ([`fit_initial_state`]) from it and from a
+/// smoothed start, over [`fit_horizon`] samples. DOFs beyond `measured` keep their given state.
+///
+/// Errors: a non-positive `periods`, or the dimension errors of [`fit_initial_state`].
+#[allow(clippy::too_many_arguments)]
+pub fn choose_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator>(
+    how: InitialState,
+    sys: &S,
+    integrator: &I,
+    input: &SampledInput,
+    measured: &[&[f64]],
+    t: &[f64],
+    x0: Vec<f64>,
+    v0: Vec<f64>,
+) -> Result<(Vec<f64>, Vec<f64>)> {
+    let periods = match how {
+        InitialState::FirstSamples => return Ok((x0, v0)),
+        InitialState::Fitted { periods } => periods,
+    };
+    if !(periods.is_finite() && periods > 0.0) {
+        return Err(DynError::InvalidParameter {
+            name: "initial_state.periods",
+            reason: format!("{periods} must be positive and finite"),
+        });
+    }
+    let h = fit_horizon(measured, periods).min(t.len());
+    if h < 2 || measured.is_empty() {
+        return Ok((x0, v0));
+    }
+    let dt = t[1] - t[0];
+    // The smoothed start: a quadratic through the first quarter period (at least 5 samples).
+    let w = (h as f64 / (4.0 * periods)).round().max(5.0) as usize;
+    let (mut xs, mut vs) = (x0.clone(), v0.clone());
+    for (i, y) in measured.iter().enumerate() {
+        let (a, b) = start_of(y, dt, w);
+        xs[i] = a;
+        vs[i] = b;
+    }
+    let th = &t[..h];
+    let fits = [
+        fit_initial_state(sys, integrator, input, measured, th, &x0, &v0)?,
+        fit_initial_state(sys, integrator, input, measured, th, &xs, &vs)?,
+    ];
+    let best = fits
+        .into_iter()
+        .filter(|f| f.cost.is_finite())
+        .min_by(|a, b| a.cost.total_cmp(&b.cost));
+    Ok(match best {
+        Some(f) => (f.x0, f.v0),
+        None => (x0, v0),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Dopri5, FnSystem};
+
+    #[test]
+    fn start_of_is_exact_for_quadratics() {
+        let dt = 0.01;
+        let y: Vec<f64> = (0..12)
+            .map(|k| {
+                let t = 0.3 + k as f64 * dt;
+                1.0 - 2.0 * t + 5.0 * t * t
+            })
+            .collect();
+        for m in [3, 5, 12] {
+            let (v, s) = start_of(&y, dt, m);
+            assert!((v - (1.0 - 0.6 + 0.45)).abs() < 1e-12, "value {v}");
+            assert!((s - (-2.0 + 3.0)).abs() < 1e-9, "slope {s}");
+        }
+    }
+
+    #[test]
+    fn period_ignores_noise_below_the_hysteresis() {
+        // A 50-sample sine with ±1 % dither: period 50 samples.
+        let y: Vec<f64> = (0..1000)
+            .map(|k| {
+                (std::f64::consts::TAU * k as f64 / 50.0).sin()
+                    + 0.01 * if k % 2 == 0 { 1.0 } else { -1.0 }
+            })
+            .collect();
+        let p = period_samples(&y).unwrap();
+        assert!((p - 50.0).abs() < 0.5, "period {p}");
+        assert_eq!(period_samples(&[1.0; 10]), None);
+        assert_eq!(fit_horizon(&[&y], 2.0), 100);
+    }
+
+    #[test]
+    fn fit_recovers_a_free_decay_start_from_a_bad_guess() {
+        // x'' + 0.2 x' + x = 0 from (1, 0.5); the guess is off in both components.
+        let sys = FnSystem::new(
+            1,
+            0,
+            |_t, x: &[f64], v: &[f64], _u: &[f64], a: &mut [f64]| a[0] = -0.2 * v[0] - x[0],
+        );
+        let t: Vec<f64> = (0..200).map(|k| k as f64 * 0.05).collect();
+        let input = SampledInput::zero(0);
+        let truth = Dopri5::default()
+            .integrate(&sys, &input, &[1.0], &[0.5], &t)
+            .unwrap();
+        let f = fit_initial_state(
+            &sys,
+            &Dopri5::default(),
+            &input,
+            &[&truth.x[0]],
+            &t,
+            &[0.7],
+            &[-2.0],
+        )
+        .unwrap();
+        assert!((f.x0[0] - 1.0).abs() < 1e-5, "x0 {}", f.x0[0]);
+        assert!((f.v0[0] - 0.5).abs() < 1e-5, "v0 {}", f.v0[0]);
+        assert!(f.cost < 1e-10 && f.cost_start > 0.1);
+    }
+}
