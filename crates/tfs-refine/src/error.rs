@@ -65,3 +65,12 @@ impl From<tfs_signal::SignalError> for RefineError {
         RefineError::Dynamics(e.to_string())
     }
 }
+
+impl From<tfs_data::DataError> for RefineError {
+    fn from(e: tfs_data::DataError) -> Self {
+        RefineError::Invalid {
+            name: "record".into(),
+            message: e.to_string(),
+        }
+    }
+}

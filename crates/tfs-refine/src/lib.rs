@@ -24,6 +24,11 @@
 //!   rejected step (more damping), never a panic.
 //! * The result is scored by simulating with tfs-dynamics (Dopri5); a refined model is never
 //!   returned if it simulates worse than the start on the training data.
+//! * **Records whose free-run error is the input's noise** are left out: when a fresh draw of the
+//!   measured input's own noise moves the start model's simulation so far that it explains at
+//!   least half of the error measurement noise does not ([`input_noise_spread`],
+//!   [`noise_dominated`]; typical of a multi-stable structure swept through snap-through),
+//!   that error cannot tell good coefficients from bad, and fitting it fits the noise.
 //!
 //! [`choose_by_validation`] compares an equation-error model and a refined one on held-out
 //! records.
@@ -71,9 +76,11 @@ mod error;
 mod lm;
 mod refine;
 mod sens;
+mod sensitivity;
 
 pub use error::{RefineError, Result};
 pub use refine::{RefineOptions, Refined, ValidationScores, choose_by_validation, refine};
+pub use sensitivity::{NOISE_SHARE, displacement_noise_var, input_noise_spread, noise_dominated};
 
 #[cfg(test)]
 mod tests;

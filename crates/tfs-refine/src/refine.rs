@@ -8,7 +8,9 @@ use tfs_signal::Differentiator;
 
 use crate::lm::{LmSettings, Prepared, Problem, Segment, levenberg_marquardt};
 use crate::sens::Structure;
+use crate::sensitivity::{displacement_noise_var, input_noise_spread, noise_dominated};
 use crate::{RefineError, Result};
+use rayon::prelude::*;
 
 /// Options of [`refine`].
 #[derive(Debug, Clone, PartialEq)]
@@ -42,6 +44,10 @@ pub struct RefineOptions {
     /// How before/after training scores are simulated (tfs-dynamics Dopri5); default
     /// [`SimulateOptions::default`].
     pub simulate: SimulateOptions,
+    /// Leave out records whose free-run error the input's own noise dominates
+    /// ([`crate::noise_dominated`] for the start model); with none left, the start model is
+    /// returned. Default true.
+    pub screen_input_noise: bool,
 }
 
 impl Default for RefineOptions {
@@ -61,6 +67,7 @@ impl Default for RefineOptions {
                 poly_order: 4,
             },
             simulate: SimulateOptions::default(),
+            screen_input_noise: true,
         }
     }
 }
@@ -84,6 +91,10 @@ pub struct Refined {
     pub converged: bool,
     /// What happened, in words.
     pub message: String,
+    /// Training records left out because their free-run error is dominated by the input's
+    /// noise: (source name, RMS spread that a fresh draw of that noise causes, RMS error of the
+    /// start model), RMS over DOFs. [`Refined::per_record`] lists the others.
+    pub noise_dominated: Vec<(String, f64, f64)>,
 }
 
 /// Scores of [`choose_by_validation`].
@@ -99,6 +110,11 @@ pub struct ValidationScores {
     pub refined_score: f64,
     /// True if the refined model was chosen.
     pub chose_refined: bool,
+    /// Validation records left out of the choice because the first model's error on them is
+    /// dominated by their input's noise ([`crate::noise_dominated`]: they cannot rank the two);
+    /// (source name, spread, error), RMS over DOFs. With every record left out, the first model
+    /// is kept.
+    pub noise_dominated: Vec<(String, f64, f64)>,
 }
 
 fn check_records(model: &Model, records: &[Record], what: &str) -> Result<()> {
@@ -219,6 +235,140 @@ fn dominant_frequency(x: &[f64], dt: f64) -> Option<f64> {
 pub fn refine(model: &Model, train: &[Record], opts: &RefineOptions) -> Result<Refined> {
     check_records(model, train, "train")?;
     check_options(opts)?;
+    let screened: Vec<Option<(f64, f64)>> = if opts.screen_input_noise {
+        train
+            .par_iter()
+            .map(|r| noise_screen(model, r, &opts.simulate))
+            .collect()
+    } else {
+        vec![None; train.len()]
+    };
+    let noise_dominated: Vec<(String, f64, f64)> = train
+        .iter()
+        .zip(&screened)
+        .filter_map(|(r, s)| s.map(|(sp, e)| (r.source().to_string(), sp, e)))
+        .collect();
+    let kept: Vec<Record> = train
+        .iter()
+        .zip(&screened)
+        .filter(|(_, s)| s.is_none())
+        .map(|(r, _)| r.clone())
+        .collect();
+    if kept.is_empty() {
+        return Ok(start_model_kept(model, train, opts, noise_dominated));
+    }
+    let mut out = refine_records(model, &kept, opts)?;
+    if !noise_dominated.is_empty() {
+        out.message = format!(
+            "left out {} of {} records whose free-run error is dominated by the noise on the measured input ({}: a fresh draw of that noise moves the start model's simulation so far that it explains at least half of the error measurement noise does not, so that error cannot rank coefficients); {}",
+            noise_dominated.len(),
+            train.len(),
+            left_out(&noise_dominated),
+            out.message
+        );
+        if let Some(h) = out.model.history.last_mut() {
+            h.details["message"] = json!(out.message);
+            h.details["noise_dominated"] = json!(
+                noise_dominated
+                    .iter()
+                    .map(|(n, sp, e)| json!({"record": n, "spread": sp, "error": e}))
+                    .collect::<Vec<_>>()
+            );
+        }
+    }
+    out.noise_dominated = noise_dominated;
+    Ok(out)
+}
+
+/// The records of a screen's list in words: name, spread and error.
+fn left_out(list: &[(String, f64, f64)]) -> String {
+    list.iter()
+        .map(|(n, sp, e)| format!("'{n}' (spread {sp:.3e} vs error {e:.3e})"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// `Some((spread, error))` (RMS over DOFs) when `record`'s free-run error under `model` is
+/// dominated by the noise on its measured inputs ([`noise_dominated`]); `None` otherwise, and
+/// when it cannot be judged (the simulation blows up, or no input has a noise-only floor).
+fn noise_screen(model: &Model, record: &Record, opts: &SimulateOptions) -> Option<(f64, f64)> {
+    let err = sim_errors(model, record, opts);
+    if err.iter().any(|e| !e.is_finite()) {
+        return None;
+    }
+    let spread = input_noise_spread(model, record, opts).ok()??;
+    let noise_var = displacement_noise_var(model, record);
+    noise_dominated(&spread, &err, &noise_var).then(|| (combine(&spread), combine(&err)))
+}
+
+/// The [`Refined`] of a refinement that had no usable record: the start model, with a history
+/// entry saying why.
+fn start_model_kept(
+    model: &Model,
+    train: &[Record],
+    opts: &RefineOptions,
+    noise_dominated: Vec<(String, f64, f64)>,
+) -> Refined {
+    let errs: Vec<Vec<f64>> = train
+        .iter()
+        .map(|r| sim_errors(model, r, &opts.simulate))
+        .collect();
+    let cost: f64 = train
+        .iter()
+        .zip(&errs)
+        .map(|(r, e)| {
+            model
+                .dofs
+                .iter()
+                .zip(e)
+                .map(|(d, e)| {
+                    let s = r.column(d).map_or(1.0, rms);
+                    let s = if s > 0.0 { s } else { 1.0 };
+                    (e / s) * (e / s)
+                })
+                .sum::<f64>()
+        })
+        .sum();
+    let message = format!(
+        "no record left to refine on: on every training record the spread that a fresh draw of the measured input's own noise causes in the start model's simulation explains at least half of its free-run error beyond measurement noise ({}). That error cannot rank coefficients (it is at the floor the input noise sets, or the motion is sensitive to that noise, as in snap-through), and fitting it would fit the noise: the start model is kept. To refine, use records with a cleaner input or motion away from snap-through",
+        left_out(&noise_dominated)
+    );
+    let per_record: Vec<(String, f64, f64)> = train
+        .iter()
+        .zip(&errs)
+        .map(|(r, e)| (r.source().to_string(), combine(e), combine(e)))
+        .collect();
+    let mut out_model = model.clone();
+    out_model.history.push(HistoryEntry {
+        step: "refine (simulation error)".into(),
+        added: Vec::new(),
+        r_mse: Vec::new(),
+        details: json!({
+            "initial_cost": finite_or_null(cost),
+            "final_cost": finite_or_null(cost),
+            "improved": false,
+            "iterations": 0,
+            "noise_dominated": noise_dominated
+                .iter()
+                .map(|(n, sp, e)| json!({"record": n, "spread": sp, "error": e}))
+                .collect::<Vec<_>>(),
+            "message": message,
+        }),
+    });
+    Refined {
+        model: out_model,
+        initial_cost: cost,
+        final_cost: cost,
+        iterations: 0,
+        per_record,
+        converged: false,
+        message,
+        noise_dominated,
+    }
+}
+
+/// [`refine`] on the records that passed the input-noise screen.
+fn refine_records(model: &Model, train: &[Record], opts: &RefineOptions) -> Result<Refined> {
     let (st, coefs0) = Structure::new(model)?;
     let n = st.n;
     // Prepare records.
@@ -534,6 +684,7 @@ pub fn refine(model: &Model, train: &[Record], opts: &RefineOptions) -> Result<R
         per_record,
         converged,
         message,
+        noise_dominated: Vec::new(),
     })
 }
 
@@ -592,7 +743,10 @@ fn check_options(o: &RefineOptions) -> Result<()> {
 /// Simulates `eq_model` and `refined` on held-out `validation` records (tfs-dynamics
 /// [`simulate_model_on_record`] with default options) and returns a clone of the one that
 /// predicts better (lower sum over records of squared RMS error normalised by the record's
-/// displacement RMS; ties keep `eq_model`), with the scores.
+/// displacement RMS; ties keep `eq_model`), with the scores. Records whose free-run error under
+/// `eq_model` is dominated by the noise on their measured input ([`crate::input_noise_spread`])
+/// cannot rank the two and are left out of the sums (listed in
+/// [`ValidationScores::noise_dominated`]); with none left, `eq_model` is kept.
 pub fn choose_by_validation(
     eq_model: &Model,
     refined: &Model,
@@ -602,8 +756,17 @@ pub fn choose_by_validation(
     check_records(refined, validation, "validation")?;
     let opts = SimulateOptions::default();
     let mut per_record = Vec::new();
+    let mut noise_dominated = Vec::new();
     let (mut s_eq, mut s_ref) = (0.0, 0.0);
-    for r in validation {
+    let screened: Vec<Option<(f64, f64)>> = validation
+        .par_iter()
+        .map(|r| noise_screen(eq_model, r, &opts))
+        .collect();
+    for (r, screen) in validation.iter().zip(screened) {
+        if let Some((spread, error)) = screen {
+            noise_dominated.push((r.source().to_string(), spread, error));
+            continue;
+        }
         let norm: Vec<f64> = eq_model
             .dofs
             .iter()
@@ -623,7 +786,7 @@ pub fn choose_by_validation(
             .sum::<f64>();
         per_record.push((r.source().to_string(), combine(&e1), combine(&e2)));
     }
-    let chose_refined = s_ref < s_eq;
+    let chose_refined = s_ref < s_eq && noise_dominated.len() < validation.len();
     let chosen = if chose_refined {
         refined.clone()
     } else {
@@ -636,6 +799,7 @@ pub fn choose_by_validation(
             eq_score: s_eq,
             refined_score: s_ref,
             chose_refined,
+            noise_dominated,
         },
     ))
 }

@@ -185,6 +185,7 @@ pub fn run(args: Args) -> Result<()> {
             "converged": refined.converged,
             "message": refined.message,
             "per_record": refined.per_record,
+            "noise_dominated": refined.noise_dominated,
         });
         if args.validate.is_empty() {
             identified.model = refined.model;
@@ -198,6 +199,7 @@ pub fn run(args: Args) -> Result<()> {
                 "simulation_error_fit": scores.refined_score,
                 "chose_refined": scores.chose_refined,
                 "per_record": scores.per_record,
+                "noise_dominated": scores.noise_dominated,
             });
             identified.model = chosen;
         }

@@ -109,6 +109,7 @@ pub fn run(args: Args) -> Result<()> {
             "converged": refined.converged,
             "message": refined.message,
             "per_record": refined.per_record,
+            "noise_dominated": refined.noise_dominated,
         });
         if args.validate.is_empty() {
             model = refined.model;
@@ -124,6 +125,7 @@ pub fn run(args: Args) -> Result<()> {
                 "simulation_error_fit": scores.refined_score,
                 "chose_refined": scores.chose_refined,
                 "per_record": scores.per_record,
+                "noise_dominated": scores.noise_dominated,
             });
             model = chosen;
         }
