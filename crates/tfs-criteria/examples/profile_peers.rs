@@ -61,7 +61,7 @@ fn force_error(m: &Model) -> f64 {
 
 /// Option overrides from the environment (`TFS_REWEIGHT=passes`, `TFS_PRUNE=rounds`,
 /// `TFS_EIV=draws` of the errors-in-variables correction, `TFS_GUARD=octaves` above the
-/// cut-off, `TFS_RESELECT=0` for one choice of settings, …); `TFS_TIMING` prints stage times;
+/// cut-off, `TFS_RESELECT=0` for one choice of settings, `TFS_KAPPA0=k` for a fixed κ0 (no calibration), …); `TFS_TIMING` prints stage times;
 /// `TFS_SAVE=dir` (Monte-Carlo mode) writes each seed's model there, and `TFS_SEED0=n` starts
 /// its seeds at `n` (to look at one draw again).
 fn tweak(spec: &mut IdentifySpec) {
@@ -99,6 +99,11 @@ fn tweak(spec: &mut IdentifySpec) {
     }
     if let Some(e) = list("TFS_EIV") {
         spec.tfs.noise_correction_draws = e.first().map_or(0, |v| *v as usize);
+    }
+    if let Some(k) = list("TFS_KAPPA0") {
+        if let Some(&k) = k.first() {
+            spec.tfs.kappa0 = tfs_criteria::Kappa0Choice::Fixed(k);
+        }
     }
     if let Some(p) = list("TFS_PRUNE") {
         spec.tfs.prune_insignificant = p.first().map_or(0, |v| *v as usize);

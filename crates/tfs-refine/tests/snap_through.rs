@@ -82,3 +82,27 @@ fn clean_input_is_not_screened() {
     assert!(out.noise_dominated.is_empty(), "{}", out.message);
     assert!(out.final_cost < out.initial_cost, "{}", out.message);
 }
+
+#[test]
+fn input_noise_spread_scales_with_the_input_noise() {
+    // A linear oscillator responds linearly to its input's noise: 20 dB more noise on the input
+    // moves the simulation ten times as far. The displacement's own noise plays no part.
+    let lin = model(&[("x", -4.0), ("x'", -0.4), ("u", 1.0)]);
+    let dt = 0.05;
+    let n = 4000;
+    let sw = Sweep::new(SweepKind::Linear, 0.05, 0.4, n as f64 * dt, 1.0, 10.0).unwrap();
+    let spread = |snr_db: f64| {
+        let r = measure("lin", &lin, sample(&sw, n, dt), dt, snr_db, (0.0, 0.0), 5);
+        let opts = tfs_dynamics::SimulateOptions::default();
+        tfs_refine::input_noise_spread(&lin, &r, &opts)
+            .unwrap()
+            .expect("a swept input has a noise-only floor")[0]
+    };
+    let (s20, s40) = (spread(20.0), spread(40.0));
+    assert!(s20 > 0.0 && s40 > 0.0);
+    let ratio = s20 / s40;
+    assert!(
+        (7.0..14.0).contains(&ratio),
+        "spread 20 dB / 40 dB = {ratio}"
+    );
+}

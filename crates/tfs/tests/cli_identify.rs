@@ -117,6 +117,14 @@ fn check(truth: &Model, library: &str, method: &str, train: &[PathBuf], test: &P
     ]);
     let r = cmp["files"][0]["r_mse"].as_f64().unwrap();
     assert!(r < 1e-3, "{method}: held-out R-MSE {r}");
+    // The input-noise spread is reported per DOF (null where the input has no noise-only floor),
+    // with the verdict on whether the error is the input's doing.
+    let d = &cmp["files"][0]["dofs"][0];
+    assert!(d.get("input_noise_spread").is_some(), "{cmp}");
+    assert!(
+        cmp["files"][0].get("error_is_input_noise").is_some(),
+        "{cmp}"
+    );
 }
 
 #[test]

@@ -51,13 +51,21 @@ pub fn run(args: Args) -> Result<()> {
             .with_context(|| format!("{}: simulating the model", path.display()))?;
         let mut dofs = Vec::new();
         let mut sum = 0.0;
+        // How far a fresh draw of the input's own noise moves the simulation: an error no larger
+        // than that is the measured input's doing, not the model's.
+        let spread = tfs::refine::input_noise_spread(&model, rec, &Default::default())
+            .ok()
+            .flatten();
+        let mut errors = Vec::new();
         for (i, dof) in model.dofs.iter().enumerate() {
             let measured = rec.column(dof).context("column vanished")?;
             let r = rmse_ratio(measured, &traj.x[i])
                 .with_context(|| format!("{}: column '{dof}'", path.display()))?;
             let rms = rms_error(measured, &traj.x[i])?;
             sum += r;
-            dofs.push(json!({"dof": dof, "r_mse": r, "rms_error": rms}));
+            errors.push(rms);
+            let s = spread.as_ref().map(|s| s[i]).filter(|v| v.is_finite());
+            dofs.push(json!({"dof": dof, "r_mse": r, "rms_error": rms, "input_noise_spread": s}));
             if let Some(dir) = &args.plots {
                 let stem = dir.join(format!(
                     "{}-{dof}",
@@ -96,7 +104,17 @@ pub fn run(args: Args) -> Result<()> {
             bail!("{}: the model has no DOFs", args.model.display());
         }
         let r_mse = sum / model.dofs.len() as f64;
-        files.push(json!({"path": path.display().to_string(), "r_mse": r_mse, "dofs": dofs}));
+        let dominated = spread.as_ref().map(|s| {
+            tfs::refine::noise_dominated(
+                s,
+                &errors,
+                &tfs::refine::displacement_noise_var(&model, rec),
+            )
+        });
+        files.push(
+            json!({"path": path.display().to_string(), "r_mse": r_mse, "dofs": dofs,
+            "error_is_input_noise": dominated}),
+        );
     }
     if args.json {
         print_json(&json!({
@@ -111,20 +129,32 @@ pub fn run(args: Args) -> Result<()> {
             offsets_report["why"].as_str().unwrap_or("")
         );
         println!(
-            "{:<40} {:>12} {:>14}",
-            "file", "R-MSE", "RMS error (record units)"
+            "{:<40} {:>12} {:>14} {:>14}",
+            "file", "R-MSE", "RMS error", "input-noise spread"
         );
         for f in &files {
             for d in f["dofs"].as_array().into_iter().flatten() {
                 println!(
-                    "{:<40} {:>12.4e} {:>14.4e}  ({})",
+                    "{:<40} {:>12.4e} {:>14.4e} {:>14}  ({})",
                     f["path"].as_str().unwrap_or(""),
                     d["r_mse"].as_f64().unwrap_or(f64::NAN),
                     d["rms_error"].as_f64().unwrap_or(f64::NAN),
+                    d["input_noise_spread"]
+                        .as_f64()
+                        .map_or("—".into(), |v| format!("{v:.4e}")),
                     d["dof"].as_str().unwrap_or("")
                 );
             }
+            if f["error_is_input_noise"].as_bool() == Some(true) {
+                println!(
+                    "  {}: most of this error is the measured input's own noise (a fresh draw of it moves the simulation about as far): it cannot rank models",
+                    f["path"].as_str().unwrap_or("")
+                );
+            }
         }
+        println!(
+            "(RMS error and spread in the record's units; the spread is how far a fresh draw of the input's estimated noise moves the simulation)"
+        );
     }
     Ok(())
 }
