@@ -209,10 +209,20 @@ pub struct LadderStep {
     pub step: String,
     /// What was added.
     pub added: Vec<String>,
-    /// Mean R-MSE over the step's records (NaN when none were scored).
+    /// Mean R-MSE over the step's scored records (NaN when none were scored: see `failed`).
     pub mean_r_mse: f64,
     /// R-MSE per record.
     pub r_mse: Vec<RecordScore>,
+    /// Records whose simulation failed at this step (e.g. blow-up), with the reason.
+    pub failed: Vec<String>,
+}
+
+impl LadderStep {
+    /// True when some record could not be simulated: the mean then covers only the others
+    /// (or none), so it cannot be compared with a step that scored every record.
+    pub fn incomplete(&self) -> bool {
+        !self.failed.is_empty()
+    }
 }
 
 /// The error ladder of a model: one step per history entry.
@@ -229,12 +239,19 @@ pub fn error_ladder(model: &Model) -> Vec<LadderStep> {
                 h.r_mse.iter().map(|s| s.r_mse).sum::<f64>() / h.r_mse.len() as f64
             },
             r_mse: h.r_mse.clone(),
+            failed: h.details["failed"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .filter_map(|v| v.as_str().map(str::to_string))
+                .collect(),
         })
         .collect()
 }
 
 /// The ladder as a plain-text table (step, added terms, mean R-MSE, factor versus the previous
-/// step).
+/// step). A step whose simulation failed on some record says so: its mean then covers the other
+/// records only, and no factor is given against or from it.
 pub fn ladder_table(ladder: &[LadderStep]) -> String {
     let mut s = format!(
         "{:<28} {:>12} {:>9}  added\n",
@@ -242,18 +259,101 @@ pub fn ladder_table(ladder: &[LadderStep]) -> String {
     );
     let mut prev: Option<f64> = None;
     for st in ladder {
+        let comparable = !st.incomplete() && st.mean_r_mse.is_finite();
         let factor = match prev {
-            Some(p) if st.mean_r_mse > 0.0 => format!("{:.2}x", p / st.mean_r_mse),
+            Some(p) if comparable && st.mean_r_mse > 0.0 => format!("{:.2}x", p / st.mean_r_mse),
             _ => "-".into(),
         };
+        let mean = if st.mean_r_mse.is_finite() {
+            format!("{:.4e}", st.mean_r_mse)
+        } else {
+            "failed".into()
+        };
         s.push_str(&format!(
-            "{:<28} {:>12.4e} {:>9}  {}\n",
+            "{:<28} {:>12} {:>9}  {}\n",
             st.step,
-            st.mean_r_mse,
+            mean,
             factor,
             st.added.join(", ")
         ));
-        prev = Some(st.mean_r_mse);
+        if st.incomplete() {
+            let total = st.failed.len() + st.r_mse.len();
+            s.push_str(&format!(
+                "  simulation failed on {} of {total} record(s){}: {}\n",
+                st.failed.len(),
+                if st.r_mse.is_empty() {
+                    ""
+                } else {
+                    " (the mean is over the others)"
+                },
+                st.failed[0]
+            ));
+        }
+        prev = comparable.then_some(st.mean_r_mse);
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn step(name: &str, scores: &[f64], failed: &[&str]) -> HistoryEntry {
+        HistoryEntry {
+            step: name.into(),
+            added: Vec::new(),
+            r_mse: scores
+                .iter()
+                .enumerate()
+                .map(|(i, &v)| RecordScore {
+                    record: format!("r{i}"),
+                    r_mse: v,
+                })
+                .collect(),
+            details: json!({ "failed": failed }),
+        }
+    }
+
+    /// A step whose simulations failed says so instead of printing NaN, and no factor is
+    /// computed against a mean that covers only some of the records.
+    #[test]
+    fn failed_steps_are_named_not_nan() {
+        let mut m = Model::from_json_str(
+            r#"{"format":"tfs-model/1","dofs":["x"],"equations":[{"dof":"x","terms":[{"term":"x","coef":-1}]}]}"#,
+        )
+        .unwrap();
+        m.history = vec![
+            step("start", &[0.02, 0.04], &[]),
+            step("add a", &[], &["r0: blew up", "r1: blew up"]),
+            step("add b", &[0.01], &["r1: blew up"]),
+            step("add c", &[0.01, 0.01], &[]),
+        ];
+        let ladder = error_ladder(&m);
+        assert!(!ladder[0].incomplete());
+        assert!(ladder[1].incomplete() && ladder[1].mean_r_mse.is_nan());
+        assert_eq!(ladder[2].failed, vec!["r1: blew up".to_string()]);
+        let t = ladder_table(&ladder);
+        assert!(!t.contains("NaN"), "{t}");
+        let lines: Vec<&str> = t.lines().collect();
+        // header, start, add a + note, add b + note, add c
+        assert_eq!(lines.len(), 7, "{t}");
+        assert!(
+            lines[2].contains("failed") && lines[2].contains(" - "),
+            "{t}"
+        );
+        assert!(lines[3].contains("2 of 2"), "{t}");
+        assert!(
+            lines[4].contains("1.0000e-2") && !lines[4].contains('x'),
+            "{t}"
+        );
+        assert!(
+            lines[5].contains("1 of 2") && lines[5].contains("over the others"),
+            "{t}"
+        );
+        // 'add c' follows an incomplete step: no factor either.
+        assert!(
+            lines[6].starts_with("add c") && !lines[6].contains("x "),
+            "{t}"
+        );
+    }
 }

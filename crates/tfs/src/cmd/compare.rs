@@ -37,8 +37,18 @@ pub struct Args {
 /// Runs `tfs compare`.
 pub fn run(args: Args) -> Result<()> {
     let model = read_model(&args.model)?;
+    // Columns that `tfs diagnose`/`refit` added as effects (delayed or filtered inputs, Maxwell
+    // elements) are computed from the record, not read from it.
+    let computed = tfs::diagnose::effects::computed_columns(&model);
+    let state_dependent = computed.iter().any(|c| !c.from_input());
     let mut required = model.dofs.clone();
-    required.extend(model.inputs.iter().cloned());
+    required.extend(
+        model
+            .inputs
+            .iter()
+            .filter(|i| !computed.iter().any(|c| c.name() == **i))
+            .cloned(),
+    );
     let mut records = read_records(&args.data, &required, &args.data_args)?;
     let offsets_report = offsets_for_model(&mut records, &model, &required, args.offsets)?;
     if let Some(dir) = &args.plots {
@@ -47,15 +57,26 @@ pub fn run(args: Args) -> Result<()> {
     }
     let mut files = Vec::new();
     for (path, rec) in args.data.iter().zip(&records) {
-        let traj = tfs::dynamics::simulate_model_on_record(&model, rec, &Default::default())
+        // The same simulation as `diagnose` and `refit` score with: plain models go straight to
+        // tfs-dynamics; computed input columns are added to the record, and each Maxwell element
+        // is integrated as an extra state driven by the simulated velocity.
+        let traj = tfs::diagnose::simulate(&model, rec)
             .with_context(|| format!("{}: simulating the model", path.display()))?;
         let mut dofs = Vec::new();
         let mut sum = 0.0;
         // How far a fresh draw of the input's own noise moves the simulation: an error no larger
         // than that is the measured input's doing, not the model's.
-        let spread = tfs::refine::input_noise_spread(&model, rec, &Default::default())
-            .ok()
-            .flatten();
+        // A Maxwell column is a state, not an input that could be perturbed: no spread then.
+        let spread = if state_dependent {
+            None
+        } else {
+            tfs::diagnose::augment_record(&model, rec, &Default::default())
+                .ok()
+                .and_then(|aug| {
+                    tfs::refine::input_noise_spread(&model, &aug, &Default::default()).ok()
+                })
+                .flatten()
+        };
         let mut errors = Vec::new();
         for (i, dof) in model.dofs.iter().enumerate() {
             let measured = rec.column(dof).context("column vanished")?;
@@ -155,6 +176,11 @@ pub fn run(args: Args) -> Result<()> {
         println!(
             "(RMS error and spread in the record's units; the spread is how far a fresh draw of the input's estimated noise moves the simulation)"
         );
+        if state_dependent {
+            println!(
+                "(no spread: the model's Maxwell column is a simulated state, not an input a noise draw could perturb)"
+            );
+        }
     }
     Ok(())
 }

@@ -76,6 +76,36 @@ fn with_computed_inputs(
     Ok(())
 }
 
+/// What the error ladder says against the steps just taken: an added effect under which some
+/// record's simulation fails, or one that makes the mean R-MSE worse than the step before it
+/// (the records do not support it; `tfs diagnose` tests that before anything is added).
+fn ladder_warnings(ladder: &[tfs::diagnose::LadderStep]) -> Vec<String> {
+    let mut out = Vec::new();
+    for pair in ladder.windows(2) {
+        let (before, after) = (&pair[0], &pair[1]);
+        if after.incomplete() {
+            out.push(format!(
+                "after '{}', the simulation fails on {} of {} record(s) ({}); the model is not \
+                 usable on them. `tfs diagnose` says which effects the records support",
+                after.step,
+                after.failed.len(),
+                after.failed.len() + after.r_mse.len(),
+                after.failed[0]
+            ));
+        } else if !before.incomplete()
+            && before.mean_r_mse.is_finite()
+            && after.mean_r_mse > before.mean_r_mse
+        {
+            out.push(format!(
+                "'{}' made the mean R-MSE worse ({:.4e} -> {:.4e}): the records do not support \
+                 it. `tfs diagnose` says which effects they do",
+                after.step, before.mean_r_mse, after.mean_r_mse
+            ));
+        }
+    }
+    out
+}
+
 /// Runs `tfs refit`.
 pub fn run(args: Args) -> Result<()> {
     let mut model = read_model(&args.model)?;
@@ -141,6 +171,10 @@ pub fn run(args: Args) -> Result<()> {
         .write_path(&args.out)
         .with_context(|| format!("--out {}", args.out.display()))?;
     let ladder = error_ladder(&model);
+    let warnings = ladder_warnings(&ladder);
+    for w in &warnings {
+        eprintln!("warning: {w}");
+    }
     if let Some(dir) = &args.plots {
         let chart = tfs::plot::BarChart {
             title: "Error ladder: mean R-MSE of the records after each step".into(),
@@ -162,6 +196,7 @@ pub fn run(args: Args) -> Result<()> {
             "model": model.to_json_value()?,
             "offsets": offsets_report,
             "refine": refine_report,
+            "warnings": warnings,
         }))?;
     } else {
         println!("{}", model.equation_string());
@@ -172,4 +207,54 @@ pub fn run(args: Args) -> Result<()> {
         println!("wrote {}", args.out.display());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tfs::diagnose::LadderStep;
+    use tfs::library::RecordScore;
+
+    fn step(name: &str, scores: &[f64], failed: &[&str]) -> LadderStep {
+        let r_mse: Vec<RecordScore> = scores
+            .iter()
+            .map(|&v| RecordScore {
+                record: "r".into(),
+                r_mse: v,
+            })
+            .collect();
+        LadderStep {
+            step: name.into(),
+            added: Vec::new(),
+            mean_r_mse: if r_mse.is_empty() {
+                f64::NAN
+            } else {
+                scores.iter().sum::<f64>() / scores.len() as f64
+            },
+            r_mse,
+            failed: failed.iter().map(|s| s.to_string()).collect(),
+        }
+    }
+
+    /// An added effect that makes the error worse, or under which a record's simulation fails,
+    /// is warned about; one that lowers it is not.
+    #[test]
+    fn warns_when_an_added_effect_does_not_help() {
+        let good = [step("start", &[0.02], &[]), step("add a", &[0.01], &[])];
+        assert!(ladder_warnings(&good).is_empty());
+        let worse = [step("start", &[0.01], &[]), step("add a", &[0.02], &[])];
+        let w = ladder_warnings(&worse);
+        assert_eq!(w.len(), 1);
+        assert!(w[0].contains("'add a' made the mean R-MSE worse"), "{w:?}");
+        let broke = [
+            step("start", &[0.01, 0.01], &[]),
+            step("add a", &[0.01], &["r1: blew up"]),
+        ];
+        let w = ladder_warnings(&broke);
+        assert_eq!(w.len(), 1);
+        assert!(
+            w[0].contains("fails on 1 of 2") && w[0].contains("blew up"),
+            "{w:?}"
+        );
+    }
 }
