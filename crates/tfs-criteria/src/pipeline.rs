@@ -485,6 +485,22 @@ fn centred_factor(blocks: &[(Mat<f64>, Vec<f64>)], cols: &[usize]) -> Result<Mat
     }))
 }
 
+/// The reason part of a "too noisy" support note (`" (estimated …): x1, … fail the term test…"`),
+/// without its verdict prefix and the advice, so that a note built on it states them once.
+fn note_reason(note: &str) -> String {
+    let reason = note
+        .strip_prefix("too noisy for this library")
+        .unwrap_or(note);
+    let reason = reason
+        .strip_suffix(NOT_SUPPORTED_ADVICE)
+        .map_or(reason, |r| r.trim_end_matches("; "));
+    if reason.starts_with(':') || reason.starts_with(" (") {
+        reason.to_string()
+    } else {
+        format!(": {reason}")
+    }
+}
+
 /// What the trace tells the user when the data do not support the library.
 pub(crate) const NOT_SUPPORTED_ADVICE: &str = "the model below is not a reliable identification. What to do: measure longer or repeat the test (more records), raise the excitation level or lower the sensor noise, or use a smaller library (fewer high powers)";
 
@@ -1023,7 +1039,7 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
             d.criterion1
                 .as_ref()
                 .filter(|c| !c.supported)
-                .map(|c| c.support_note.clone())
+                .map(|c| note_reason(&c.support_note))
         })
         .collect();
     let first_c1: Option<Vec<Criterion1>> =
@@ -1119,7 +1135,7 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
         } else {
             first_note[i_of(&spec.dofs, &d.dof)].as_ref().map(|note| {
                 format!(
-                    "the full library was not supported ({note}); the reduced model was found by removing terms one significance test at a time, so check it against held-out records (`tfs compare`) before relying on it"
+                    "the full library was not supported{note}; the reduced model was found by removing terms one significance test at a time, so check it against held-out records (`tfs compare`) before relying on it"
                 )
             })
         };
@@ -2727,6 +2743,23 @@ pub fn identify_sindy(records: &[Record], spec: &IdentifySpec) -> Result<Identif
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A note built on the first pass's "too noisy" note states the verdict and the advice once.
+    #[test]
+    fn note_reason_drops_the_verdict_and_the_advice() {
+        let first = format!(
+            "too noisy for this library (estimated displacement SNR 20.4 dB): x1 fails the term test; {NOT_SUPPORTED_ADVICE}"
+        );
+        assert_eq!(
+            note_reason(&first),
+            " (estimated displacement SNR 20.4 dB): x1 fails the term test"
+        );
+        let plain = format!(
+            "too noisy for this library: no term survives selection; {NOT_SUPPORTED_ADVICE}"
+        );
+        assert_eq!(note_reason(&plain), ": no term survives selection");
+        assert_eq!(note_reason("something else"), ": something else");
+    }
 
     /// Student's t quantiles (tabulated values) and the term test's Bonferroni level: with one
     /// candidate the test is the 95 % interval itself; with 36 it asks for about 3.2·SE on

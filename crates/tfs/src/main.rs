@@ -57,14 +57,54 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            // One line: the chain of causes joined, as the contract asks.
-            let msg = e
-                .chain()
-                .map(|c| c.to_string())
-                .collect::<Vec<_>>()
-                .join(": ");
+            // One line: the chain of causes joined, as the contract asks. Errors that already
+            // print their cause (`… failed: {source}`) also return it as `source()`: a cause
+            // whose text is already in the line is not repeated.
+            let msg = one_line(&e);
             eprintln!("error: {}", msg.replace('\n', " "));
             ExitCode::from(2)
         }
+    }
+}
+
+/// The error and its causes on one line, each cause once.
+fn one_line(e: &anyhow::Error) -> String {
+    let mut msg = String::new();
+    for c in e.chain() {
+        let text = c.to_string();
+        if msg.contains(&text) {
+            continue;
+        }
+        if !msg.is_empty() {
+            msg.push_str(": ");
+        }
+        msg.push_str(&text);
+    }
+    msg
+}
+
+#[cfg(test)]
+mod tests {
+    use super::one_line;
+
+    #[derive(Debug, thiserror::Error)]
+    #[error("simulation of record 0 failed: {source}")]
+    struct Outer {
+        source: std::io::Error,
+    }
+
+    /// A cause that the error's own message already prints is not printed twice; a new one is.
+    #[test]
+    fn causes_are_joined_once() {
+        let e = anyhow::Error::new(Outer {
+            source: std::io::Error::other("blew up at t = 3 s"),
+        })
+        .context("simulating the dataset");
+        assert_eq!(
+            one_line(&e),
+            "simulating the dataset: simulation of record 0 failed: blew up at t = 3 s"
+        );
+        let e = anyhow::anyhow!("inner").context("outer");
+        assert_eq!(one_line(&e), "outer: inner");
     }
 }

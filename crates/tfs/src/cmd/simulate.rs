@@ -55,9 +55,11 @@ pub enum TruthArg {
 /// Options shared by both structures.
 #[derive(Debug, clap::Args)]
 pub struct Common {
-    /// Truth (force law).
-    #[arg(long, value_enum, default_value_t = TruthArg::Surrogate)]
-    pub truth: TruthArg,
+    /// Truth (force law). Default: `surrogate` for one cell (the paper's S-DOF case), `truss`
+    /// for a chain (the paper's chain truth; a cell's surrogate polynomial is fitted on
+    /// 0 ≤ h ≤ 1.7 and has no folded stop, so a chain driven below h = 0 runs away).
+    #[arg(long, value_enum)]
+    pub truth: Option<TruthArg>,
     /// Excitation: sweep:F0:F1:AMP (linear sweep, Hz, acceleration) or sine:F:AMP; repeat for
     /// several records.
     #[arg(long = "excitation", default_values_t = ["sweep:0.05:1.5:4".to_string()])]
@@ -121,7 +123,11 @@ pub fn run(args: Args) -> Result<()> {
     if cells.is_empty() {
         bail!("--gamma0: give at least one cell angle");
     }
-    let truth = match common.truth {
+    let chosen = common.truth.unwrap_or(match &args.structure {
+        Structure::Kresling { .. } => TruthArg::Surrogate,
+        Structure::Chain { .. } => TruthArg::Truss,
+    });
+    let truth = match chosen {
         TruthArg::Surrogate => Truth::Surrogate,
         TruthArg::Truss => Truth::Truss,
     };
@@ -159,7 +165,16 @@ pub fn run(args: Args) -> Result<()> {
         seed: common.seed,
         ..DatasetConfig::default()
     };
-    let data = generate(&cfg).context("simulating the dataset")?;
+    let data = generate(&cfg).with_context(|| {
+        if chosen == TruthArg::Surrogate {
+            "simulating the dataset (the surrogate force is a polynomial fitted on 0 ≤ h ≤ 1.7 \
+             without the folded stop: if the run diverged, lower the excitation amplitude or use \
+             --truth truss)"
+        } else {
+            "simulating the dataset"
+        }
+    })?;
+
     let mut files = Vec::new();
     let n = data.records.len();
     for (k, rec) in data.records.iter().enumerate() {
