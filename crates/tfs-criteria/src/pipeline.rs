@@ -2088,7 +2088,7 @@ fn estimated_snr_db(preps: &[Prepared<'_>], dof: &str, d: usize) -> Option<f64> 
 }
 
 /// Level of the coefficient intervals.
-const INTERVAL_LEVEL: f64 = 0.95;
+pub(crate) const INTERVAL_LEVEL: f64 = 0.95;
 
 /// The two-sided `level` quantile of Student's t with `nu` degrees of freedom (`t` with
 /// `P(|T| ≤ t) = level`).
@@ -2201,13 +2201,24 @@ fn cluster_intervals(
     sel: &[usize],
     coef: &[f64],
 ) -> Option<(Vec<f64>, usize, Vec<f64>)> {
-    use faer::linalg::solvers::Solve;
-    let k = sel.len();
     let cols: Vec<usize> = sel.iter().map(|&j| keep[j]).collect();
-    // (A row, residual) per cluster.
-    let clusters = bin_clusters(rows, delta, &cols);
+    let clusters: Vec<ClusterRows> = bin_clusters(rows, delta, &cols).into_values().collect();
+    let sub: Vec<f64> = sel.iter().map(|&j| coef[j]).collect();
+    jackknife_intervals(&clusters, &sub)
+}
+
+/// The delete-one-cluster jackknife of [`cluster_intervals`] on clusters of rows that already
+/// hold only the fitted coefficients' columns (`coef[c]` multiplies column `c`): half-widths of
+/// the [`INTERVAL_LEVEL`] intervals, the number of clusters and each coefficient's effective
+/// degrees of freedom. Shared with the tied chain fit, whose rows are the joint ones.
+pub(crate) fn jackknife_intervals(
+    clusters: &[ClusterRows],
+    coef: &[f64],
+) -> Option<(Vec<f64>, usize, Vec<f64>)> {
+    use faer::linalg::solvers::Solve;
+    let k = coef.len();
     let mut norms = vec![0.0; k];
-    for (row, _) in clusters.values().flatten() {
+    for (row, _) in clusters.iter().flatten() {
         for c in 0..k {
             norms[c] += row[c] * row[c];
         }
@@ -2224,11 +2235,11 @@ fn cluster_intervals(
     // Each cluster's Gram matrix and score A_gᵀe_g, and their sum.
     let mut gram = Mat::<f64>::zeros(k, k);
     let mut own: Vec<(Mat<f64>, Mat<f64>)> = Vec::with_capacity(g);
-    for rows in clusters.values() {
+    for rows in clusters {
         let mut gg = Mat::<f64>::zeros(k, k);
         let mut sg = Mat::<f64>::zeros(k, 1);
         for (row, y) in rows {
-            let e = y - (0..k).map(|c| row[c] * coef[sel[c]]).sum::<f64>();
+            let e = y - (0..k).map(|c| row[c] * coef[c]).sum::<f64>();
             for p in 0..k {
                 sg[(p, 0)] += row[p] * d[p] * e;
                 for q in 0..k {
@@ -2397,12 +2408,12 @@ fn cluster_blocks(
 }
 
 /// Rows `(A row, left-hand side)` of one cluster of bins.
-type ClusterRows = Vec<(Vec<f64>, f64)>;
+pub(crate) type ClusterRows = Vec<(Vec<f64>, f64)>;
 
 /// The frequency-domain rows (bins with relative amplitude ≥ `delta`, columns `cols`) of `rows`
 /// (record, window, transform) grouped into clusters of `CLUSTER_BINS` neighbouring bins of one
 /// pair of overlapping windows; each row with its left-hand side.
-fn bin_clusters(
+pub(crate) fn bin_clusters(
     rows: &[(usize, usize, &WindowTransform)],
     delta: f64,
     cols: &[usize],
