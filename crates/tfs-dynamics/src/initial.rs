@@ -287,7 +287,9 @@ pub fn fit_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator>(
 /// The initial state of a simulation of `sys` on measured displacements (`measured`, the first
 /// DOFs of `sys`, sampled at `t`) by `how`: the first-samples state `(x0, v0)` as given, or for
 /// [`InitialState::Fitted`] the better of the fits ([`fit_initial_state`]) from it and from a
-/// smoothed start, over [`fit_horizon`] samples. DOFs beyond `measured` keep their given state.
+/// smoothed start, over [`fit_horizon`] samples (halved while the model blows up from both
+/// within it; the smoothed start if it does so even over 16 samples). DOFs beyond `measured`
+/// keep their given state.
 ///
 /// Errors: a non-positive `periods`, or the dimension errors of [`fit_initial_state`].
 #[allow(clippy::too_many_arguments)]
@@ -324,20 +326,32 @@ pub fn choose_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator>(
         xs[i] = a;
         vs[i] = b;
     }
-    let th = &t[..h];
-    let fits = [
-        fit_initial_state(sys, integrator, input, measured, th, &x0, &v0)?,
-        fit_initial_state(sys, integrator, input, measured, th, &xs, &vs)?,
-    ];
-    let best = fits
-        .into_iter()
-        .filter(|f| f.cost.is_finite())
-        .min_by(|a, b| a.cost.total_cmp(&b.cost));
-    Ok(match best {
-        Some(f) => (f.x0, f.v0),
-        None => (x0, v0),
-    })
+    // A model that blows up within the horizon from both guesses (one that is unstable for this
+    // record) has no finite cost to fit there: the horizon is halved until it has one, so the
+    // simulation starts from a fitted state and fails where the model does, not within a few
+    // samples of a noisy first-samples velocity.
+    let mut len = h;
+    while len >= MIN_HORIZON.min(h) {
+        let th = &t[..len];
+        let fits = [
+            fit_initial_state(sys, integrator, input, measured, th, &x0, &v0)?,
+            fit_initial_state(sys, integrator, input, measured, th, &xs, &vs)?,
+        ];
+        if let Some(f) = fits
+            .into_iter()
+            .filter(|f| f.cost.is_finite())
+            .min_by(|a, b| a.cost.total_cmp(&b.cost))
+        {
+            return Ok((f.x0, f.v0));
+        }
+        len /= 2;
+    }
+    // No stretch could be fitted: the smoothed start is the better guess of the two.
+    Ok((xs, vs))
 }
+
+/// Fewest samples a shortened fit horizon of [`choose_initial_state`] keeps.
+const MIN_HORIZON: usize = 16;
 
 #[cfg(test)]
 mod tests {

@@ -87,3 +87,51 @@ fn clean_records_keep_their_exact_start() {
     let tr = simulate_model_on_record(&duffing(), &rec, &SimulateOptions::default()).unwrap();
     assert!(rmse_ratio(&clean, &tr.x[0]).unwrap() < 1e-12);
 }
+
+/// A model that blows up within the fit horizon (here `x'' = 25 x`, unstable from any start)
+/// still gets a fitted start from a shorter stretch, not the first samples' noisy velocity:
+/// the simulation then fails where the model does, not a few samples in.
+#[test]
+fn a_model_that_blows_up_still_starts_from_a_fitted_state() {
+    use tfs_dynamics::{Dopri5, FnSystem, SampledInput, choose_initial_state, fit_horizon};
+    let sys = FnSystem::new(
+        1,
+        0,
+        |_t, x: &[f64], _v: &[f64], _u: &[f64], a: &mut [f64]| {
+            a[0] = 25.0 * x[0];
+        },
+    );
+    let dt = 0.01;
+    let n = 4000;
+    let t: Vec<f64> = (0..n).map(|k| k as f64 * dt).collect();
+    // The truth from x = 1, v = 0 is cosh(5 t) (the record saturates at 1e9, where a sensor
+    // would clip; the simulation counts as blown up at 1e6, after ≈ 2.9 s).
+    let clean: Vec<f64> = t.iter().map(|&s| (5.0 * s).cosh().min(1e9)).collect();
+    let y: Vec<f64> = clean
+        .iter()
+        .enumerate()
+        .map(|(k, c)| c + 0.02 * if k % 2 == 0 { 1.0 } else { -1.0 })
+        .collect();
+    let measured = [&y[..]];
+    // The horizon (n/10 samples = 4 s) reaches far past where the model blows up (≈ 2.9 s).
+    assert!(fit_horizon(&measured, 2.0) as f64 * dt > 3.0);
+    let input = SampledInput::zero(0);
+    let first_v = tfs_dynamics::initial_velocity(&y, dt, 5).unwrap();
+    let (x0, v0) = choose_initial_state(
+        InitialState::default(),
+        &sys,
+        &Dopri5::default(),
+        &input,
+        &measured,
+        &t,
+        vec![y[0]],
+        vec![first_v],
+    )
+    .unwrap();
+    assert!(
+        (x0[0] - 1.0).abs() < 0.01 && v0[0].abs() < 0.1,
+        "start ({}, {}) against the truth (1, 0); the first samples gave velocity {first_v}",
+        x0[0],
+        v0[0]
+    );
+}
