@@ -4,7 +4,9 @@ use std::path::PathBuf;
 
 use anyhow::{Result, bail};
 use clap::ValueEnum;
-use tfs::criteria::{IdentifySpec, identify_sindy, identify_tfs};
+use tfs::criteria::{
+    IdentifySpec, MassChoice, TieOptions, identify_sindy, identify_tfs, identify_tfs_tied,
+};
 
 use super::{
     DataArgs, Offsets, apply_offsets, guess_dofs, guess_inputs, peek_columns, print_json,
@@ -47,6 +49,18 @@ pub struct Args {
     /// predicts them better.
     #[arg(long = "validate", requires = "refine")]
     pub validate: Vec<PathBuf>,
+    /// Chains: tie each element's force law between the two DOFs it connects (Newton's third
+    /// law, the paper's Eq. 18): a term of a relative coordinate `(x2-x1)` in both DOFs'
+    /// libraries gets one unknown, entering x1'' with −m2/m1 times its coefficient in x2''. The
+    /// partner equation then need not find the coupling on its own among collinear columns.
+    /// Coefficient intervals as usual; no term test (see the trace).
+    #[arg(long)]
+    pub tie: bool,
+    /// With --tie: the masses in the tie factors — `equal` (default, identical cells),
+    /// `estimate` (each DOF's mass relative to the first, scanned on held-out records), or one
+    /// positive number per DOF (`1,0.5`; only ratios matter).
+    #[arg(long, requires = "tie", default_value = "equal")]
+    pub masses: String,
     /// Where to write the model (tfs-model/1 JSON).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -85,6 +99,31 @@ pub fn default_libraries(dofs: &[String], inputs: &[String]) -> Vec<String> {
             parts.join(", ")
         })
         .collect()
+}
+
+/// `--masses`: `equal`, `estimate` (candidate ratios 0.25..4) or one positive mass per DOF.
+fn parse_masses(text: &str, n: usize) -> Result<MassChoice> {
+    match text.trim() {
+        "equal" => Ok(MassChoice::Equal),
+        "estimate" => Ok(MassChoice::Estimate {
+            candidates: vec![0.25, 0.33, 0.5, 0.67, 0.8, 1.0, 1.25, 1.5, 2.0, 3.0, 4.0],
+        }),
+        list => {
+            let m: Vec<f64> = list
+                .split(',')
+                .map(|v| v.trim().parse::<f64>())
+                .collect::<std::result::Result<_, _>>()
+                .map_err(|_| {
+                    anyhow::anyhow!(
+                        "--masses '{text}': expected 'equal', 'estimate' or {n} comma-separated numbers"
+                    )
+                })?;
+            if m.len() != n || m.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+                bail!("--masses '{text}': give one positive mass per DOF ({n})");
+            }
+            Ok(MassChoice::Given(m))
+        }
+    }
 }
 
 /// Runs `tfs identify`.
@@ -167,9 +206,23 @@ pub fn run(args: Args) -> Result<()> {
         offsets_report["mode"] = serde_json::json!(mode.name());
         offsets_report["constant_term_added"] = serde_json::json!(added_constant);
     }
-    let mut identified = match args.method {
-        Method::Tfs => identify_tfs(&records, &spec)?,
-        Method::Sindy => identify_sindy(&records, &spec)?,
+    let mut identified = match (args.method, args.tie) {
+        (Method::Tfs, false) => identify_tfs(&records, &spec)?,
+        (Method::Tfs, true) => {
+            let tie = TieOptions {
+                masses: parse_masses(&args.masses, dofs.len())?,
+            };
+            if tfs::criteria::chain_ties(&spec)?.is_empty() {
+                bail!(
+                    "--tie: no term of a relative coordinate between two DOFs (e.g. '(x2-x1)^3') is in both DOFs' libraries, so nothing can be tied; put the coupling terms in both libraries or drop --tie"
+                );
+            }
+            identify_tfs_tied(&records, &spec, &tie)?
+        }
+        (Method::Sindy, false) => identify_sindy(&records, &spec)?,
+        (Method::Sindy, true) => {
+            bail!("--tie works with --method tfs only (the tied fit is a T-F-S regression)")
+        }
     };
     let mut refine_report = serde_json::Value::Null;
     if args.refine {
