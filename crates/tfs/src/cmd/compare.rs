@@ -8,7 +8,9 @@ use serde_json::json;
 use tfs::dynamics::{rms_error, rmse_ratio};
 use tfs::plot::{Figure, LineChart, Series};
 
-use super::{DataArgs, Offsets, offsets_for_model, print_json, read_model, read_records};
+use super::{
+    DataArgs, Offsets, measured_columns, offsets_for_model, print_json, read_model, read_records,
+};
 
 /// Arguments of `tfs compare`.
 #[derive(Debug, clap::Args)]
@@ -39,16 +41,10 @@ pub fn run(args: Args) -> Result<()> {
     let model = read_model(&args.model)?;
     // Columns that `tfs diagnose`/`refit` added as effects (delayed or filtered inputs, Maxwell
     // elements) are computed from the record, not read from it.
-    let computed = tfs::diagnose::effects::computed_columns(&model);
-    let state_dependent = computed.iter().any(|c| !c.from_input());
-    let mut required = model.dofs.clone();
-    required.extend(
-        model
-            .inputs
-            .iter()
-            .filter(|i| !computed.iter().any(|c| c.name() == **i))
-            .cloned(),
-    );
+    let state_dependent = tfs::diagnose::effects::computed_columns(&model)
+        .iter()
+        .any(|c| !c.from_input());
+    let required = measured_columns(&model);
     let mut records = read_records(&args.data, &required, &args.data_args)?;
     let offsets_report = offsets_for_model(&mut records, &model, &required, args.offsets)?;
     if let Some(dir) = &args.plots {

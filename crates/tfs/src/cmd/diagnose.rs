@@ -8,7 +8,9 @@ use serde_json::json;
 use tfs::diagnose::{DiagnoseOptions, diagnose};
 use tfs::plot::{BarChart, Figure, LineChart, Series};
 
-use super::{DataArgs, Offsets, offsets_for_model, print_json, read_model, read_records};
+use super::{
+    DataArgs, Offsets, measured_columns, offsets_for_model, print_json, read_model, read_records,
+};
 
 /// Arguments of `tfs diagnose`.
 #[derive(Debug, clap::Args)]
@@ -43,15 +45,7 @@ pub struct Args {
 /// Runs `tfs diagnose`.
 pub fn run(args: Args) -> Result<()> {
     let model = read_model(&args.model)?;
-    let computed = tfs::diagnose::effects::computed_columns(&model);
-    let mut required = model.dofs.clone();
-    required.extend(
-        model
-            .inputs
-            .iter()
-            .filter(|i| !computed.iter().any(|c| c.name() == **i))
-            .cloned(),
-    );
+    let required = measured_columns(&model);
     let mut records = read_records(&args.data, &required, &args.data_args)?;
     let offsets_report = offsets_for_model(&mut records, &model, &required, args.offsets)?;
     let opts = DiagnoseOptions {

@@ -239,6 +239,22 @@ pub fn guess_inputs(columns: &[String]) -> Vec<String> {
         .collect()
 }
 
+/// The columns a record must hold to simulate `model`: its DOFs and its inputs, less the effect
+/// columns `tfs diagnose`/`refit` add (delayed or filtered inputs, Maxwell elements), which are
+/// computed from the record.
+pub fn measured_columns(model: &Model) -> Vec<String> {
+    let computed = tfs::diagnose::effects::computed_columns(model);
+    let mut required = model.dofs.clone();
+    required.extend(
+        model
+            .inputs
+            .iter()
+            .filter(|i| !computed.iter().any(|c| c.name() == **i))
+            .cloned(),
+    );
+    required
+}
+
 /// Reads a model file with its path in the error.
 pub fn read_model(path: &Path) -> Result<Model> {
     Model::from_path(path).with_context(|| format!("reading model {}", path.display()))

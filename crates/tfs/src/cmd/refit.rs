@@ -7,7 +7,9 @@ use anyhow::{Context, Result, bail};
 use serde_json::json;
 use tfs::diagnose::{add_effect, error_ladder, ladder_table};
 
-use super::{DataArgs, Offsets, offsets_for_model, print_json, read_model, read_records};
+use super::{
+    DataArgs, Offsets, measured_columns, offsets_for_model, print_json, read_model, read_records,
+};
 
 /// Arguments of `tfs refit`.
 #[derive(Debug, clap::Args)]
@@ -109,15 +111,7 @@ fn ladder_warnings(ladder: &[tfs::diagnose::LadderStep]) -> Vec<String> {
 /// Runs `tfs refit`.
 pub fn run(args: Args) -> Result<()> {
     let mut model = read_model(&args.model)?;
-    let computed = tfs::diagnose::effects::computed_columns(&model);
-    let mut required = model.dofs.clone();
-    required.extend(
-        model
-            .inputs
-            .iter()
-            .filter(|i| !computed.iter().any(|c| c.name() == **i))
-            .cloned(),
-    );
+    let required = measured_columns(&model);
     let mut records = read_records(&args.data, &required, &args.data_args)?;
     let offsets_report = offsets_for_model(&mut records, &model, &required, args.offsets)?;
     if args.add.is_empty() {
