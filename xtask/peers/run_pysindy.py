@@ -16,7 +16,8 @@ stacked before PySINDy's STLSQ is fitted on them.
 
 Each candidate is written as a tfs-model/1 JSON (the second-order equation x'' = ... is the v row
 of the first-order system; terms `x^i*x'^j`, `xb_acc`, `1`) and listed in index.json with its
-parameters and fit time. Selection among candidates (by test R-MSE, an oracle) and all scoring
+parameters and fit time (each timed step the median of TIMING_REPS identical calls, as tfs's fit
+time is the median of five). Selection among candidates (by test R-MSE, an oracle) and all scoring
 are done by the Rust side with the same code for every method.
 """
 
@@ -35,6 +36,20 @@ SG = {"window_length": 21, "polyorder": 3}
 H_GRID = [0.25, 0.5, 1.0, 2.0]  # test-function half-width (s)
 THRESHOLDS = [0.01, 0.03, 0.1, 0.3, 1.0]
 SUBDOMAINS_PER_HALF_WIDTH = 2.0  # K = ceil(2 * duration / H) subdomains of length 2H: each sample lies in ~4 on average
+
+
+TIMING_REPS = 5  # every timed step is the median of this many identical calls, as tfs's fit time
+
+
+def timed(fn):
+    """(result, median seconds) of TIMING_REPS identical calls of fn()."""
+    secs = []
+    out = None
+    for _ in range(TIMING_REPS):
+        t0 = time.perf_counter()
+        out = fn()
+        secs.append(time.perf_counter() - t0)
+    return out, float(np.median(secs))
 
 
 def read(path):
@@ -148,22 +163,20 @@ def main():
     index = {"pysindy": getattr(ps, "__version__", ""), "weak": [], "classical": []}
 
     # (a) weak form
-    t0 = time.perf_counter()
-    recs_v = [(t, x, u, velocity(t, x)) for t, x, u in recs]
-    t_vel = time.perf_counter() - t0
+    recs_v, t_vel = timed(lambda: [(t, x, u, velocity(t, x)) for t, x, u in recs])
     for h in H_GRID:
         try:
-            t0 = time.perf_counter()
-            theta, lhs, names = weak_rows(recs_v, h)
-            t_lib = time.perf_counter() - t0
+            (theta, lhs, names), t_lib = timed(lambda: weak_rows(recs_v, h))
         except ValueError as e:
             print(f"weak H={h}: skipped ({e})")
             continue
         for thr in THRESHOLDS:
-            t0 = time.perf_counter()
-            opt = ps.STLSQ(threshold=thr)
-            opt.fit(theta, lhs)
-            secs = t_vel + t_lib + time.perf_counter() - t0
+            def fit():
+                o = ps.STLSQ(threshold=thr)
+                o.fit(theta, lhs)
+                return o
+            opt, t_fit = timed(fit)
+            secs = t_vel + t_lib + t_fit
             coefs = np.asarray(opt.coef_)[1]  # the v row: x'' = ...
             file = f"weak_H{h}_thr{thr}.json"
             params = {"H_xt": h, "threshold": thr, "K_per_record": [int(np.ceil(SUBDOMAINS_PER_HALF_WIDTH * (r[0][-1] - r[0][0]) / h)) for r in recs], "p": 4}
@@ -172,12 +185,13 @@ def main():
 
     # (b) classical SINDy with finite differences
     for thr in THRESHOLDS:
-        t0 = time.perf_counter()
-        fd = ps.FiniteDifference()
-        xs = [np.column_stack([x, np.asarray(fd(x.reshape(-1, 1), t)).ravel()]) for t, x, _ in recs]
-        model = ps.SINDy(optimizer=ps.STLSQ(threshold=thr), feature_library=library(), differentiation_method=ps.FiniteDifference())
-        model.fit(xs, t=[r[0] for r in recs], u=[r[2].reshape(-1, 1) for r in recs], feature_names=["x", "v", "u"])
-        secs = time.perf_counter() - t0
+        def fit():
+            fd = ps.FiniteDifference()
+            xs = [np.column_stack([x, np.asarray(fd(x.reshape(-1, 1), t)).ravel()]) for t, x, _ in recs]
+            m = ps.SINDy(optimizer=ps.STLSQ(threshold=thr), feature_library=library(), differentiation_method=ps.FiniteDifference())
+            m.fit(xs, t=[r[0] for r in recs], u=[r[2].reshape(-1, 1) for r in recs], feature_names=["x", "v", "u"])
+            return m
+        model, secs = timed(fit)
         names = model.get_feature_names()
         coefs = np.asarray(model.coefficients())[1]
         file = f"classical_thr{thr}.json"
