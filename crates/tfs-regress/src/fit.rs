@@ -2,6 +2,7 @@
 
 use crate::compress::Compressed;
 use crate::error::{Result, check_param};
+use crate::kernels::{dot, sub_scaled};
 use faer::linalg::triangular_solve::solve_upper_triangular_in_place;
 use faer::{Mat, MatRef, Par};
 
@@ -264,7 +265,7 @@ pub(crate) fn subset_solve(
 /// `[beta; 0]` (LAPACK's sign convention: `beta` opposite to `alpha`). Overwrites `v` with the
 /// tail of `u` and returns `(beta, τ)`; `None` when `v` is zero (nothing to reflect).
 pub(crate) fn householder(alpha: f64, v: &mut [f64]) -> Option<(f64, f64)> {
-    let sigma: f64 = v.iter().map(|x| x * x).sum();
+    let sigma = dot(v, v);
     if sigma == 0.0 {
         return None;
     }
@@ -319,16 +320,10 @@ fn staircase_lstsq(
         colk[k] = beta;
         let vk = &colk[k + 1..=last];
         let reflect = |x: &mut [f64]| {
-            let d = x[k]
-                + vk.iter()
-                    .zip(&x[k + 1..=last])
-                    .map(|(a, b)| a * b)
-                    .sum::<f64>();
+            let d = x[k] + dot(vk, &x[k + 1..=last]);
             let t = tau * d;
             x[k] -= t;
-            for (xi, vi) in x[k + 1..=last].iter_mut().zip(vk) {
-                *xi -= t * vi;
-            }
+            sub_scaled(&mut x[k + 1..=last], t, vk);
         };
         for jc in tail.chunks_exact_mut(top) {
             reflect(jc);

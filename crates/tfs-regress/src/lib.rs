@@ -32,6 +32,7 @@ mod bagging;
 mod compress;
 mod error;
 mod fit;
+mod kernels;
 mod lasso;
 mod path;
 mod stlsq;
