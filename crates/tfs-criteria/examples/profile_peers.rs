@@ -426,6 +426,35 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let which = args.get(5).cloned().unwrap_or_else(|| "both".into());
         return monte_carlo(&kind, snr, seeds, &which);
     }
+    if args.get(1).is_some_and(|s| s == "dump") {
+        // Every coefficient, interval and inclusion of every case and both peers libraries to
+        // full precision: diff two dumps to see whether a change moved any fit.
+        let root = args
+            .get(2)
+            .cloned()
+            .unwrap_or_else(|| "target/peers/data".into());
+        for case in ["white60", "white30", "white20", "pink30", "white10"] {
+            let recs = read(&format!("{root}/{case}"))?;
+            for lib in ["x^1..7, x', xb_acc", "poly(x, x'; 1..7), xb_acc"] {
+                let mut spec = IdentifySpec::new(&["x"], lib);
+                tweak(&mut spec);
+                let id = identify_tfs(&recs, &spec)?;
+                println!("{case} [{lib}]");
+                for t in &id.model.equation("x")?.terms {
+                    println!(
+                        "  {} {:e} {:?} {:?}",
+                        t.term, t.coef, t.interval, t.inclusion
+                    );
+                }
+                let d = &id.trace.dofs[0];
+                println!(
+                    "  δ {} w {} thr {:e} verdict {}",
+                    d.settings.delta, d.settings.windows, d.settings.threshold, d.assembly_verdict
+                );
+            }
+        }
+        return Ok(());
+    }
     if args.get(1).is_some_and(|s| s == "score") {
         let root = args
             .get(2)

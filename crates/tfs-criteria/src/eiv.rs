@@ -36,7 +36,9 @@ use crate::prepare::{
     Prepared, RecordSeries, Series, TransformForm, WindowTransform, decimate, decimated_inputs,
     decimated_series, record_series, rows_for,
 };
-use crate::spectral::{Band, Smoothed, band_noise_with, bin_omegas, window, window_layout};
+use crate::spectral::{
+    Band, NoiseSpectrum, Smoothed, bin_omegas, noise_spectrum, window, window_layout,
+};
 
 /// Second moments of the noise part of the regression rows, over the columns of one support.
 #[derive(Debug, Clone)]
@@ -66,14 +68,16 @@ fn seed(record: usize, draw: usize, dof: usize) -> u64 {
 
 /// The noise draws of [`noise_moments`] (one per record, draw and DOF), made on first use and
 /// kept: they depend on the records' noise models and the seeds only, not on the library, so the
-/// passes of the backward elimination (which re-fit on fewer terms) share them.
+/// passes of the backward elimination (which re-fit on fewer terms) share them. A draw is kept
+/// as its in-band Fourier coefficients ([`NoiseSpectrum`]); each use takes its samples at the
+/// decimation it needs.
 pub(crate) struct NoiseDraws {
     draws: usize,
     dofs: usize,
     /// Whether the draws carry their second derivative (only forms other than the weak one
     /// read it).
     with_acc: bool,
-    slots: Vec<OnceLock<Option<Smoothed>>>,
+    slots: Vec<OnceLock<Option<NoiseSpectrum>>>,
 }
 
 impl NoiseDraws {
@@ -105,21 +109,13 @@ impl NoiseDraws {
             })
             .collect();
         jobs.par_iter().with_max_len(1).for_each(|&(r, m, i)| {
-            let p = &preps[r];
-            drop(self.get(&p.smooth[i].band, p.rec.len(), r, m, i));
+            drop(self.get(&preps[r].smooth[i].band, r, m, i));
         });
     }
 
-    /// Draw `m` of DOF `i` of record `r` (whose band is `band`, `n` samples long).
-    fn get(
-        &self,
-        band: &Band,
-        n: usize,
-        r: usize,
-        m: usize,
-        i: usize,
-    ) -> Cow<'_, Option<Smoothed>> {
-        let make = || band_noise_with(band, n, seed(r, m, i), self.with_acc);
+    /// Draw `m` of DOF `i` of record `r` (whose band is `band`).
+    fn get(&self, band: &Band, r: usize, m: usize, i: usize) -> Cow<'_, Option<NoiseSpectrum>> {
+        let make = || noise_spectrum(band, seed(r, m, i));
         if m >= self.draws || i >= self.dofs {
             return Cow::Owned(make());
         }
@@ -214,31 +210,38 @@ pub(crate) fn noise_moments(
         .map(|&(r, m)| -> Result<(Mat<f64>, Vec<f64>)> {
             let p = &preps[r];
             let n = p.rec.len();
-            let noise: Vec<Cow<'_, Option<Smoothed>>> = p
-                .smooth
-                .iter()
-                .enumerate()
-                .map(|(i, s)| cache.get(&s.band, n, r, m, i))
-                .collect();
             let q = qs[r];
             // Decimated series read only every q-th sample of the reconstruction: the shifted
-            // copy is made at those samples alone (the same sums as shifting, then decimating).
-            // A term that uses an input reads the reconstruction at the full rate.
+            // copy is made at those samples alone (the same sums as shifting, then decimating),
+            // and the noise is drawn at them alone. A term that uses an input reads the
+            // reconstruction at the full rate.
             let decimated = q > 1 && !sub.terms().iter().any(|t| t.uses_input());
             let inputs = decimated.then(|| decimated_inputs(p, &sub, q));
             let step = if decimated { q } else { 1 };
+            let noise: Vec<Option<Smoothed>> = p
+                .smooth
+                .iter()
+                .enumerate()
+                .map(|(i, s)| {
+                    cache
+                        .get(&s.band, r, m, i)
+                        .as_ref()
+                        .as_ref()
+                        .and_then(|d| d.series(n, step, cache.with_acc))
+                })
+                .collect();
             let shifted = |sign: f64| -> Vec<Smoothed> {
                 let add = |a: &[f64], b: &[f64]| -> Vec<f64> {
                     a.iter()
                         .step_by(step)
-                        .zip(b.iter().step_by(step))
+                        .zip(b)
                         .map(|(u, v)| u + sign * v)
                         .collect()
                 };
                 p.smooth
                     .iter()
                     .zip(&noise)
-                    .map(|(s, e)| match e.as_ref() {
+                    .map(|(s, e)| match e {
                         None => Smoothed {
                             x: decimate(&s.x, step),
                             v: decimate(&s.v, step),
@@ -318,16 +321,15 @@ pub(crate) fn noise_moments(
                     .iter()
                     .map(|f| ((f / df).round() as usize).min(len / 2))
                     .collect();
-                let lhs = delta_series.lhs_spectrum(st, &win, &om);
+                let lhs = delta_series.lhs_spectrum_at(st, &win, &om, &at);
                 let mut cols = vec![vec![Complex::new(0.0, 0.0); at.len()]; k];
                 for (s, &j) in noisy_at.iter().enumerate() {
-                    let full = delta_series.term_spectrum(s, st, &win, &om);
-                    cols[j] = at.iter().map(|&kb| full[kb]).collect();
+                    cols[j] = delta_series.term_spectrum_at(s, st, &win, &om, &at);
                 }
                 let noise_rows = WindowTransform {
                     freq: w.freq.clone(),
                     rel_amp: w.rel_amp.clone(),
-                    lhs: at.iter().map(|&kb| lhs[kb]).collect(),
+                    lhs,
                     cols,
                     weight: w.weight.clone(),
                 };

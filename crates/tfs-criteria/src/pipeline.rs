@@ -19,8 +19,7 @@ use crate::kappa::{
 };
 use crate::prepare::{
     Prepared, TransformForm, WindowTransform, check_record, decimation, prepare, raw_columns_sg,
-    raw_time_domain, record_series, reweight, rows_for, rows_for_band, time_domain,
-    window_transforms,
+    record_series, reweight, rows_for, rows_for_band, time_domain, window_transforms,
 };
 use crate::prune::{Criterion2, prune_factor};
 
@@ -504,7 +503,7 @@ fn note_reason(note: &str) -> String {
 /// What the trace tells the user when the data do not support the library.
 pub(crate) const NOT_SUPPORTED_ADVICE: &str = "the model below is not a reliable identification. What to do: measure longer or repeat the test (more records), raise the excitation level or lower the sensor noise, or use a smaller library (fewer high powers)";
 
-/// Criterion 1's raw block of one record (see [`raw_time_domain`]): 2 % trimmed at each end and
+/// Criterion 1's raw block of one record (see [`crate::prepare::raw_columns`]): 2 % trimmed at each end and
 /// at most ~2000 rows. κ does not need every sample: with 2000 rows its sampling error is a few
 /// hundredths of a decade against the verdict's 0.25-decade margin (on the peers records κ and
 /// κ0 moved by ≤ 0.07 from 4000 rows, 0.2 at 10 dB, every verdict the same), and the κ0
@@ -516,7 +515,19 @@ fn criterion1_block(
     d: usize,
     lib: &Library,
 ) -> Result<(Mat<f64>, Vec<f64>)> {
-    raw_time_domain(
+    let (cols, acc) = criterion1_columns(r, spec, d, lib)?;
+    Ok((lib.evaluate(&cols)?, acc))
+}
+
+/// The columns [`criterion1_block`] evaluates the library on, and its `x''` (see
+/// [`crate::prepare::raw_columns`]).
+fn criterion1_columns(
+    r: &Record,
+    spec: &IdentifySpec,
+    d: usize,
+    lib: &Library,
+) -> Result<(crate::prepare::OwnedColumns, Vec<f64>)> {
+    crate::prepare::raw_columns(
         r,
         &spec.dofs,
         d,
@@ -528,7 +539,7 @@ fn criterion1_block(
 }
 
 /// Criterion 1 for DOF `d`: κ of the time-domain blocks `(Θ, x'')` of every record built from
-/// the measured data (see [`raw_time_domain`]; constant columns excluded), κ0 (given or
+/// the measured data (see [`crate::prepare::raw_columns`]; constant columns excluded), κ0 (given or
 /// calibrated by adding noise to the same kind of block) and the verdict, with the centred factor
 /// Criterion 2 prunes on and the non-constant columns. Shared by [`identify_tfs`] and the tied
 /// chain fit.
@@ -2508,23 +2519,27 @@ fn calibration_points(
     // numbers: the curve's steps show the effect of the level, not of a new draw, and the draw is
     // made once instead of once per level).
     let reference_db = 0.0;
-    let unit: Vec<Option<Vec<f64>>> = noisy_cols
+    let unit: Vec<(String, Vec<f64>)> = noisy_cols
         .iter()
         .enumerate()
-        .map(|(ci, c)| {
-            segment
-                .column(c)
-                .map(|v| {
-                    tfs_signal::noise::noise_for(
-                        v,
-                        reference_db,
-                        tfs_signal::NoiseKind::White,
-                        1000 + ci as u64,
-                    )
-                })
-                .transpose()
+        .filter_map(|(ci, c)| {
+            segment.column(c).map(|v| {
+                tfs_signal::noise::noise_for(
+                    v,
+                    reference_db,
+                    tfs_signal::NoiseKind::White,
+                    1000 + ci as u64,
+                )
+                .map(|n| (c.clone(), n))
+            })
         })
         .collect::<std::result::Result<_, _>>()?;
+    // Criterion 1's columns (samples, Savitzky–Golay derivatives) are linear in the record's:
+    // those of the segment plus noise at a level are the segment's plus the level's scale
+    // times the noise's, so both are made once and every level only adds them.
+    let noise_rec = Record::new(segment.source(), segment.t().to_vec(), unit)?;
+    let (seg_cols, seg_acc) = criterion1_columns(&segment, spec, d, lib)?;
+    let (noise_cols, noise_acc) = criterion1_columns(&noise_rec, spec, d, lib)?;
     // The segment as it is (no added noise) first, then every level.
     let levels: Vec<Option<f64>> = std::iter::once(None)
         .chain(opt.calibration_snrs_db.iter().map(|&v| Some(v)))
@@ -2533,33 +2548,24 @@ fn calibration_points(
         .par_iter()
         .with_max_len(1)
         .map(|&snr| -> Result<CalibrationPoint> {
-            let kappa = match snr {
-                None => criterion1_kappa(&[criterion1_block(&segment, spec, d, lib)?], nonconst)?,
+            let block = match snr {
+                None => (lib.evaluate(&seg_cols)?, seg_acc.clone()),
                 Some(snr) => {
                     let scale = 10f64.powf(-(snr - reference_db) / 20.0);
-                    let columns = segment
-                        .names()
+                    let acc = seg_acc
                         .iter()
-                        .map(|c| {
-                            let v = segment.column(c).expect("own column");
-                            let n = noisy_cols
-                                .iter()
-                                .position(|nc| nc == c)
-                                .and_then(|i| unit[i].as_ref());
-                            let v = match n {
-                                Some(n) => v.iter().zip(n).map(|(a, b)| a + scale * b).collect(),
-                                None => v.to_vec(),
-                            };
-                            (c.clone(), v)
-                        })
+                        .zip(&noise_acc)
+                        .map(|(a, b)| a + scale * b)
                         .collect();
-                    let r2 = Record::new(segment.source(), segment.t().to_vec(), columns)?;
-                    criterion1_kappa(&[criterion1_block(&r2, spec, d, lib)?], nonconst)?
+                    (
+                        lib.evaluate(&seg_cols.plus_scaled(scale, &noise_cols))?,
+                        acc,
+                    )
                 }
             };
             Ok(CalibrationPoint {
                 added_snr_db: snr,
-                kappa,
+                kappa: criterion1_kappa(&[block], nonconst)?,
             })
         })
         .collect::<Result<_>>()?;

@@ -9,8 +9,8 @@ use tfs_library::{ColumnSet, Factor, Library, Term, Var, evaluate_term};
 
 use crate::error::{CriteriaError, Result, invalid};
 use crate::spectral::{
-    Band, Smoothed, band_limit_guarded, bin_omegas, hermite_power, low_pass, weak_first_derivative,
-    weak_second_derivative, window, window_layout, windowed_fft,
+    Band, Smoothed, Weighting, band_limit_guarded, bin_omegas, hermite_power, low_pass, window,
+    window_bins, window_layout,
 };
 
 /// How the frequency-domain rows are formed (Criterion 3 variants).
@@ -123,35 +123,40 @@ pub(crate) struct RecordSeries {
 }
 
 impl RecordSeries {
-    /// Transform (bins `0..=len/2`) of the left-hand side over the window of `win.0.len()`
-    /// samples starting at `st`; `win` and `om` are that length's window and bin frequencies.
-    pub(crate) fn lhs_spectrum(
+    /// Transform of the left-hand side over the window of `win.0.len()` samples starting at
+    /// `st`, at the bins `bins`; `win` and `om` are that length's window and bin frequencies.
+    pub(crate) fn lhs_spectrum_at(
         &self,
         st: usize,
         win: &(Vec<f64>, Vec<f64>, Vec<f64>),
         om: &[f64],
+        bins: &[usize],
     ) -> Vec<Complex<f64>> {
         let x = &self.lhs[st..st + win.0.len()];
-        if self.weak_lhs {
-            weak_second_derivative(x, win, om, self.dt)
+        let weighting = if self.weak_lhs {
+            Weighting::Second
         } else {
-            windowed_fft(x, &win.0, self.dt)
-        }
+            Weighting::Plain
+        };
+        window_bins(x, self.dt, om, bins, weighting)
     }
 
-    /// Transform of term `j` over the same window (see [`RecordSeries::lhs_spectrum`]), in the
-    /// term's form (plain, or derivative transfer onto the window).
-    pub(crate) fn term_spectrum(
+    /// Transform of term `j` over the same window (see [`RecordSeries::lhs_spectrum_at`]), in
+    /// the term's form (plain, or derivative transfer onto the window), at the bins `bins`.
+    pub(crate) fn term_spectrum_at(
         &self,
         j: usize,
         st: usize,
         win: &(Vec<f64>, Vec<f64>, Vec<f64>),
         om: &[f64],
+        bins: &[usize],
     ) -> Vec<Complex<f64>> {
         let len = win.0.len();
         match &self.terms[j] {
-            Series::Plain(v) => windowed_fft(&v[st..st + len], &win.0, self.dt),
-            Series::Transfer(g) => weak_first_derivative(&g[st..st + len], win, om, self.dt),
+            Series::Plain(v) => window_bins(&v[st..st + len], self.dt, om, bins, Weighting::Plain),
+            Series::Transfer(g) => {
+                window_bins(&g[st..st + len], self.dt, om, bins, Weighting::First)
+            }
         }
     }
 }
@@ -470,7 +475,8 @@ pub(crate) fn window_transforms(
     starts
         .iter()
         .map(|&st| {
-            let lhs_full = s.lhs_spectrum(st, &win, &om);
+            let all: Vec<usize> = (0..om.len()).collect();
+            let lhs_full = s.lhs_spectrum_at(st, &win, &om, &all);
             let max = lhs_full.iter().fold(0.0f64, |a, c| a.max(c.norm()));
             // The strongest bin is always kept so no window is left without rows.
             let top = (0..lhs_full.len())
@@ -483,10 +489,7 @@ pub(crate) fn window_transforms(
                 })
                 .collect();
             let cols = (0..s.terms.len())
-                .map(|j| {
-                    let full = s.term_spectrum(j, st, &win, &om);
-                    bins.iter().map(|&k| full[k]).collect()
-                })
+                .map(|j| s.term_spectrum_at(j, st, &win, &om, &bins))
                 .collect();
             WindowTransform {
                 freq: bins.iter().map(|&k| k as f64 * df).collect(),
@@ -590,6 +593,27 @@ pub(crate) struct OwnedColumns {
     cols: Vec<(String, Vec<f64>)>,
 }
 
+impl OwnedColumns {
+    /// These columns plus `s` times the column of the same name in `other` (a column `other`
+    /// lacks is kept as it is).
+    pub(crate) fn plus_scaled(&self, s: f64, other: &OwnedColumns) -> OwnedColumns {
+        OwnedColumns {
+            rows: self.rows,
+            cols: self
+                .cols
+                .iter()
+                .map(|(name, v)| {
+                    let v = match other.column(name) {
+                        Some(o) => v.iter().zip(o).map(|(a, b)| a + s * b).collect(),
+                        None => v.clone(),
+                    };
+                    (name.clone(), v)
+                })
+                .collect(),
+        }
+    }
+}
+
 impl Columns for OwnedColumns {
     fn column(&self, name: &str) -> Option<&[f64]> {
         self.cols
@@ -636,13 +660,17 @@ pub(crate) fn time_domain(
     Ok((a, y))
 }
 
-/// Criterion 1's time-domain block `(Θ, x'')` of DOF `dof` on the *measured* data, as the
-/// paper builds it: the library evaluated on the recorded displacements and inputs, velocities
-/// and `x''` by Savitzky–Golay differentiation (`sg` = half window, order), `trim` samples cut at
-/// both ends and every `stride`-th row kept. The noise of the measurement (amplified by the
-/// differentiation) is what κ is meant to see; the band-limited reconstruction removes most of
-/// it, so κ on the reconstruction hardly moves when noise is added and cannot calibrate κ0.
-pub(crate) fn raw_time_domain(
+/// The columns of Criterion 1's time-domain block `(Θ, x'')` of DOF `dof` on the *measured*
+/// data, as the paper builds it (the library is then evaluated on them): the recorded
+/// displacements and inputs, velocities and `x''` by Savitzky–Golay differentiation (`sg` = half
+/// window, order), `trim` samples cut at both ends and every `stride`-th row kept. Returns the
+/// columns (every DOF, its velocity and the inputs the library reads) and `x''` of DOF `dof`.
+/// The noise of the measurement (amplified by the differentiation) is what κ is meant to see;
+/// the band-limited reconstruction removes most of it, so κ on the reconstruction hardly moves
+/// when noise is added and cannot calibrate κ0. Every column is linear in the record's columns:
+/// the columns of a record plus `s` times another are those of the first plus `s` times those
+/// of the second.
+pub(crate) fn raw_columns(
     rec: &Record,
     dofs: &[String],
     dof: usize,
@@ -650,7 +678,7 @@ pub(crate) fn raw_time_domain(
     sg: (usize, usize),
     trim: usize,
     stride: usize,
-) -> Result<(Mat<f64>, Vec<f64>)> {
+) -> Result<(OwnedColumns, Vec<f64>)> {
     let dt = rec.dt();
     let n = rec.len();
     let trim = trim.max(sg.0 + 1);
@@ -698,11 +726,13 @@ pub(crate) fn raw_time_domain(
             cols.push((name.clone(), sub(v)));
         }
     }
-    let a = lib.evaluate(&OwnedColumns {
-        rows: at.len(),
-        cols,
-    })?;
-    Ok((a, acc))
+    Ok((
+        OwnedColumns {
+            rows: at.len(),
+            cols,
+        },
+        acc,
+    ))
 }
 
 /// Stored bins on each side of a bin whose residual powers are averaged by [`reweight`].
@@ -864,7 +894,8 @@ mod tests {
         let dofs = vec!["x".to_string()];
         let lib = Library::parse("x^1..3, x', x*x', xb_acc", &["x"]).unwrap();
         let (trim, stride) = (60, 7);
-        let (a, y) = raw_time_domain(&rec, &dofs, 0, &lib, (12, 3), trim, stride).unwrap();
+        let (cols, y) = raw_columns(&rec, &dofs, 0, &lib, (12, 3), trim, stride).unwrap();
+        let a = lib.evaluate(&cols).unwrap();
         let (cs, acc) = raw_columns_sg(&rec, &dofs, 0, dt, (12, 3)).unwrap();
         let full = lib
             .evaluate(&OwnedColumns {
