@@ -96,9 +96,11 @@ fn triangular_factor(mut aug: Mat<f64>) -> Mat<f64> {
 
 /// Rows per chunk up to which [`Compressed::append`] zeroes new rows into the current factor
 /// with [`absorb_rows`] (~2(k+1)n² flops for `k` rows) instead of one dense QR of the stacked
-/// `(n+1+k)×(n+1)` matrix (~2(n+k)n² − ⅔n³, blocked). Measured for 39 columns: the structured
-/// update is 10× faster for 2 rows, 2.5× for 64, 1.2× for 512 and even at 2,048.
-const ABSORB_MAX_ROWS: usize = 2048;
+/// `(n+1+k)×(n+1)` matrix (~2(n+k)n² − ⅔n³, blocked): every chunk. Measured for 39 columns: the
+/// structured update is 10× faster for 2 rows, 2.5× for 64 and 1.2× for 512; from 96 rows it
+/// applies its reflections a panel at a time ([`absorb_rows_blocked`]), and faer's dense QR
+/// spent three quarters of its time in its overflow-safe Householder norms.
+const ABSORB_MAX_ROWS: usize = CHUNK_ROWS;
 
 /// Column entries beyond which (or, when non-zero, below which) the unscaled sums of squares
 /// of [`absorb_rows`] could overflow or underflow; such input goes to the dense QR.
@@ -377,9 +379,10 @@ impl Compressed {
 
     /// Add more rows `(A, b)` without revisiting the rows already compressed.
     ///
-    /// Up to 512 rows at a time are zeroed into the current factor with one Householder
-    /// reflection per column (~2(k+1)n² flops for `k` rows); longer inputs go in chunks of up to
-    /// 2,048 rows through a dense QR of the factor stacked on the chunk.
+    /// Up to 2,048 rows at a time are zeroed into the current factor with one Householder
+    /// reflection per column (~2(k+1)n² flops for `k` rows), applied a panel of columns at a
+    /// time for tall chunks; input whose sums of squares could overflow goes through a dense QR
+    /// of the factor stacked on the chunk.
     pub fn append(&mut self, a: MatRef<'_, f64>, b: &[f64]) -> Result<()> {
         let n = self.ncols();
         if a.ncols() != n {
@@ -395,8 +398,9 @@ impl Compressed {
     }
 
     /// Append rows in cache-sized chunks (a sequential TSQR, so the m-row data is read once and
-    /// every update works in cache): a short chunk is zeroed into the current factor by
-    /// [`absorb_rows`], a long one stacked under it and re-factored by a dense QR.
+    /// every update works in cache): each chunk is zeroed into the current factor by
+    /// [`absorb_rows`], or (entries it declines, or fewer rows in all than columns) stacked under
+    /// it and re-factored by a dense QR.
     fn append_unchecked(&mut self, a: MatRef<'_, f64>, b: &[f64]) {
         let n = self.ncols();
         let total = a.nrows();
