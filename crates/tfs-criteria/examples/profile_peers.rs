@@ -447,8 +447,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     );
                 }
                 let d = &id.trace.dofs[0];
+                let qs: Vec<usize> = d.bins.iter().map(|b| b.decimation).collect();
                 println!(
-                    "  δ {} w {} thr {:e} verdict {}",
+                    "  δ {} w {} q {qs:?} thr {:e} verdict {}",
                     d.settings.delta, d.settings.windows, d.settings.threshold, d.assembly_verdict
                 );
             }

@@ -9,8 +9,8 @@ use serde::{Deserialize, Serialize};
 use tfs_data::Record;
 use tfs_library::{Equation, Library, Model, ModelTerm};
 use tfs_regress::{
-    BagOptions, Compressed, InfoCriterion, PathOptions, Regressor, Stlsq, bagging, lambda_path,
-    lstsq_support,
+    BagOptions, Compressed, InfoCriterion, PathOptions, Regressor, Stlsq, bagging_with_total,
+    lambda_path, lstsq_support,
 };
 
 use crate::error::{CriteriaError, Result, invalid};
@@ -616,6 +616,11 @@ pub(crate) fn dof_transforms(
     Ok((qs, transforms))
 }
 
+/// The most windows per record among the candidate layouts (see [`decimation`]).
+fn max_windows(opt: &TfsOptions) -> usize {
+    opt.window_counts.iter().copied().max().unwrap_or(1)
+}
+
 /// Per-window-count transforms as their rows are weighted: [`reweight`] by `opt.reweight` passes
 /// of feasible GLS over the columns `keep`, every window count in parallel.
 fn reweight_all(
@@ -643,7 +648,10 @@ fn unweighted_transforms(
 ) -> Result<(Vec<usize>, Vec<Vec<Vec<WindowTransform>>>)> {
     let opt = &spec.tfs;
     let dmin = opt.deltas.iter().cloned().fold(f64::INFINITY, f64::min);
-    let qs: Vec<usize> = preps.iter().map(|p| decimation(p, lib, opt.form)).collect();
+    let qs: Vec<usize> = preps
+        .iter()
+        .map(|p| decimation(p, lib, opt.form, max_windows(opt)))
+        .collect();
     let series: Vec<_> = preps
         .par_iter()
         .with_max_len(1)
@@ -1378,7 +1386,10 @@ fn identify_tfs_once(
         // their rows compressed per setting and record, and each setting's held-out error.
         let search = |keep: &[usize]| -> Result<Search> {
             let t0 = Instant::now();
-            let qs_now: Vec<usize> = preps.iter().map(|p| decimation(p, lib, opt.form)).collect();
+            let qs_now: Vec<usize> = preps
+                .iter()
+                .map(|p| decimation(p, lib, opt.form, max_windows(opt)))
+                .collect();
             let (qs, mut transforms) = match &reuse {
                 Some((fp, cols)) if fp.qs == qs_now => (qs_now, fp.unweighted(cols)),
                 _ => unweighted_transforms(preps, spec, d, lib)?,
@@ -1673,13 +1684,17 @@ fn identify_tfs_once(
                 .collect();
             // The clusters are compressed only for the bootstrap, which a pass the elimination
             // replaces skips.
-            let n_parts = bin_clusters(&rows, delta, &[]).len();
+            // Every cluster's rows over the regression columns, built once: the jackknife reads
+            // the model's columns of them, the bootstrap compresses them whole.
+            let clusters_all: Vec<ClusterRows> =
+                bin_clusters(&rows, delta, &keep).into_values().collect();
+            let n_parts = clusters_all.len();
             if n_parts >= 3 {
                 // The constant is estimated in the time domain, not from the bins: no interval.
                 let sel: Vec<usize> = (0..keep.len())
                     .filter(|&j| support[j] && Some(j) != const_j)
                     .collect();
-                let clusters = cluster_intervals(&rows, delta, &keep, &sel, &coef);
+                let clusters = cluster_intervals(&clusters_all, &sel, &coef);
                 if let Some((half, g, nus)) = &clusters {
                     for (k, &j) in sel.iter().enumerate() {
                         intervals[j] = Some([coef[j] - half[k], coef[j] + half[k]]);
@@ -1706,7 +1721,7 @@ fn identify_tfs_once(
                 let inclusion_note = if replaced {
                     "inclusion not computed in this pass (terms are removed and the selection re-run)".to_string()
                 } else {
-                    let parts = cluster_blocks(&rows, delta, &keep)?;
+                    let parts = cluster_blocks(clusters_all)?;
                     // The model's terms were picked on the first records of Criterion 4 and
                     // trimmed by the term test, so `thr` need not give them on these rows: the
                     // resamples use the threshold at which STLSQ on all of them does.
@@ -1714,8 +1729,9 @@ fn identify_tfs_once(
                     let boot_thr = lambda_path(&all_rows, &all_rows, &path_opts(opt.n_thresholds))
                         .ok()
                         .and_then(|p| threshold_for_support(&p, &support, const_j));
-                    let s = bagging(
+                    let s = bagging_with_total(
                         &parts,
+                        &all_rows,
                         &Stlsq {
                             threshold: boot_thr.unwrap_or(thr),
                             ..Stlsq::default()
@@ -2181,10 +2197,11 @@ impl TermTest {
 /// ones.
 const CLUSTER_BINS: usize = 2 * crate::prepare::REWEIGHT_HALF;
 
-/// Half-widths (level [`INTERVAL_LEVEL`]) of the coefficients `sel` of `coef` (over `keep`) from a
-/// cluster jackknife on the frequency-domain rows of `rows` (record, window, transform): the rows
-/// are grouped into `C` clusters of neighbouring bins (windows 0–1, 2–3, … of a record paired;
-/// the paired windows share a cluster); leaving cluster `g` out moves the least-squares
+/// Half-widths (level [`INTERVAL_LEVEL`]) of the coefficients `sel` of `coef` (positions among
+/// the regression columns) from a cluster jackknife on the frequency-domain rows of `clusters`
+/// (every regression column, from [`bin_clusters`]): the rows are grouped into `C` clusters of
+/// neighbouring bins (windows 0–1, 2–3, … of a record paired; the paired windows share a
+/// cluster); leaving cluster `g` out moves the least-squares
 /// coefficients by exactly
 /// `z_g = (G − G_g)⁻¹ A_gᵀ e_g` (`G = AᵀA`; `G_g`, `e_g` the cluster's Gram matrix and
 /// residuals), and `V = (C−1)/C · Σ_g (z_g − z̄)(z_g − z̄)ᵀ`. The plain sandwich
@@ -2206,16 +2223,20 @@ const CLUSTER_BINS: usize = 2 * crate::prepare::REWEIGHT_HALF;
 /// Returns the half-widths, `C` and the degrees of freedom of each coefficient, or `None` with
 /// fewer than 3 clusters or when leaving one cluster out leaves the fit undetermined.
 fn cluster_intervals(
-    rows: &[(usize, usize, &crate::prepare::WindowTransform)],
-    delta: f64,
-    keep: &[usize],
+    clusters: &[ClusterRows],
     sel: &[usize],
     coef: &[f64],
 ) -> Option<(Vec<f64>, usize, Vec<f64>)> {
-    let cols: Vec<usize> = sel.iter().map(|&j| keep[j]).collect();
-    let clusters: Vec<ClusterRows> = bin_clusters(rows, delta, &cols).into_values().collect();
+    let own: Vec<ClusterRows> = clusters
+        .iter()
+        .map(|rows| {
+            rows.iter()
+                .map(|(row, y)| (sel.iter().map(|&j| row[j]).collect(), *y))
+                .collect()
+        })
+        .collect();
     let sub: Vec<f64> = sel.iter().map(|&j| coef[j]).collect();
-    jackknife_intervals(&clusters, &sub)
+    jackknife_intervals(&own, &sub)
 }
 
 /// The delete-one-cluster jackknife of [`cluster_intervals`] on clusters of rows that already
@@ -2391,26 +2412,20 @@ fn inclusion_caveat(terms: &[CaveatTerm], thr: f64) -> Option<String> {
     ))
 }
 
-/// Blocks for bagging: the frequency-domain rows (bins with relative amplitude ≥ `delta`,
-/// columns `keep`) of `rows` (record, window, transform), grouped into the clusters of
-/// [`cluster_intervals`]: `CLUSTER_BINS` neighbouring bins of one pair of overlapping windows.
+/// Blocks for bagging: the clusters of frequency-domain rows of [`bin_clusters`] (those of
+/// [`cluster_intervals`]: `CLUSTER_BINS` neighbouring bins of one pair of overlapping windows),
+/// each compressed.
 /// Clusters share no bins; a window also overlaps its neighbour in the next pair, so clusters
 /// of neighbouring pairs share samples, but one cluster per record over all its windows gave
 /// the same interval coverage on repeated noise draws. There are tens of clusters: resampling a handful of whole windows instead left many
 /// draws without the snap-through part of the records, and STLSQ then dropped well-determined
 /// terms (inclusion 0.8 for terms known to ±0.02 %).
-fn cluster_blocks(
-    rows: &[(usize, usize, &WindowTransform)],
-    delta: f64,
-    keep: &[usize],
-) -> Result<Vec<Compressed>> {
-    let k = keep.len();
-    bin_clusters(rows, delta, keep)
-        .into_values()
-        .collect::<Vec<_>>()
+fn cluster_blocks(clusters: Vec<ClusterRows>) -> Result<Vec<Compressed>> {
+    clusters
         .into_par_iter()
         .with_max_len(1)
         .map(|c| {
+            let k = c.first().map_or(0, |r| r.0.len());
             let m = Mat::<f64>::from_fn(c.len(), k, |i, j| c[i].0[j]);
             let y: Vec<f64> = c.iter().map(|r| r.1).collect();
             Ok(Compressed::from_rows(m.as_ref(), &y)?)

@@ -63,6 +63,24 @@ pub fn bagging<R: Regressor + Sync + ?Sized>(
     regressor: &R,
     opts: &BagOptions,
 ) -> Result<BagSummary> {
+    if blocks.is_empty() {
+        return Err(RegressError::Empty {
+            what: "bagging needs at least 2 blocks (records or windows) to resample",
+        });
+    }
+    bagging_with_total(blocks, &Compressed::merge(blocks)?, regressor, opts)
+}
+
+/// [`bagging`] when the merge of all `blocks` (`Compressed::merge(blocks)`) is already at hand:
+/// the resamples are weighted sums in its coordinates, so it is not merged again.
+///
+/// Errors: as [`bagging`], and `total` with another column count than the blocks.
+pub fn bagging_with_total<R: Regressor + Sync + ?Sized>(
+    blocks: &[Compressed],
+    total: &Compressed,
+    regressor: &R,
+    opts: &BagOptions,
+) -> Result<BagSummary> {
     if blocks.len() < 2 {
         return Err(RegressError::Empty {
             what: "bagging needs at least 2 blocks (records or windows) to resample",
@@ -82,7 +100,7 @@ pub fn bagging<R: Regressor + Sync + ?Sized>(
         "must be in (0, 1)",
     )?;
     let nb = blocks.len();
-    let merger = crate::compress::CountedMerge::new(blocks)?;
+    let merger = crate::compress::CountedMerge::with_total(blocks, total)?;
     let draws: Vec<Result<(Vec<f64>, Vec<bool>)>> = (0..opts.n_boot)
         .into_par_iter()
         .with_max_len(1)

@@ -625,8 +625,23 @@ pub(crate) struct CountedMerge<'a> {
 
 impl<'a> CountedMerge<'a> {
     /// Prepare for resampling `blocks` (equal column counts, at least one block).
+    #[cfg(test)]
     pub(crate) fn new(blocks: &'a [Compressed]) -> Result<Self> {
-        let full = Compressed::merge(blocks)?;
+        Self::with_total(blocks, &Compressed::merge(blocks)?)
+    }
+
+    /// Prepare for resampling `blocks` (equal column counts, at least one block) whose merge
+    /// `full` (`Compressed::merge(blocks)`) is already at hand. The blocks are whitened in
+    /// parallel (a triangular solve and a product each, tens of blocks).
+    pub(crate) fn with_total(blocks: &'a [Compressed], full: &Compressed) -> Result<Self> {
+        use rayon::prelude::*;
+        if let Some(b) = blocks.iter().find(|b| b.ncols() != full.ncols()) {
+            return Err(RegressError::DimensionMismatch {
+                what: "columns of a resampled block vs the merge of all blocks".into(),
+                expected: full.ncols(),
+                found: b.ncols(),
+            });
+        }
         let n1 = full.ncols() + 1;
         let f = full.augmented(1.0);
         // Each column must add a direction of its own: |F_jj| against the column's norm.
@@ -636,7 +651,8 @@ impl<'a> CountedMerge<'a> {
         });
         let whitened = invertible.then(|| {
             let h = blocks
-                .iter()
+                .par_iter()
+                .with_max_len(1)
                 .map(|b| {
                     let rows = b.factor_rows();
                     // Xᵀ = F⁻ᵀ B_gᵀ, then H_g = XᵀX.

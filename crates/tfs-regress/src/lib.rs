@@ -37,7 +37,7 @@ mod lasso;
 mod path;
 mod stlsq;
 
-pub use bagging::{BagOptions, BagSummary, bagging};
+pub use bagging::{BagOptions, BagSummary, bagging, bagging_with_total};
 pub use compress::Compressed;
 pub use error::{RegressError, Result};
 pub use fit::{Fit, LeastSquares, Regressor, Ridge, lstsq, lstsq_support};
