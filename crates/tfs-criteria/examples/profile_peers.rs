@@ -448,6 +448,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 }
                 let d = &id.trace.dofs[0];
                 let qs: Vec<usize> = d.bins.iter().map(|b| b.decimation).collect();
+                if let Some(c1) = &d.criterion1 {
+                    println!(
+                        "  κ {:.6} raw {:.6} κ0 {:.6} high {}",
+                        c1.kappa.standardised, c1.kappa.raw, c1.kappa0, c1.high_snr
+                    );
+                }
                 println!(
                     "  δ {} w {} q {qs:?} thr {:e} verdict {}",
                     d.settings.delta, d.settings.windows, d.settings.threshold, d.assembly_verdict

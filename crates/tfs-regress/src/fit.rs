@@ -334,14 +334,13 @@ fn staircase_lstsq(
     if (0..s).any(|k| w[k * top + k].abs() <= tol) {
         return None;
     }
-    // Back-substitution on the leading s×s triangle.
+    // Back-substitution on the leading s×s triangle, a column at a time (the column-major
+    // triangle is read down its columns, not across them).
     let mut x = y[..s].to_vec();
     for k in (0..s).rev() {
-        let mut acc = x[k];
-        for jc in k + 1..s {
-            acc -= w[jc * top + k] * x[jc];
-        }
-        x[k] = acc / w[k * top + k];
+        x[k] /= w[k * top + k];
+        let xk = x[k];
+        sub_scaled(&mut x[..k], xk, &w[k * top..k * top + k]);
     }
     x.iter().all(|v| v.is_finite()).then_some(x)
 }
