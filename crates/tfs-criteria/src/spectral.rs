@@ -30,10 +30,10 @@ pub(crate) fn fft_inverse(n: usize) -> Arc<dyn ComplexToReal<f64>> {
     pl.plan_fft_inverse(n)
 }
 
-/// Per-thread work buffers of the long (whole-record) transforms. A fresh buffer of a record's
-/// length is fresh memory from the operating system, and touching it costs more than the FFT
-/// itself (measured: 0.9 ms of page faults against 0.37 ms of transform at 100,000 points), so
-/// the reconstruction keeps its real buffer, spectrum copy and FFT scratch between calls.
+/// Per-thread work buffers of the transforms (real signal, half spectrum, FFT scratch). A fresh
+/// buffer of a record's length is fresh memory from the operating system, and touching it costs
+/// more than the FFT itself (measured: 0.9 ms of page faults against 0.37 ms of transform at
+/// 100,000 points), so the buffers are kept between calls.
 #[derive(Default)]
 struct Work {
     real: Vec<f64>,
@@ -411,47 +411,56 @@ pub fn low_pass(x: &[f64], dt: f64, cutoff_hz: f64) -> Vec<f64> {
     })
 }
 
-/// The first `n` samples of the inverse transform (length `nn`, normalised) of the half spectrum
-/// `spec` limited to bins `0..=kc`, and of its first and second time derivatives (each bin times
-/// `iω` and `−ω²`, bin spacing `df` Hz), with the thread's work buffers. The second derivative
-/// is left empty unless `with_acc`.
-fn inverse_with_derivatives(
-    spec: &[Complex<f64>],
-    kc: usize,
+/// Samples `0, q, 2q, …` below `n` of the inverse transform (length `nn`, normalised by `1/nn`)
+/// of the half spectrum whose bins `0..coef.len()` are `coef` and every other bin zero, and of
+/// its first and second time derivatives (each bin times `iω` and `−ω²`, bin spacing `df` Hz),
+/// with the thread's work buffers. The second derivative is left empty unless `with_acc`.
+///
+/// Sample `t = q·m` is `(1/nn)·Σ_k c_k e^{2πi·k·q·m/nn}` (over the Hermitian spectrum). With
+/// `g = gcd(q, nn)` that is the same sum on the `nn/g`-point grid at index `(q/g)·m mod nn/g`,
+/// so where the bins fit below that grid's Nyquist bin an `nn/g`-point inverse transform gives
+/// exactly the full-rate samples there.
+fn inverse_at(
+    coef: &[Complex<f64>],
     df: f64,
     nn: usize,
-    n: usize,
+    (n, q): (usize, usize),
     with_acc: bool,
 ) -> [Vec<f64>; 3] {
-    let inv = fft_inverse(nn);
-    let mut outs = [Vec::new(), Vec::new(), Vec::new()];
+    let kc = coef.len() - 1;
+    let g = gcd(q, nn);
+    let len = if 2 * kc < nn / g { nn / g } else { nn };
+    let step = q * len / nn;
+    let count = n.div_ceil(q);
+    let inv = fft_inverse(len);
     let orders = if with_acc { 3 } else { 2 };
+    let mut outs = [Vec::new(), Vec::new(), Vec::new()];
     WORK.with_borrow_mut(|work| {
         let Work {
             real,
-            spec: s,
+            spec,
             scratch,
         } = work;
-        real.resize(nn, 0.0);
+        real.resize(len, 0.0);
         for (d, out) in outs.iter_mut().enumerate().take(orders) {
-            s.clear();
-            s.extend(spec.iter().enumerate().map(|(k, &c)| {
-                if k > kc {
-                    return Complex::new(0.0, 0.0);
-                }
+            spec.clear();
+            spec.resize(len / 2 + 1, Complex::new(0.0, 0.0));
+            for (k, &c) in coef.iter().enumerate() {
                 let w = 2.0 * std::f64::consts::PI * k as f64 * df;
-                match d {
+                spec[k] = match d {
                     0 => c,
                     1 => c * Complex::new(0.0, w),
                     _ => c * (-w * w),
-                }
-            }));
+                };
+            }
             // The Nyquist and DC bins of a real inverse transform must be real.
-            s[0].im = 0.0;
-            let last = s.len() - 1;
-            s[last].im = 0.0;
-            inverse_with(&inv, s, real, scratch);
-            *out = real[..n].iter().map(|v| v / nn as f64).collect();
+            spec[0].im = 0.0;
+            let last = spec.len() - 1;
+            spec[last].im = 0.0;
+            inverse_with(&inv, spec, real, scratch);
+            *out = (0..count)
+                .map(|m| real[(step * m) % len] / nn as f64)
+                .collect();
         }
     });
     outs
@@ -514,7 +523,7 @@ pub fn band_limit_guarded(
     let share = (noise_sum / total).min(1.0);
     // Parseval on the 2N-point extension: variance = 2·Σ_{1≤k≤kc} N̂_k / (2N)².
     let noise_var = 2.0 * noise_sum / (nn as f64 * nn as f64);
-    let [xs, v, a] = inverse_with_derivatives(&spec, kc, df, nn, n, true);
+    let [xs, v, a] = inverse_at(&spec[..=kc], df, nn, (n, 1), true);
     Smoothed {
         x: xs,
         v,
@@ -593,54 +602,14 @@ impl NoiseSpectrum {
     /// Samples `0, q, 2q, …` below `n` of the draw (the first `n` samples of its `mirror_len`
     /// -point inverse transform, every `q`-th), with its spectral first derivative and, when
     /// `with_acc`, its second (else left empty). `None` when `n` exceeds the transform length or
-    /// `q` is 0.
-    ///
-    /// Sample `t = q·m` is `(1/nn)·Σ_k c_k e^{2πi·k·q·m/nn}` (over the Hermitian spectrum). With
-    /// `g = gcd(q, nn)` that is the same sum on the `nn/g`-point grid at index `(q/g)·m mod nn/g`,
-    /// so a decimated draw needs only an `nn/g`-point inverse transform when its bins fit below
-    /// that grid's Nyquist bin — exactly the samples the full-rate draw has there.
+    /// `q` is 0. A decimated draw takes a shorter inverse transform where its bins allow (see
+    /// `inverse_at`), with exactly the samples the full-rate draw has there.
     pub fn series(&self, n: usize, q: usize, with_acc: bool) -> Option<Smoothed> {
         let nn = self.band.mirror_len;
         if n > nn || q == 0 {
             return None;
         }
-        let kc = self.coef.len() - 1;
-        let g = gcd(q, nn);
-        let len = if 2 * kc < nn / g { nn / g } else { nn };
-        let step = q * len / nn;
-        let count = n.div_ceil(q);
-        let inv = fft_inverse(len);
-        let orders = if with_acc { 3 } else { 2 };
-        let mut outs = [Vec::new(), Vec::new(), Vec::new()];
-        WORK.with_borrow_mut(|work| {
-            let Work {
-                real,
-                spec,
-                scratch,
-            } = work;
-            real.resize(len, 0.0);
-            for (d, out) in outs.iter_mut().enumerate().take(orders) {
-                spec.clear();
-                spec.resize(len / 2 + 1, Complex::new(0.0, 0.0));
-                for (k, &c) in self.coef.iter().enumerate() {
-                    let w = 2.0 * std::f64::consts::PI * k as f64 * self.band.bin_hz;
-                    spec[k] = match d {
-                        0 => c,
-                        1 => c * Complex::new(0.0, w),
-                        _ => c * (-w * w),
-                    };
-                }
-                // The Nyquist and DC bins of a real inverse transform must be real.
-                spec[0].im = 0.0;
-                let last = spec.len() - 1;
-                spec[last].im = 0.0;
-                inverse_with(&inv, spec, real, scratch);
-                *out = (0..count)
-                    .map(|m| real[(step * m) % len] / nn as f64)
-                    .collect();
-            }
-        });
-        let [x, v, a] = outs;
+        let [x, v, a] = inverse_at(&self.coef, self.band.bin_hz, nn, (n, q), with_acc);
         Some(Smoothed {
             x,
             v,
@@ -710,23 +679,10 @@ pub fn window_layout(n: usize, count: usize) -> (Vec<usize>, usize) {
     ((0..count).map(|i| i * hop).collect(), len)
 }
 
-/// Per-thread work buffers of the windowed transforms (input, half spectrum, FFT scratch): a
-/// fit makes thousands of them (every library column in every window of every layout), and
-/// fresh buffers for each cost more in allocation, zeroing and page faults than the transform.
-#[derive(Default)]
-struct WinWork {
-    input: Vec<f64>,
-    spec: Vec<Complex<f64>>,
-    scratch: Vec<Complex<f64>>,
-}
-
-thread_local! {
-    static WIN_WORK: std::cell::RefCell<WinWork> = std::cell::RefCell::new(WinWork::default());
-}
-
 /// The FFT (bins 0..=len/2) of `f ⊙ w` over one window of `len = f.len()` samples (`w = None`:
 /// no window), scaled by `dt` (a Riemann sum of the integral), handed to `read` in the thread's
-/// work buffer.
+/// work buffer (a fit makes thousands of these, and fresh buffers for each cost more in
+/// allocation, zeroing and page faults than the transform).
 fn with_fft<R>(
     f: &[f64],
     w: Option<&[f64]>,
@@ -734,9 +690,9 @@ fn with_fft<R>(
     read: impl FnOnce(&[Complex<f64>]) -> R,
 ) -> R {
     let fft = fft_forward(f.len());
-    WIN_WORK.with_borrow_mut(|work| {
-        let WinWork {
-            input,
+    WORK.with_borrow_mut(|work| {
+        let Work {
+            real: input,
             spec,
             scratch,
         } = work;

@@ -106,6 +106,45 @@ const ABSORB_MAX_ROWS: usize = CHUNK_ROWS;
 /// of [`absorb_rows`] could overflow or underflow; such input goes to the dense QR.
 const ABSORB_SAFE: (f64, f64) = (1e-140, 1e140);
 
+/// One column's Householder step of [`absorb_rows_unblocked`] and [`absorb_rows_blocked`]:
+/// the reflection that zeroes the `a` rows of `B` (rows `n1..n1+a`) below the triangle's entry
+/// `(j, j)` of column `j` of `w` (leading dimension `ld`), applied to the next `later` columns.
+/// Returns `None` when an entry is outside [`ABSORB_SAFE`], `Some(0.0)` when the column of `B`
+/// is already zero (no reflection), else `Some(τ)`; the reflection's vector is left in `B`.
+fn absorb_column(
+    w: &mut [f64],
+    (n1, ld, a): (usize, usize, usize),
+    j: usize,
+    later: usize,
+) -> Option<f64> {
+    use crate::kernels::{dot, sub_scaled};
+    let (lo, hi) = ABSORB_SAFE;
+    let outside = |v: f64| {
+        let a = v.abs();
+        a > hi || (a != 0.0 && a < lo) || !a.is_finite()
+    };
+    let (head, tail) = w.split_at_mut((j + 1) * ld);
+    let colj = &mut head[j * ld..];
+    let alpha = colj[j];
+    let v = &mut colj[n1..n1 + a];
+    if outside(alpha) || v.iter().any(|&x| outside(x)) {
+        return None;
+    }
+    let Some((beta, tau)) = crate::fit::householder(alpha, v) else {
+        return Some(0.0);
+    };
+    colj[j] = beta;
+    let v = &colj[n1..n1 + a];
+    for col in tail.chunks_exact_mut(ld).take(later) {
+        let (t, b) = col.split_at_mut(n1);
+        let b = &mut b[..a];
+        let s = tau * (t[j] + dot(v, b));
+        t[j] -= s;
+        sub_scaled(b, s, v);
+    }
+    Some(tau)
+}
+
 /// Columns per panel of [`absorb_rows_blocked`].
 const ABSORB_PANEL: usize = 12;
 
@@ -134,15 +173,10 @@ fn absorb_rows(w: &mut [f64], n1: usize, ld: usize, k: usize, trapezoid: bool) -
 /// `T[..i, i] = −τ_i·T[..i, ..i]·(V_B[:, ..i]ᵀ·v_i)`. Same reflections as the unblocked form, so
 /// the same factor to rounding.
 fn absorb_rows_blocked(w: &mut [f64], n1: usize, ld: usize, k: usize) -> bool {
-    use crate::kernels::{dot, sub_scaled};
+    use crate::kernels::dot;
     use faer::linalg::matmul::matmul;
     use faer::{Accum, MatMut};
     debug_assert!(ld >= n1 + k && w.len() == ld * n1);
-    let (lo, hi) = ABSORB_SAFE;
-    let outside = |v: f64| {
-        let a = v.abs();
-        a > hi || (a != 0.0 && a < lo) || !a.is_finite()
-    };
     let mut tau = [0.0f64; ABSORB_PANEL];
     let mut t = Mat::<f64>::zeros(ABSORB_PANEL, ABSORB_PANEL);
     let mut z = [0.0f64; ABSORB_PANEL];
@@ -150,29 +184,12 @@ fn absorb_rows_blocked(w: &mut [f64], n1: usize, ld: usize, k: usize) -> bool {
     while j0 < n1 {
         let nb = ABSORB_PANEL.min(n1 - j0);
         let j1 = j0 + nb;
-        // The panel, one reflection per column on the panel's own columns.
+        // The panel, one reflection per column on the panel's own columns (a column of `B`
+        // that is already zero gets τ = 0 and keeps its zero vector in V).
         for j in j0..j1 {
-            let (head, tail) = w.split_at_mut((j + 1) * ld);
-            let colj = &mut head[j * ld..];
-            let alpha = colj[j];
-            let v = &mut colj[n1..n1 + k];
-            if outside(alpha) || v.iter().any(|&x| outside(x)) {
-                return false;
-            }
-            let Some((beta, tj)) = crate::fit::householder(alpha, v) else {
-                // `v` is zero: no reflection (τ = 0, and `v` stays zero in V).
-                tau[j - j0] = 0.0;
-                continue;
-            };
-            colj[j] = beta;
-            tau[j - j0] = tj;
-            let v = &colj[n1..n1 + k];
-            for col in tail.chunks_exact_mut(ld).take(j1 - j - 1) {
-                let (top, b) = col.split_at_mut(n1);
-                let b = &mut b[..k];
-                let s = tj * (top[j] + dot(v, b));
-                top[j] -= s;
-                sub_scaled(b, s, v);
+            match absorb_column(w, (n1, ld, k), j, j1 - j - 1) {
+                Some(tj) => tau[j - j0] = tj,
+                None => return false,
             }
         }
         if j1 < n1 {
@@ -251,35 +268,13 @@ fn absorb_rows_blocked(w: &mut [f64], n1: usize, ld: usize, k: usize) -> bool {
 /// dense QR, whose norms are scaled); `w` is then partly updated and must be discarded.
 fn absorb_rows_unblocked(w: &mut [f64], n1: usize, ld: usize, k: usize, trapezoid: bool) -> bool {
     debug_assert!(ld >= n1 + k && w.len() == ld * n1);
-    let (lo, hi) = ABSORB_SAFE;
-    let outside = |v: f64| {
-        let a = v.abs();
-        a > hi || (a != 0.0 && a < lo) || !a.is_finite()
-    };
     for j in 0..n1 {
         let a = if trapezoid { (j + 1).min(k) } else { k };
         if a == 0 {
             continue;
         }
-        let (head, tail) = w.split_at_mut((j + 1) * ld);
-        let colj = &mut head[j * ld..];
-        let alpha = colj[j];
-        let v = &mut colj[n1..n1 + a];
-        if outside(alpha) || v.iter().any(|&x| outside(x)) {
+        if absorb_column(w, (n1, ld, a), j, n1 - j - 1).is_none() {
             return false;
-        }
-        let Some((beta, tau)) = crate::fit::householder(alpha, v) else {
-            continue;
-        };
-        colj[j] = beta;
-        let v = &colj[n1..n1 + a];
-        for col in tail.chunks_exact_mut(ld) {
-            let (t, b) = col.split_at_mut(n1);
-            let b = &mut b[..a];
-            let d = t[j] + crate::kernels::dot(v, b);
-            let s = tau * d;
-            t[j] -= s;
-            crate::kernels::sub_scaled(b, s, v);
         }
     }
     true
