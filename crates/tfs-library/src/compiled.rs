@@ -25,6 +25,10 @@ enum Kind {
     Abs,
     Sign,
     Tanh(f64),
+    /// `max(0, c − s)`.
+    Below(f64),
+    /// `max(0, s − c)`.
+    Above(f64),
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -100,6 +104,8 @@ impl Model {
                         Factor::Abs(_) => Kind::Abs,
                         Factor::Sign(_) => Kind::Sign,
                         Factor::Tanh(_, eps) => Kind::Tanh(1.0 / eps),
+                        Factor::Below(_, c) => Kind::Below(*c),
+                        Factor::Above(_, c) => Kind::Above(*c),
                     };
                     factors.push(CFactor { src, kind });
                 }
@@ -182,6 +188,8 @@ impl CompiledModel {
                         Kind::Abs => s.abs(),
                         Kind::Sign => sign0(s),
                         Kind::Tanh(inv) => (s * inv).tanh(),
+                        Kind::Below(c) => (c - s).max(0.0),
+                        Kind::Above(c) => (s - c).max(0.0),
                     };
                 }
                 acc += p;
@@ -217,7 +225,7 @@ impl CompiledModel {
     /// `a[i] = Σ_j coefs[j]·θ_j` for the terms of equation `i`, the regressors `theta[j] = θ_j`,
     /// and the state Jacobians `ax[i·n + k] = ∂a_i/∂x_k`, `av[i·n + k] = ∂a_i/∂v_k` (analytic,
     /// by the product rule over each term's factors; `|s|` has derivative `sign(s)`, `sign(s)`
-    /// derivative 0).
+    /// derivative 0, `below(s, c)` −1 below `c` and `above(s, c)` 1 above it, 0 elsewhere).
     ///
     /// # Panics
     /// On slices shorter than the model needs (`n` DOFs, `n_terms` coefficients, `n²` Jacobian
@@ -266,6 +274,20 @@ impl CompiledModel {
                         Kind::Tanh(inv) => {
                             let th = (s * inv).tanh();
                             (th, inv * (1.0 - th * th))
+                        }
+                        Kind::Below(c) => {
+                            if s < c {
+                                (c - s, -1.0)
+                            } else {
+                                (0.0, 0.0)
+                            }
+                        }
+                        Kind::Above(c) => {
+                            if s > c {
+                                (s - c, 1.0)
+                            } else {
+                                (0.0, 0.0)
+                            }
                         }
                     };
                     fv[m] = val;

@@ -260,6 +260,33 @@ impl<'a> Parser<'a> {
             self.pos += 1;
             return Ok(vec![None]);
         }
+        for func in ["below", "above"] {
+            if self.at_call(func) {
+                self.ident();
+                self.expect('(', "'('")?;
+                let v = self.var()?;
+                self.expect(',', &format!("',' and the stop's position: {func}(v, c)"))?;
+                self.skip_ws();
+                let negative = self.eat('-');
+                let npos = self.pos;
+                let c = self.number()?;
+                if !c.is_finite() {
+                    return Err(self.err_at(
+                        npos,
+                        format!("'{c}'"),
+                        format!("a finite position c in {func}(v, c)"),
+                    ));
+                }
+                let c = if negative { -c } else { c };
+                self.expect(')', &format!("')' closing {func}("))?;
+                let f = if func == "below" {
+                    Factor::Below(v, c)
+                } else {
+                    Factor::Above(v, c)
+                };
+                return Ok(vec![Some(f)]);
+            }
+        }
         for func in ["abs", "sign", "tanh"] {
             if self.at_call(func) {
                 self.ident();

@@ -16,7 +16,7 @@
 //! true potential of that slice. Potentials in other relative coordinates are not provided.
 
 use crate::model::Model;
-use crate::term::{Coord, Factor, Var, pow_u, sign0};
+use crate::term::{Coord, Factor, Var, pow_u};
 use crate::{LibraryError, Result};
 
 /// A real polynomial `Σ c_k x^k` with coefficients in ascending order.
@@ -87,12 +87,11 @@ impl Polynomial {
     }
 }
 
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 enum SliceKind {
     Pow(u32),
-    Abs,
-    Sign,
-    Tanh(f64),
+    /// Any other factor, evaluated through [`Factor::apply`] and [`Factor::derivative`].
+    Other(Factor),
 }
 
 /// The restoring force of one DOF, prepared for repeated evaluation (see the module docs).
@@ -140,9 +139,7 @@ impl Restoring {
                         let y = s * x;
                         match k {
                             SliceKind::Pow(k) => pow_u(y, *k),
-                            SliceKind::Abs => y.abs(),
-                            SliceKind::Sign => sign0(y),
-                            SliceKind::Tanh(eps) => (y / eps).tanh(),
+                            SliceKind::Other(f) => f.apply(y),
                         }
                     })
                     .product::<f64>()
@@ -166,12 +163,7 @@ impl Restoring {
                     let y = s * x;
                     match kind {
                         SliceKind::Pow(p) => (pow_u(y, *p), s * f64::from(*p) * pow_u(y, p - 1)),
-                        SliceKind::Abs => (y.abs(), s * sign0(y)),
-                        SliceKind::Sign => (sign0(y), 0.0),
-                        SliceKind::Tanh(eps) => {
-                            let t = (y / eps).tanh();
-                            (t, s * (1.0 - t * t) / eps)
-                        }
+                        SliceKind::Other(f) => (f.apply(y), s * f.derivative(y)),
                     }
                 })
                 .collect();
@@ -224,13 +216,14 @@ impl Model {
                     Var::Disp(d) if d == dof => 1.0,
                     Var::RelDisp(a, _) if a == dof => 1.0,
                     Var::RelDisp(_, Coord::Dof(b)) if b == dof => -1.0,
-                    _ => continue 'terms, // argument is 0 at rest: the factor and term vanish
+                    // The argument is 0 at rest: a factor that vanishes there takes the term
+                    // with it; one that does not (a stop at a non-zero position) is a constant.
+                    _ if f.apply(0.0) == 0.0 => continue 'terms,
+                    _ => 0.0,
                 };
                 let kind = match f {
                     Factor::Pow(_, k) => SliceKind::Pow(*k),
-                    Factor::Abs(_) => SliceKind::Abs,
-                    Factor::Sign(_) => SliceKind::Sign,
-                    Factor::Tanh(_, eps) => SliceKind::Tanh(*eps),
+                    other => SliceKind::Other(other.clone()),
                 };
                 factors.push((s, kind));
             }

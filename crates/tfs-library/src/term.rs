@@ -112,13 +112,23 @@ pub enum Factor {
     Sign(Var),
     /// `tanh(v/ε)` with `ε > 0` (smoothed dry friction).
     Tanh(Var, f64),
+    /// `below(v, c) = max(0, c − v)`: how far `v` is below `c` (a one-sided stop from below:
+    /// `k·below(x, c)` with `k > 0` is a contact spring that pushes `x` back up to `c`).
+    Below(Var, f64),
+    /// `above(v, c) = max(0, v − c)`: how far `v` is above `c` (a stop from above).
+    Above(Var, f64),
 }
 
 impl Factor {
     /// The variable this factor is a function of.
     pub fn var(&self) -> &Var {
         match self {
-            Factor::Pow(v, _) | Factor::Abs(v) | Factor::Sign(v) | Factor::Tanh(v, _) => v,
+            Factor::Pow(v, _)
+            | Factor::Abs(v)
+            | Factor::Sign(v)
+            | Factor::Tanh(v, _)
+            | Factor::Below(v, _)
+            | Factor::Above(v, _) => v,
         }
     }
 
@@ -128,6 +138,8 @@ impl Factor {
             Factor::Abs(_) => 1,
             Factor::Sign(_) => 2,
             Factor::Tanh(..) => 3,
+            Factor::Below(..) => 4,
+            Factor::Above(..) => 5,
         }
     }
 
@@ -137,7 +149,9 @@ impl Factor {
             .then(self.kind_rank().cmp(&other.kind_rank()))
             .then_with(|| match (self, other) {
                 (Factor::Pow(_, a), Factor::Pow(_, b)) => a.cmp(b),
-                (Factor::Tanh(_, a), Factor::Tanh(_, b)) => a.total_cmp(b),
+                (Factor::Tanh(_, a), Factor::Tanh(_, b))
+                | (Factor::Below(_, a), Factor::Below(_, b))
+                | (Factor::Above(_, a), Factor::Above(_, b)) => a.total_cmp(b),
                 _ => Ordering::Equal,
             })
     }
@@ -150,6 +164,38 @@ impl Factor {
             Factor::Abs(_) => v.abs(),
             Factor::Sign(_) => sign0(v),
             Factor::Tanh(_, eps) => (v / eps).tanh(),
+            Factor::Below(_, c) => (c - v).max(0.0),
+            Factor::Above(_, c) => (v - c).max(0.0),
+        }
+    }
+
+    /// The factor's derivative with respect to its variable at `v` (`abs`: `sign(v)`; `sign`:
+    /// 0; `below`/`above`: the side's slope, 0 on the free side and at the contact point).
+    #[inline]
+    pub fn derivative(&self, v: f64) -> f64 {
+        match self {
+            Factor::Pow(_, 0) => 0.0,
+            Factor::Pow(_, k) => f64::from(*k) * pow_u(v, k - 1),
+            Factor::Abs(_) => sign0(v),
+            Factor::Sign(_) => 0.0,
+            Factor::Tanh(_, eps) => {
+                let t = (v / eps).tanh();
+                (1.0 - t * t) / eps
+            }
+            Factor::Below(_, c) => {
+                if v < *c {
+                    -1.0
+                } else {
+                    0.0
+                }
+            }
+            Factor::Above(_, c) => {
+                if v > *c {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
         }
     }
 }
@@ -191,6 +237,8 @@ impl fmt::Display for Factor {
             Factor::Abs(v) => write!(f, "abs({v})"),
             Factor::Sign(v) => write!(f, "sign({v})"),
             Factor::Tanh(v, eps) => write!(f, "tanh({v}/{})", fmt_num(*eps)),
+            Factor::Below(v, c) => write!(f, "below({v}, {})", fmt_num(*c)),
+            Factor::Above(v, c) => write!(f, "above({v}, {})", fmt_num(*c)),
         }
     }
 }
@@ -199,7 +247,7 @@ impl fmt::Display for Factor {
 ///
 /// Terms built with [`Term::new`] are canonical: factors sorted (displacements, relative
 /// displacements, velocities, relative velocities, inputs; within a variable `^k` before `abs`,
-/// `sign`, `tanh`) and equal-variable powers merged, so `x'*x*x` becomes `x^2*x'`. Two terms
+/// `sign`, `tanh`, `below`, `above`) and equal-variable powers merged, so `x'*x*x` becomes `x^2*x'`. Two terms
 /// are equal exactly when their canonical names are equal.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Term {

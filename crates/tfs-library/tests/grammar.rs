@@ -37,6 +37,8 @@ fn factor_strategy() -> impl Strategy<Value = Factor> {
         var_strategy().prop_map(Factor::Abs),
         var_strategy().prop_map(Factor::Sign),
         (var_strategy(), 1e-6f64..10.0).prop_map(|(v, e)| Factor::Tanh(v, e)),
+        (var_strategy(), -5.0f64..5.0).prop_map(|(v, c)| Factor::Below(v, c)),
+        (var_strategy(), -5.0f64..5.0).prop_map(|(v, c)| Factor::Above(v, c)),
     ]
 }
 
@@ -220,4 +222,30 @@ fn term_properties() {
     assert!(t("x1*x2'").exact_derivative().is_none());
     assert!(t("x^2").exact_derivative().is_none());
     assert!(t("x'^2").exact_derivative().is_none());
+}
+
+/// One-sided stops: `below(v, c) = max(0, c − v)`, `above(v, c) = max(0, v − c)`, with a signed
+/// position; malformed calls are errors that say what was expected.
+#[test]
+fn stops_parse_evaluate_and_refuse_bad_input() {
+    let t = Term::parse("below(x, -0.25) * x'", &DOFS).unwrap();
+    assert_eq!(t.to_string(), "below(x, -0.25)*x'");
+    let f = &t.factors()[0];
+    assert_eq!(
+        (f.apply(-1.0), f.apply(-0.25), f.apply(0.5)),
+        (0.75, 0.0, 0.0)
+    );
+    assert_eq!((f.derivative(-1.0), f.derivative(0.5)), (-1.0, 0.0));
+    let a = Term::parse("above((x2-x1), 1.5)", &DOFS).unwrap();
+    assert_eq!(a.to_string(), "above((x2-x1), 1.5)");
+    let g = &a.factors()[0];
+    assert_eq!((g.apply(2.0), g.apply(1.0)), (0.5, 0.0));
+    assert_eq!((g.derivative(2.0), g.derivative(1.0)), (1.0, 0.0));
+    // Distinct positions are distinct terms, in a canonical order.
+    let lib = Library::parse("below(x, 0.1), below(x, -0.1), below(x, 0.1)", &DOFS).unwrap();
+    assert_eq!(lib.len(), 2);
+    for bad in ["below(x)", "below(x, )", "above(x 1)", "below(x, 1"] {
+        let e = Library::parse(bad, &DOFS).unwrap_err().to_string();
+        assert!(e.contains("expected"), "{bad}: {e}");
+    }
 }

@@ -263,6 +263,21 @@ fn potential_closed_forms() {
             );
         }
     }
+    // A stop at x = -0.3 from below, x'' = k·below(x, -0.3): F = -k·max(0, -0.3 - x), and
+    // V = k·(x + 0.3)²/2 below the stop, a wall (0 above it; the quadrature of the potential
+    // crosses the kink at the stop, hence the looser tolerance).
+    let lib = Library::parse("below(x, -0.3), above(x2, 0.2)", &["x", "x2"]).unwrap();
+    let m = Model::from_coefficients(&lib, &[vec![40.0, 7.0], vec![0.0, 0.0]], "p").unwrap();
+    for x in [-1.1f64, -0.5, -0.3, 0.0, 0.8] {
+        let pen = (-0.3 - x).max(0.0);
+        let f = m.restoring_force("x", x).unwrap();
+        assert!((f + 40.0 * pen).abs() < 1e-12, "x {x}: F {f}");
+        let v = m.potential("x", x).unwrap();
+        assert!(
+            (v - 20.0 * pen * pen).abs() < 1e-5 * (1.0 + v),
+            "x {x}: V {v}"
+        );
+    }
     // Chain slice: x1'' = -k (x1-xb) - k2 (x1-x2)^3 ⇒ F(x1) = k x1 + k2 x1^3 with x2 = xb = 0.
     let lib = Library::parse("(x1-xb), (x2-x1)^3, x1'", &["x1", "x2"]).unwrap();
     let m = Model::from_coefficients(&lib, &[vec![-2.0, 5.0, -1.0], vec![0.0, -5.0, 0.0]], "p")
@@ -298,13 +313,17 @@ fn model_new_orders_equations_and_checks_dofs() {
 #[test]
 fn compiled_jacobian_matches_central_differences() {
     let lib1 = Library::parse(
-        "x1, x1^3, x1', x1'*abs(x1'), (x2-x1), (x2-x1)^2*(x2-x1)', tanh(x1'/0.3), xb_acc",
+        "x1, x1^3, x1', x1'*abs(x1'), (x2-x1), (x2-x1)^2*(x2-x1)', tanh(x1'/0.3), xb_acc, below(x1, 0.5), x1'*above((x2-x1), -1)",
         &["x1", "x2"],
     )
     .unwrap();
-    let lib2 = Library::parse("(x2-x1), (x2-x1)^5, (x2-x1)', x2*x2'^2", &["x1", "x2"]).unwrap();
-    let c1 = vec![-3.0, 0.7, -0.4, -0.2, 2.5, 0.9, -0.6, -1.0];
-    let c2 = vec![-2.5, 0.3, -0.8, 0.05];
+    let lib2 = Library::parse(
+        "(x2-x1), (x2-x1)^5, (x2-x1)', x2*x2'^2, above(x2, -0.9)",
+        &["x1", "x2"],
+    )
+    .unwrap();
+    let c1 = vec![-3.0, 0.7, -0.4, -0.2, 2.5, 0.9, -0.6, -1.0, 30.0, 0.4];
+    let c2 = vec![-2.5, 0.3, -0.8, 0.05, -20.0];
     let m1 = Model::from_coefficients(&lib1, &[c1.clone(), vec![0.0; c1.len()]], "t").unwrap();
     let m2 = Model::from_coefficients(&lib2, &[vec![0.0; c2.len()], c2.clone()], "t").unwrap();
     let mut m = m1.clone();
