@@ -559,6 +559,24 @@ pub(crate) fn criterion1_dof(
         .with_max_len(1)
         .map(|r| criterion1_block(r, spec, d, lib))
         .collect::<Result<_>>()?;
+    // A column that takes one value on every row (a stop the data never reach, an input that
+    // does not move) can be identified from nothing: say which term it is.
+    for &j in &nonconst {
+        let (lo, hi) = td
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (a, _)| {
+                a.col_as_slice(j)
+                    .iter()
+                    .fold((lo, hi), |(lo, hi), &v| (lo.min(v), hi.max(v)))
+            });
+        if lo == hi {
+            return invalid(format!(
+                "library term '{}' of the equation of '{}' takes the single value {lo} on every record (for a stop below(x, c) or above(x, c): the data never reach c); drop it from the library",
+                lib.terms()[j],
+                spec.dofs[d]
+            ));
+        }
+    }
     // The centred factor is needed only by Criterion 2's pruning; κ alone has a cheaper route.
     // The calibration's noisy copies do not depend on the records' κ: both run at once.
     let (records, points) = rayon::join(

@@ -19,6 +19,13 @@ fn missing_dof_column_is_an_error_that_names_it() {
     spec.tfs.deltas.clear();
     let e = identify_tfs(&recs, &spec).unwrap_err().to_string();
     assert!(e.contains("tfs.deltas"), "{e}");
+    // A stop the data never reach is a column of zeros: the error names the term.
+    let spec = IdentifySpec::new(&["x"], &format!("{LIB}, below(x, -100)"));
+    let e = identify_tfs(&recs, &spec).unwrap_err().to_string();
+    assert!(
+        e.contains("'below(x, -100)'") && e.contains("never reach"),
+        "{e}"
+    );
 }
 
 /// On noise-free data the classical baseline with central differences is accurate too.

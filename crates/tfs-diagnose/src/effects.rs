@@ -376,9 +376,48 @@ pub struct EffectContext<'a> {
     /// Mean of the DOF's (smoothed) displacement over the data: the operating point about which
     /// displacement-dependent effects are offered when the equation has a constant term.
     pub displacement_mean: f64,
+    /// Smallest and largest value over the data of each displacement coordinate of the equation
+    /// (see [`EffectContext::displacement_vars`]): where a stop can be.
+    pub displacement_ranges: Vec<(Var, f64, f64)>,
 }
 
-impl EffectContext<'_> {
+/// The coordinates of an equation with terms `terms` that `keep` selects: `own` first, then
+/// every one the terms use, in order of first appearance.
+pub(crate) fn coordinates(own: Var, terms: &[Term], keep: fn(&Var) -> bool) -> Vec<Var> {
+    let mut out = vec![own];
+    for t in terms {
+        for v in t.vars() {
+            if keep(v) && !out.contains(v) {
+                out.push(v.clone());
+            }
+        }
+    }
+    out
+}
+
+impl<'a> EffectContext<'a> {
+    /// The context of `dof`'s equation (terms `terms`) of `model`, with the data's scales.
+    pub(crate) fn new(
+        model: &'a Model,
+        dof: &'a str,
+        terms: Vec<Term>,
+        scales: &crate::prepare::DataScales,
+        dt: f64,
+        max_power: u32,
+    ) -> Self {
+        Self {
+            model,
+            dof,
+            terms,
+            velocity_scale: scales.velocity,
+            period: scales.period,
+            dt,
+            max_power,
+            displacement_mean: scales.mean,
+            displacement_ranges: scales.ranges.clone(),
+        }
+    }
+
     /// True if the equation already has `term`.
     pub fn has(&self, term: &Term) -> bool {
         self.terms.contains(term)
@@ -401,15 +440,7 @@ impl EffectContext<'_> {
         self.coordinate_vars(self.disp(), Var::is_displacement)
     }
     fn coordinate_vars(&self, own: Var, keep: fn(&Var) -> bool) -> Vec<Var> {
-        let mut out = vec![own];
-        for t in &self.terms {
-            for v in t.vars() {
-                if keep(v) && !out.contains(v) {
-                    out.push(v.clone());
-                }
-            }
-        }
-        out
+        coordinates(own, &self.terms, keep)
     }
     /// True when the equation has the constant term `1`: the displacement's origin is then
     /// arbitrary (raw units with a sensor offset, absorbed by the constant), and powers of the
@@ -425,6 +456,34 @@ impl EffectContext<'_> {
         } else {
             EffectColumn::term(term)
         }
+    }
+}
+
+impl Variant {
+    /// The other DOFs this variant's columns couple `own` to: the far end of every relative
+    /// coordinate `(a-b)` or `(a-b)'` between `own` and another DOF. A force on a coupling acts
+    /// on both masses, so such a variant belongs in the partner's equation too.
+    pub fn partners(&self, own: &str) -> Vec<String> {
+        let mut out: Vec<String> = Vec::new();
+        for c in self.add.iter().chain(self.replace.iter().map(|(_, c)| c)) {
+            for v in c.term.vars() {
+                if let Var::RelDisp(a, tfs_library::Coord::Dof(b))
+                | Var::RelVel(a, tfs_library::Coord::Dof(b)) = v
+                {
+                    let other = if a == own {
+                        b
+                    } else if b == own {
+                        a
+                    } else {
+                        continue;
+                    };
+                    if !out.contains(other) {
+                        out.push(other.clone());
+                    }
+                }
+            }
+        }
+        out
     }
 }
 
@@ -747,6 +806,50 @@ impl Effect for InputFilter {
     }
 }
 
+/// A one-sided stop (end stop, contact, a cell's folded state): `below(q, c)` for a stop the
+/// coordinate `q` runs into from above, `above(q, c)` for one from below, the contact stiffness
+/// the refitted coefficient. The position `c` is scanned inside either end of the range the data
+/// cover (1–20 % of the span in from the extreme): a stiff stop holds the coordinate just beyond
+/// its position, so the data's extreme lies a little past it.
+#[derive(Debug, Clone, Copy)]
+pub struct Stop;
+impl Effect for Stop {
+    fn name(&self) -> String {
+        "stop".into()
+    }
+    fn description(&self) -> String {
+        "one-sided stop (end stop, contact, folded state): k*below(x, c) or k*above(x, c), c scanned over 1 %..20 % of the displacement span in from either extreme".into()
+    }
+    fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
+        let mut out = Vec::new();
+        for (v, lo, hi) in &ctx.displacement_ranges {
+            let span = hi - lo;
+            if !(span > 0.0 && span.is_finite()) {
+                continue;
+            }
+            for r in [0.01, 0.02, 0.05, 0.1, 0.2] {
+                for term in [
+                    Term::new(vec![Factor::Below(v.clone(), round3(lo + r * span))]),
+                    Term::new(vec![Factor::Above(v.clone(), round3(hi - r * span))]),
+                ] {
+                    if ctx.has(&term) {
+                        continue;
+                    }
+                    let c = match term.factors() {
+                        [Factor::Below(_, c) | Factor::Above(_, c)] => *c,
+                        _ => continue,
+                    };
+                    out.push(Variant::adding(
+                        Some(("c".into(), c)),
+                        vec![EffectColumn::term(term)],
+                    ));
+                }
+            }
+        }
+        out
+    }
+}
+
 /// The registry of effects, in a fixed order.
 pub struct Catalogue {
     effects: Vec<Box<dyn Effect>>,
@@ -787,6 +890,7 @@ impl Catalogue {
         add(Box::new(Maxwell));
         add(Box::new(InputDelay));
         add(Box::new(InputFilter));
+        add(Box::new(Stop));
         c
     }
 

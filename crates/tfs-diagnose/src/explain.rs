@@ -30,7 +30,7 @@ use tfs_library::{ColumnSet, Equation, Model, ModelTerm, Term, evaluate_term};
 use tfs_regress::{Compressed, LeastSquares, Regressor};
 
 use crate::effects::{Catalogue, EffectColumn, EffectContext, Variant};
-use crate::prepare::{DiagnoseOptions, Layout, RecordStates, dominant_period, rms};
+use crate::prepare::{DiagnoseOptions, Layout, RecordStates, rms};
 use crate::{DiagnoseError, Result};
 
 /// The evidence for one effect on one DOF (its best variant).
@@ -375,9 +375,7 @@ struct DofSetup {
     base_blocks: Vec<Compressed>,
     base_cv: Cv,
     acc_rms: f64,
-    ctx_velocity: f64,
-    ctx_period: f64,
-    ctx_mean: f64,
+    scales: crate::prepare::DataScales,
 }
 
 fn setup_dof(
@@ -405,20 +403,7 @@ fn setup_dof(
     let base_blocks = compress_blocks(&base_design, layout)?;
     let base_cv = cross_validate(&base_blocks, layout)?;
     let all_acc: Vec<f64> = base_design.b.iter().flatten().copied().collect();
-    let vname = format!("{}'", model.dofs[idx]);
-    let mut vel = Vec::new();
-    let mut periods = Vec::new();
-    let (mut xsum, mut xn) = (0.0, 0usize);
-    for s in states {
-        let v = tfs_data::Columns::column(s, &vname).unwrap_or(&[]);
-        vel.extend_from_slice(&v[s.margin..s.margin + s.usable()]);
-        let x = tfs_data::Columns::column(s, &model.dofs[idx]).unwrap_or(&[]);
-        periods.push(dominant_period(x, s.record.dt())?);
-        let used = &x[s.margin.min(x.len())..(s.margin + s.usable()).min(x.len())];
-        xsum += used.iter().sum::<f64>();
-        xn += used.len();
-    }
-    periods.sort_by(f64::total_cmp);
+    let scales = crate::prepare::DataScales::measure(model, idx, &base_terms, states)?;
     Ok(DofSetup {
         idx,
         base_terms,
@@ -426,9 +411,7 @@ fn setup_dof(
         base_blocks,
         base_cv,
         acc_rms: rms(&all_acc),
-        ctx_velocity: rms(&vel),
-        ctx_period: periods[periods.len() / 2],
-        ctx_mean: if xn > 0 { xsum / xn as f64 } else { 0.0 },
+        scales,
     })
 }
 
@@ -438,16 +421,14 @@ fn context<'a>(
     dt: f64,
     opts: &DiagnoseOptions,
 ) -> EffectContext<'a> {
-    EffectContext {
+    EffectContext::new(
         model,
-        dof: &model.dofs[d.idx],
-        terms: d.base_terms.clone(),
-        velocity_scale: d.ctx_velocity,
-        period: d.ctx_period,
+        &model.dofs[d.idx],
+        d.base_terms.clone(),
+        &d.scales,
         dt,
-        max_power: opts.max_power,
-        displacement_mean: d.ctx_mean,
-    }
+        opts.max_power,
+    )
 }
 
 struct Scored {

@@ -375,3 +375,68 @@ pub(crate) fn dominant_period(x: &[f64], dt: f64) -> Result<f64> {
         .unwrap_or(1);
     Ok(1.0 / f[k.min(f.len() - 1)].max(f[1.min(f.len() - 1)]))
 }
+
+/// What the catalogue's effects are told about the data of one DOF's equation (see
+/// [`crate::EffectContext`]), measured over the usable rows of every record.
+#[derive(Debug, Clone)]
+pub(crate) struct DataScales {
+    /// RMS of the DOF's smoothed velocity.
+    pub velocity: f64,
+    /// Median over records of the dominant period of the DOF's displacement (s).
+    pub period: f64,
+    /// Mean of the DOF's smoothed displacement.
+    pub mean: f64,
+    /// Smallest and largest value of each displacement coordinate of the equation (its own, then
+    /// the relative ones its terms use).
+    pub ranges: Vec<(tfs_library::Var, f64, f64)>,
+}
+
+impl DataScales {
+    /// Measures the scales of DOF `idx` of `model`, whose equation has the terms `terms`, on
+    /// `states`.
+    pub(crate) fn measure(
+        model: &Model,
+        idx: usize,
+        terms: &[tfs_library::Term],
+        states: &[RecordStates],
+    ) -> Result<Self> {
+        let dof = &model.dofs[idx];
+        let vname = format!("{dof}'");
+        let mut vel = Vec::new();
+        let mut periods = Vec::new();
+        let (mut xsum, mut xn) = (0.0, 0usize);
+        let vars = crate::effects::coordinates(
+            tfs_library::Var::Disp(dof.clone()),
+            terms,
+            tfs_library::Var::is_displacement,
+        );
+        let mut ranges: Vec<(tfs_library::Var, f64, f64)> = vars
+            .iter()
+            .map(|v| (v.clone(), f64::INFINITY, f64::NEG_INFINITY))
+            .collect();
+        for s in states {
+            let used = s.margin..s.margin + s.usable();
+            let v = s.column(&vname).unwrap_or(&[]);
+            vel.extend_from_slice(&v[used.start.min(v.len())..used.end.min(v.len())]);
+            let x = s.column(dof).unwrap_or(&[]);
+            periods.push(dominant_period(x, s.record.dt())?);
+            let xu = &x[used.start.min(x.len())..used.end.min(x.len())];
+            xsum += xu.iter().sum::<f64>();
+            xn += xu.len();
+            for (var, lo, hi) in &mut ranges {
+                let q = tfs_library::evaluate_term(&tfs_library::Term::var(var.clone()), s)?;
+                for &val in &q[used.start.min(q.len())..used.end.min(q.len())] {
+                    *lo = lo.min(val);
+                    *hi = hi.max(val);
+                }
+            }
+        }
+        periods.sort_by(f64::total_cmp);
+        Ok(Self {
+            velocity: rms(&vel),
+            period: periods.get(periods.len() / 2).copied().unwrap_or(f64::NAN),
+            mean: if xn > 0 { xsum / xn as f64 } else { 0.0 },
+            ranges: ranges.into_iter().filter(|(_, lo, hi)| hi > lo).collect(),
+        })
+    }
+}

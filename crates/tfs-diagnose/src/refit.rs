@@ -10,7 +10,7 @@ use crate::effects::{Catalogue, EffectColumn};
 use crate::explain::{
     compress_blocks, cross_validate, design, full_fit, variant_columns, with_equation,
 };
-use crate::prepare::{DiagnoseOptions, Layout, RecordStates, check_records, dominant_period, rms};
+use crate::prepare::{DiagnoseOptions, Layout, RecordStates, check_records};
 use crate::{DiagnoseError, Result};
 
 fn prepare(model: &Model, records: &[Record], opts: &DiagnoseOptions) -> Result<Vec<RecordStates>> {
@@ -108,37 +108,22 @@ pub fn add_effect_with(
     let mut out = model.clone();
     let mut added = Vec::new();
     let mut details = Vec::new();
-    for idx in dofs {
+    for &idx in &dofs {
         let base: Vec<tfs_library::Term> = model.equations[idx]
             .terms
             .iter()
             .map(|t| t.term.clone())
             .collect();
         let dof = &model.dofs[idx];
-        let vname = format!("{dof}'");
-        let mut vel = Vec::new();
-        let mut periods = Vec::new();
-        let (mut xsum, mut xn) = (0.0, 0usize);
-        for s in &states {
-            let v = tfs_data::Columns::column(s, &vname).unwrap_or(&[]);
-            vel.extend_from_slice(&v[s.margin..s.margin + s.usable()]);
-            let x = tfs_data::Columns::column(s, dof).unwrap_or(&[]);
-            periods.push(dominant_period(x, s.record.dt())?);
-            let used = &x[s.margin.min(x.len())..(s.margin + s.usable()).min(x.len())];
-            xsum += used.iter().sum::<f64>();
-            xn += used.len();
-        }
-        periods.sort_by(f64::total_cmp);
-        let ctx = crate::effects::EffectContext {
+        let scales = crate::prepare::DataScales::measure(model, idx, &base, &states)?;
+        let ctx = crate::effects::EffectContext::new(
             model,
             dof,
-            terms: base.clone(),
-            velocity_scale: rms(&vel),
-            period: periods[periods.len() / 2],
+            base.clone(),
+            &scales,
             dt,
-            max_power: opts.max_power,
-            displacement_mean: if xn > 0 { xsum / xn as f64 } else { 0.0 },
-        };
+            opts.max_power,
+        );
         let variants = eff.variants(&ctx);
         if variants.is_empty() {
             return Err(DiagnoseError::NotApplicable {
@@ -166,6 +151,26 @@ pub fn add_effect_with(
             added.push(c.label());
         }
         details.push(json!({"dof": dof, "parameter": v.parameter}));
+        // A force on a coupling acts on both masses: the same variant goes into each partner's
+        // equation (refitted there), unless that DOF is a target of its own.
+        for p in v.partners(dof) {
+            let Some(pi) = model.dofs.iter().position(|d| *d == p) else {
+                continue;
+            };
+            if dofs.contains(&pi) {
+                continue;
+            }
+            let pbase: Vec<tfs_library::Term> = out.equations[pi]
+                .terms
+                .iter()
+                .map(|t| t.term.clone())
+                .collect();
+            let (pcols, _) = variant_columns(&pbase, &v);
+            let pd = design(&states, pi, &pcols)?;
+            let pcoef = full_fit(&compress_blocks(&pd, &layout)?)?;
+            out = with_equation(&out, pi, &pcols, &pcoef)?;
+            details.push(json!({"dof": p, "parameter": v.parameter, "partner_of": dof}));
+        }
     }
     if out.history.is_empty() {
         let (scores, failed) = try_scores(model, records);

@@ -43,8 +43,9 @@ fn run_case(
     let ex = explain(&start, &train, &Catalogue::standard(7), &opts).unwrap();
     for r in ex.ranked.iter().take(4) {
         println!(
-            "{label}: {:<20} sig={} delta={:.4} p={:.2e} share={:.4} coef={:.4} [{:.4}, {:.4}] rmse {:?} -> {:?}",
+            "{label}: {:<20} {:?} sig={} delta={:.4} p={:.2e} share={:.4} coef={:.4} [{:.4}, {:.4}] rmse {:?} -> {:?}",
             r.name,
+            r.parameter,
             r.significant,
             r.delta_heldout,
             r.p_value,
@@ -233,6 +234,22 @@ fn duffing_input_filter() {
         &duffing(Hidden::InputFilter(0.04)),
         "x, x^3, x', xb_acc",
         "input-filter",
+        (0.3, 3.0, 4.0),
+        30.0,
+    );
+}
+
+/// An end stop the response runs into from above (contact 20× stiffer than the linear spring):
+/// the polynomial model cannot hold the coordinate at the stop; `stop` finds it, and its position
+/// within the scan's resolution.
+#[test]
+fn duffing_end_stop() {
+    let k = 20.0 * 4.0 * std::f64::consts::PI.powi(2);
+    run_case(
+        "duffing/stop",
+        &duffing(Hidden::Stop { k, at: -0.3 }),
+        "x, x^3, x', xb_acc",
+        "stop",
         (0.3, 3.0, 4.0),
         30.0,
     );

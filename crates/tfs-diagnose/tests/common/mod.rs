@@ -29,19 +29,25 @@ pub enum Hidden {
     Delay(f64),
     /// The structure feels the recorded input through a first-order low-pass of time constant τ.
     InputFilter(f64),
+    /// A one-sided stop below `at`: contact force `k·max(0, at − x)`.
+    Stop {
+        k: f64,
+        at: f64,
+    },
 }
 
 impl Hidden {
-    fn force(&self, v: f64, z: f64) -> f64 {
+    fn force(&self, x: f64, v: f64, z: f64) -> f64 {
         match *self {
             Hidden::None => 0.0,
             Hidden::DryFriction { force, eps } => -force * (v / eps).tanh(),
             Hidden::Quadratic(c) => -c * v * v.abs(),
             Hidden::CubicDamping(c) => -c * v * v * v,
-            Hidden::Cubic(_) => 0.0,
+            Hidden::Cubic(k3) => -k3 * x.powi(3),
             Hidden::Offset(f) => f,
             Hidden::Maxwell { k, .. } => -k * z,
             Hidden::Delay(_) | Hidden::InputFilter(_) => 0.0,
+            Hidden::Stop { k, at } => k * (at - x).max(0.0),
         }
     }
 }
@@ -100,10 +106,7 @@ pub fn record(
         move |_t, x: &[f64], v: &[f64], u: &[f64], a: &mut [f64]| {
             let mut f = restoring(x[0]) - c * v[0] - u[0];
             for h in &hidden {
-                f += match h {
-                    Hidden::Cubic(k3) => -k3 * x[0].powi(3),
-                    other => other.force(v[0], v[1]),
-                };
+                f += h.force(x[0], v[0], v[1]);
             }
             a[0] = f;
             a[1] = match maxwell {
@@ -181,7 +184,7 @@ pub fn clean(truth: &Truth, f0: f64, f1: f64, amp: f64, secs: f64, dt: f64) -> (
         move |_t, x: &[f64], v: &[f64], u: &[f64], a: &mut [f64]| {
             let mut f = restoring(x[0]) - c * v[0] - u[0];
             for h in &hidden {
-                f += h.force(v[0], v[1]);
+                f += h.force(x[0], v[0], v[1]);
             }
             a[0] = f;
             a[1] = tau.map_or(0.0, |tau| v[0] - v[1] / tau);

@@ -18,7 +18,7 @@ pub struct Args {
     #[arg(long)]
     pub model: PathBuf,
     /// An effect to add (catalogue name, e.g. dry-friction, quadratic-damping, cubic-damping,
-    /// stiffness-x^3, offset, maxwell, input-delay, input-gain, input-filter; `name@dof` for one
+    /// stiffness-x^3, offset, maxwell, input-delay, input-filter, stop; `name@dof` for one
     /// DOF of a chain; `tfs diagnose` lists them all). Repeat to add several.
     #[arg(long = "add", required = true)]
     pub add: Vec<String>,
