@@ -828,21 +828,18 @@ impl Effect for Stop {
                 continue;
             }
             for r in [0.01, 0.02, 0.05, 0.1, 0.2] {
-                for term in [
-                    Term::new(vec![Factor::Below(v.clone(), round3(lo + r * span))]),
-                    Term::new(vec![Factor::Above(v.clone(), round3(hi - r * span))]),
+                let (below, above) = (round3(lo + r * span), round3(hi - r * span));
+                for (c, factor) in [
+                    (below, Factor::Below(v.clone(), below)),
+                    (above, Factor::Above(v.clone(), above)),
                 ] {
-                    if ctx.has(&term) {
-                        continue;
+                    let term = Term::new(vec![factor]);
+                    if !ctx.has(&term) {
+                        out.push(Variant::adding(
+                            Some(("c".into(), c)),
+                            vec![EffectColumn::term(term)],
+                        ));
                     }
-                    let c = match term.factors() {
-                        [Factor::Below(_, c) | Factor::Above(_, c)] => *c,
-                        _ => continue,
-                    };
-                    out.push(Variant::adding(
-                        Some(("c".into(), c)),
-                        vec![EffectColumn::term(term)],
-                    ));
                 }
             }
         }
