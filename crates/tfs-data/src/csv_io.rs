@@ -183,6 +183,56 @@ fn parse<R: Read>(file: &str, reader: R, opts: &CsvOptions) -> Result<(Record, V
     Ok((record, warnings))
 }
 
+/// Validates a record built in memory (from arrays rather than a file) by the same rules as a CSV
+/// file: the `required` columns of `opts` exist, every value is finite, and the time axis and
+/// columns pass the checks of the module docs of `validate` (rows are numbered from 1, the first
+/// sample). Returns the record (its time axis replaced by the uniform grid when the timestamps were
+/// rounded) and the warnings.
+pub fn check_record(record: Record, opts: &CsvOptions) -> Result<(Record, Vec<DataError>)> {
+    let file = record.source().to_string();
+    let names = record.names().to_vec();
+    for req in &opts.required {
+        if *req != opts.time_column && !names.contains(req) {
+            return Err(missing_column(
+                &file,
+                1,
+                req,
+                "required column",
+                &names,
+                "; add the column or choose another with the matching option",
+            ));
+        }
+    }
+    let cols: Vec<Vec<f64>> = names
+        .iter()
+        .map(|n| record.column(n).unwrap_or_default().to_vec())
+        .collect();
+    let t = record.t().to_vec();
+    for (name, col) in std::iter::once((&opts.time_column, &t)).chain(names.iter().zip(&cols)) {
+        if let Some(k) = col.iter().position(|v| !v.is_finite()) {
+            return Err(DataError::NonFinite {
+                file,
+                row: k as u64 + 1,
+                column: name.clone(),
+                cell: col[k].to_string(),
+            });
+        }
+    }
+    let lines: Vec<u64> = (1..=t.len() as u64).collect();
+    let warnings = check_table(
+        &Table {
+            file: &file,
+            t: &t,
+            names: &names,
+            data: &cols,
+            lines: &lines,
+            time_resolution: 0.0,
+        },
+        opts,
+    )?;
+    Ok((record, warnings))
+}
+
 /// Formats a finite float so that parsing it gives back the same bits.
 fn fmt_f64(v: f64) -> String {
     let a = v.abs();

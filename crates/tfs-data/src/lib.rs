@@ -32,7 +32,8 @@ mod record;
 mod validate;
 
 pub use csv_io::{
-    check_consistent, from_reader, read_csv, read_csv_checked, read_csv_with, write_csv,
+    check_consistent, check_record, from_reader, read_csv, read_csv_checked, read_csv_with,
+    write_csv,
 };
 pub use record::{Columns, Record};
 pub use validate::{CsvOptions, Saturation};

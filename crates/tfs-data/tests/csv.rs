@@ -2,8 +2,8 @@
 
 use proptest::prelude::*;
 use tfs_data::{
-    CsvOptions, DataError, Record, Saturation, check_consistent, from_reader, read_csv,
-    read_csv_checked, read_csv_with, write_csv,
+    CsvOptions, DataError, Record, Saturation, check_consistent, check_record, from_reader,
+    read_csv, read_csv_checked, read_csv_with, write_csv,
 };
 
 /// `n` uniformly sampled rows of `t,x,xb_acc` with smooth, non-constant, unclipped signals.
@@ -530,4 +530,41 @@ fn exactly_printed_coarse_timestamps_are_not_regridded() {
     let text = s.replace("0.100,", "#0.100,");
     let (e, _) = err(&text, &CsvOptions::default());
     assert!(matches!(e, DataError::TimeGap { .. }));
+}
+
+/// A record built in memory passes the checks a file passes and fails those a file fails, with
+/// the row counted from the first sample.
+#[test]
+fn records_from_arrays_are_checked_like_files() {
+    let t: Vec<f64> = (0..100).map(|k| k as f64 * 0.01).collect();
+    let x: Vec<f64> = t.iter().map(|t| (5.0 * t).sin()).collect();
+    let make = |t: Vec<f64>, x: Vec<f64>| {
+        Record::new(
+            "arrays",
+            t,
+            vec![("x".into(), x), ("u".into(), vec![0.5; 100])],
+        )
+        .unwrap()
+    };
+    let opts = CsvOptions::default().require(["x"]);
+    let (r, w) = check_record(make(t.clone(), x.clone()), &opts).unwrap();
+    assert!(w.is_empty() && r.len() == 100);
+    // A NaN names the column and the sample's row.
+    let mut bad = x.clone();
+    bad[41] = f64::NAN;
+    let e = check_record(make(t.clone(), bad), &opts).unwrap_err();
+    assert!(
+        matches!(&e, DataError::NonFinite { row: 42, column, .. } if column == "x"),
+        "{e}"
+    );
+    // A late sample is non-uniform time at its row.
+    let mut late = t.clone();
+    late[60] += 0.004;
+    let e = check_record(make(late, x.clone()), &opts).unwrap_err();
+    assert!(matches!(e, DataError::NonUniformTime { .. }), "{e}");
+    // A required column must exist and must not be constant.
+    let e = check_record(make(t.clone(), x.clone()), &opts.clone().require(["force"])).unwrap_err();
+    assert!(e.to_string().contains("'force'"), "{e}");
+    let e = check_record(make(t, x), &CsvOptions::default().require(["u"])).unwrap_err();
+    assert!(matches!(e, DataError::Constant { .. }), "{e}");
 }

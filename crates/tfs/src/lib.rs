@@ -4,6 +4,12 @@
 //! This facade re-exports every layer so that a downstream crate needs one dependency; the `tfs`
 //! binary (the CLI) is built on it. See `docs/ARCHITECTURE.md` for what each layer owns.
 //!
+//! It also holds the workflows that the CLI and the Python package (`crates/tfs-py`) share, so
+//! that both give the same results on the same data: [`records`] (validation, the DOF and input
+//! columns, the offsets policy), [`identify`] (options with the CLI's defaults, default libraries,
+//! fit and refinement), [`compare`], [`refit`], [`sdof`] (1-DOF systems for basins and MED) and [`simulate`]
+//! (the Kresling records, a model run from a given state).
+//!
 //! ```
 //! use tfs::library::{Library, Model};
 //! // The paper's Table 1 model as a tfs-model/1 file, read back and simulated free of input.
@@ -16,6 +22,16 @@
 //! // The restoring force vanishes at the folded state h = 0.
 //! assert_eq!(model.restoring_force("x", 0.0).unwrap(), 0.0);
 //! ```
+
+pub mod compare;
+mod error;
+pub mod identify;
+pub mod records;
+pub mod refit;
+pub mod sdof;
+pub mod simulate;
+
+pub use error::{Context, Error, Result, one_line};
 
 pub use tfs_basin as basin;
 pub use tfs_criteria as criteria;

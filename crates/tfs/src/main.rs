@@ -67,20 +67,10 @@ fn main() -> ExitCode {
     }
 }
 
-/// The error and its causes on one line, each cause once.
+/// The error and its causes on one line, each cause once (the library's rule, so that the
+/// Python package raises the same message).
 fn one_line(e: &anyhow::Error) -> String {
-    let mut msg = String::new();
-    for c in e.chain() {
-        let text = c.to_string();
-        if msg.contains(&text) {
-            continue;
-        }
-        if !msg.is_empty() {
-            msg.push_str(": ");
-        }
-        msg.push_str(&text);
-    }
-    msg
+    tfs::one_line(e.as_ref())
 }
 
 #[cfg(test)]

@@ -6,8 +6,10 @@ use anyhow::{Context, Result};
 use serde_json::json;
 use tfs::basin::{BasinConfig, BasinMap, Label, basin_sdof, compare};
 
-use super::systems::{model_sdof, truth_sdof};
-use super::{parse_grid, parse_range, print_json, progress, read_model};
+use tfs::records::read_model;
+use tfs::sdof::{Sdof, default_search, model_sdof, truth_sdof};
+
+use super::{parse_grid, parse_range, print_json, progress};
 
 /// Arguments of `tfs basin`.
 #[derive(Debug, clap::Args)]
@@ -51,13 +53,10 @@ pub fn run(args: Args) -> Result<()> {
     let v_range = parse_range(&args.v, "--v")?;
     let search = match &args.search {
         Some(s) => parse_range(s, "--search")?,
-        None => {
-            let w = x_range.1 - x_range.0;
-            (x_range.0 - 0.5 * w, x_range.1 + 0.5 * w)
-        }
+        None => default_search(x_range),
     };
     let model = read_model(&args.model)?;
-    let sdof = model_sdof(&args.model, &model, search)?;
+    let sdof = model_sdof(&args.model.display().to_string(), &model, search)?;
     let mut cfg = BasinConfig::new(nx, ny, x_range, v_range);
     cfg.dt = args.dt;
     cfg.t_max = args.t_max;
@@ -130,7 +129,7 @@ pub fn run(args: Args) -> Result<()> {
 }
 
 /// Computes a basin map with a progress bar on a terminal.
-pub fn run_map(sdof: &super::systems::Sdof, cfg: &BasinConfig, what: &str) -> Result<BasinMap> {
+pub fn run_map(sdof: &Sdof, cfg: &BasinConfig, what: &str) -> Result<BasinMap> {
     let pb = progress(cfg.ny as u64, what);
     let tick = |_row: usize| pb.inc(1);
     let map = basin_sdof(&*sdof.system, &sdof.wells, cfg, Some(&tick))

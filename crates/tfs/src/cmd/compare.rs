@@ -3,14 +3,13 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use serde_json::json;
-use tfs::dynamics::{rms_error, rmse_ratio};
+use tfs::compare::{has_state_columns, score};
 use tfs::plot::{Figure, LineChart, Series};
+use tfs::records::{measured_columns, read_model};
 
-use super::{
-    DataArgs, Offsets, measured_columns, offsets_for_model, print_json, read_model, read_records,
-};
+use super::{DataArgs, Offsets, offsets_for_model, print_json, read_records};
 
 /// Arguments of `tfs compare`.
 #[derive(Debug, clap::Args)]
@@ -41,9 +40,7 @@ pub fn run(args: Args) -> Result<()> {
     let model = read_model(&args.model)?;
     // Columns that `tfs diagnose`/`refit` added as effects (delayed or filtered inputs, Maxwell
     // elements) are computed from the record, not read from it.
-    let state_dependent = tfs::diagnose::effects::computed_columns(&model)
-        .iter()
-        .any(|c| !c.from_input());
+    let state_dependent = has_state_columns(&model);
     let required = measured_columns(&model);
     let mut records = read_records(&args.data, &required, &args.data_args)?;
     let offsets_report = offsets_for_model(&mut records, &model, &required, args.offsets)?;
@@ -53,85 +50,11 @@ pub fn run(args: Args) -> Result<()> {
     }
     let mut files = Vec::new();
     for (path, rec) in args.data.iter().zip(&records) {
-        // The same simulation as `diagnose` and `refit` score with: plain models go straight to
-        // tfs-dynamics; computed input columns are added to the record, and each Maxwell element
-        // is integrated as an extra state driven by the simulated velocity.
-        let traj = tfs::diagnose::simulate(&model, rec)
-            .with_context(|| format!("{}: simulating the model", path.display()))?;
-        let mut dofs = Vec::new();
-        let mut sum = 0.0;
-        // How far a fresh draw of the input's own noise moves the simulation: an error no larger
-        // than that is the measured input's doing, not the model's.
-        // A Maxwell column is a state, not an input that could be perturbed: no spread then.
-        let spread = if state_dependent {
-            None
-        } else {
-            tfs::diagnose::augment_record(&model, rec, &Default::default())
-                .ok()
-                .and_then(|aug| {
-                    tfs::refine::input_noise_spread(&model, &aug, &Default::default()).ok()
-                })
-                .flatten()
-        };
-        let mut errors = Vec::new();
-        for (i, dof) in model.dofs.iter().enumerate() {
-            let measured = rec.column(dof).context("column vanished")?;
-            let r = rmse_ratio(measured, &traj.x[i])
-                .with_context(|| format!("{}: column '{dof}'", path.display()))?;
-            let rms = rms_error(measured, &traj.x[i])?;
-            sum += r;
-            errors.push(rms);
-            let s = spread.as_ref().map(|s| s[i]).filter(|v| v.is_finite());
-            dofs.push(json!({"dof": dof, "r_mse": r, "rms_error": rms, "input_noise_spread": s}));
-            if let Some(dir) = &args.plots {
-                let stem = dir.join(format!(
-                    "{}-{dof}",
-                    path.file_stem()
-                        .and_then(|s| s.to_str())
-                        .unwrap_or("record")
-                ));
-                let chart = LineChart {
-                    title: format!("{}: measured vs model ({dof})", path.display()),
-                    x_label: "t (s)".into(),
-                    y_label: format!("{dof} (record units)"),
-                    series: vec![
-                        Series::line(
-                            "measured",
-                            rec.t()
-                                .iter()
-                                .copied()
-                                .zip(measured.iter().copied())
-                                .collect(),
-                        ),
-                        Series::dashed(
-                            "model",
-                            traj.t
-                                .iter()
-                                .copied()
-                                .zip(traj.x[i].iter().copied())
-                                .collect(),
-                        ),
-                    ],
-                    ..LineChart::default()
-                };
-                Figure::from(chart).save(&stem)?;
-            }
+        let scored = score(&model, rec)?;
+        if let Some(dir) = &args.plots {
+            plot_record(dir, path, rec, &model.dofs, &scored.trajectory)?;
         }
-        if model.dofs.is_empty() {
-            bail!("{}: the model has no DOFs", args.model.display());
-        }
-        let r_mse = sum / model.dofs.len() as f64;
-        let dominated = spread.as_ref().map(|s| {
-            tfs::refine::noise_dominated(
-                s,
-                &errors,
-                &tfs::refine::displacement_noise_var(&model, rec),
-            )
-        });
-        files.push(
-            json!({"path": path.display().to_string(), "r_mse": r_mse, "dofs": dofs,
-            "error_is_input_noise": dominated}),
-        );
+        files.push(scored.to_json());
     }
     if args.json {
         print_json(&json!({
@@ -177,6 +100,51 @@ pub fn run(args: Args) -> Result<()> {
                 "(no spread: the model's Maxwell column is a simulated state, not an input a noise draw could perturb)"
             );
         }
+    }
+    Ok(())
+}
+
+/// Writes the measured-vs-model time history of every DOF of one record (SVG and PNG).
+fn plot_record(
+    dir: &std::path::Path,
+    path: &std::path::Path,
+    rec: &tfs::data::Record,
+    dofs: &[String],
+    traj: &tfs::dynamics::Trajectory,
+) -> Result<()> {
+    for (i, dof) in dofs.iter().enumerate() {
+        let measured = rec.column(dof).context("column vanished")?;
+        let stem = dir.join(format!(
+            "{}-{dof}",
+            path.file_stem()
+                .and_then(|s| s.to_str())
+                .unwrap_or("record")
+        ));
+        let chart = LineChart {
+            title: format!("{}: measured vs model ({dof})", path.display()),
+            x_label: "t (s)".into(),
+            y_label: format!("{dof} (record units)"),
+            series: vec![
+                Series::line(
+                    "measured",
+                    rec.t()
+                        .iter()
+                        .copied()
+                        .zip(measured.iter().copied())
+                        .collect(),
+                ),
+                Series::dashed(
+                    "model",
+                    traj.t
+                        .iter()
+                        .copied()
+                        .zip(traj.x[i].iter().copied())
+                        .collect(),
+                ),
+            ],
+            ..LineChart::default()
+        };
+        Figure::from(chart).save(&stem)?;
     }
     Ok(())
 }

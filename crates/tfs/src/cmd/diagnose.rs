@@ -8,9 +8,9 @@ use serde_json::json;
 use tfs::diagnose::{DiagnoseOptions, diagnose};
 use tfs::plot::{BarChart, Figure, LineChart, Series};
 
-use super::{
-    DataArgs, Offsets, measured_columns, offsets_for_model, print_json, read_model, read_records,
-};
+use tfs::records::{measured_columns, read_model};
+
+use super::{DataArgs, Offsets, offsets_for_model, print_json, read_records};
 
 /// Arguments of `tfs diagnose`.
 #[derive(Debug, clap::Args)]

@@ -2,25 +2,13 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Result, bail};
-use clap::ValueEnum;
-use tfs::criteria::{
-    IdentifySpec, MassChoice, TieOptions, identify_sindy, identify_tfs, identify_tfs_tied,
-};
+use anyhow::Result;
+pub use tfs::identify::Method;
+use tfs::identify::{IdentifyOptions, identify, plan};
 
-use super::{
-    DataArgs, Offsets, apply_offsets, guess_dofs, guess_inputs, peek_columns, print_json,
-    read_records,
-};
+use tfs::records::peek_columns;
 
-/// Identification method.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum Method {
-    /// T-F-S SINDy: criteria 1–4 with frequency-domain (weak-form) regression (default).
-    Tfs,
-    /// Classical SINDy: numerical derivatives and time-domain STLSQ (the baseline).
-    Sindy,
-}
+use super::{DataArgs, Offsets, print_json, read_records};
 
 /// Arguments of `tfs identify`.
 #[derive(Debug, clap::Args)]
@@ -78,190 +66,36 @@ pub struct Args {
     pub data_args: DataArgs,
 }
 
-/// The default library for the given DOFs and inputs: per DOF, the cell's own relative coordinate
-/// (and the next cell's, in a chain) to powers 1..7, their relative velocities, and the inputs.
-pub fn default_libraries(dofs: &[String], inputs: &[String]) -> Vec<String> {
-    let rel = |i: usize| -> String {
-        if i == 0 {
-            dofs[0].clone()
-        } else {
-            format!("({}-{})", dofs[i], dofs[i - 1])
-        }
-    };
-    (0..dofs.len())
-        .map(|i| {
-            let mut parts = vec![format!("{}^1..7", rel(i)), format!("{}'", rel(i))];
-            if i + 1 < dofs.len() {
-                parts.push(format!("{}^1..7", rel(i + 1)));
-                parts.push(format!("{}'", rel(i + 1)));
-            }
-            parts.extend(inputs.iter().cloned());
-            parts.join(", ")
-        })
-        .collect()
-}
-
-/// `--masses`: `equal`, `estimate` (candidate ratios 0.25..4) or one positive mass per DOF.
-fn parse_masses(text: &str, n: usize) -> Result<MassChoice> {
-    match text.trim() {
-        "equal" => Ok(MassChoice::Equal),
-        "estimate" => Ok(MassChoice::Estimate {
-            candidates: vec![0.25, 0.33, 0.5, 0.67, 0.8, 1.0, 1.25, 1.5, 2.0, 3.0, 4.0],
-        }),
-        list => {
-            let m: Vec<f64> = list
-                .split(',')
-                .map(|v| v.trim().parse::<f64>())
-                .collect::<std::result::Result<_, _>>()
-                .map_err(|_| {
-                    anyhow::anyhow!(
-                        "--masses '{text}': expected 'equal', 'estimate' or {n} comma-separated numbers"
-                    )
-                })?;
-            if m.len() != n || m.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
-                bail!("--masses '{text}': give one positive mass per DOF ({n})");
-            }
-            Ok(MassChoice::Given(m))
+impl Args {
+    /// The identification options these flags ask for.
+    pub fn options(&self) -> IdentifyOptions {
+        IdentifyOptions {
+            library: self.library.clone(),
+            method: self.method,
+            dofs: self.dofs.clone(),
+            threshold: self.threshold,
+            refine: self.refine,
+            tie: self.tie,
+            masses: self.masses.clone(),
+            offsets: self.offsets,
         }
     }
 }
 
 /// Runs `tfs identify`.
 pub fn run(args: Args) -> Result<()> {
+    let opts = args.options();
     let columns = peek_columns(&args.data[0])?;
-    let dofs = if args.dofs.is_empty() {
-        let d = guess_dofs(&columns);
-        if d.is_empty() {
-            bail!(
-                "{}: no displacement column found (expected 'x' or 'x1', 'x2', …; the header has [{}]); name them with --dofs",
-                args.data[0].display(),
-                columns.join(", ")
-            );
-        }
-        d
+    let plan = plan(&opts, &columns, &args.data[0].display().to_string())?;
+    let records = read_records(&args.data, &plan.required, &args.data_args)?;
+    let held_out = if args.validate.is_empty() {
+        Vec::new()
     } else {
-        args.dofs.clone()
+        read_records(&args.validate, &plan.required, &args.data_args)?
     };
-    let inputs = guess_inputs(&columns);
-    let mut spec = IdentifySpec::new(&dofs.iter().map(String::as_str).collect::<Vec<_>>(), "");
-    match &args.library {
-        Some(lib) => spec.library = lib.clone(),
-        None => {
-            let libs = default_libraries(&dofs, &inputs);
-            spec.library = libs[0].clone();
-            if dofs.len() > 1 {
-                spec.dof_libraries = libs;
-            }
-        }
-    }
-    if let Some(th) = args.threshold {
-        if !(th.is_finite() && th >= 0.0) {
-            bail!("--threshold {th}: must be a finite number ≥ 0");
-        }
-        spec.tfs.threshold = Some(th);
-        spec.sindy.threshold = Some(th);
-    }
-    // Every column the libraries name must be present in every file.
-    let mut required: Vec<String> = dofs.clone();
-    let libs = spec_libraries(&spec)?;
-    for lib in &libs {
-        for c in lib.required_columns() {
-            if !c.ends_with('\'') && !required.contains(&c) {
-                required.push(c);
-            }
-        }
-    }
-    let input_cols: Vec<String> = required
-        .iter()
-        .filter(|c| !dofs.contains(c))
-        .cloned()
-        .collect();
-    let (mode, why) = resolve_offsets(args.offsets, &input_cols);
-    let mut added_constant = false;
-    if mode == Offsets::ConstantTerm {
-        if spec.dof_libraries.is_empty() {
-            if !libs[0].terms().iter().any(|t| t.is_constant()) {
-                spec.library = format!("1, {}", spec.library);
-                added_constant = true;
-            }
-        } else {
-            for (s, lib) in spec.dof_libraries.iter_mut().zip(&libs) {
-                if !lib.terms().iter().any(|t| t.is_constant()) {
-                    *s = format!("1, {s}");
-                    added_constant = true;
-                }
-            }
-        }
-    }
-    let data_mode = if mode == Offsets::Remove {
-        Offsets::Remove
-    } else {
-        Offsets::Keep
-    };
-    let channels: Vec<String> = dofs.iter().chain(&input_cols).cloned().collect();
-    let mut records = read_records(&args.data, &required, &args.data_args)?;
-    let mut offsets_report = apply_offsets(&mut records, &channels, data_mode, &why)?;
-    offsets_report["requested"] = serde_json::json!(args.offsets.name());
-    if mode == Offsets::ConstantTerm {
-        offsets_report["mode"] = serde_json::json!(mode.name());
-        offsets_report["constant_term_added"] = serde_json::json!(added_constant);
-    }
-    let mut identified = match (args.method, args.tie) {
-        (Method::Tfs, false) => identify_tfs(&records, &spec)?,
-        (Method::Tfs, true) => {
-            let tie = TieOptions {
-                masses: parse_masses(&args.masses, dofs.len())?,
-            };
-            if tfs::criteria::chain_ties(&spec)?.is_empty() {
-                bail!(
-                    "--tie: no term of a relative coordinate between two DOFs (e.g. '(x2-x1)^3') is in both DOFs' libraries, so nothing can be tied; put the coupling terms in both libraries or drop --tie"
-                );
-            }
-            identify_tfs_tied(&records, &spec, &tie)?
-        }
-        (Method::Sindy, false) => identify_sindy(&records, &spec)?,
-        (Method::Sindy, true) => {
-            bail!("--tie works with --method tfs only (the tied fit is a T-F-S regression)")
-        }
-    };
-    let mut refine_report = serde_json::Value::Null;
-    if args.refine {
-        let refined = tfs::refine::refine(
-            &identified.model,
-            &records,
-            &tfs::refine::RefineOptions::default(),
-        )?;
-        refine_report = serde_json::json!({
-            "initial_cost": refined.initial_cost,
-            "final_cost": refined.final_cost,
-            "iterations": refined.iterations,
-            "converged": refined.converged,
-            "message": refined.message,
-            "per_record": refined.per_record,
-            "noise_dominated": refined.noise_dominated,
-        });
-        if args.validate.is_empty() {
-            identified.model = refined.model;
-        } else {
-            let mut held_out = read_records(&args.validate, &required, &args.data_args)?;
-            apply_offsets(&mut held_out, &channels, data_mode, &why)?;
-            let (chosen, scores) =
-                tfs::refine::choose_by_validation(&identified.model, &refined.model, &held_out)?;
-            refine_report["validation"] = serde_json::json!({
-                "equation_error_fit": scores.eq_score,
-                "simulation_error_fit": scores.refined_score,
-                "chose_refined": scores.chose_refined,
-                "per_record": scores.per_record,
-                "noise_dominated": scores.noise_dominated,
-            });
-            identified.model = chosen;
-        }
-    }
-    if let Some(obj) = identified.model.trace.as_object_mut() {
-        obj.insert("offsets".into(), offsets_report.clone());
-    } else {
-        identified.model.trace = serde_json::json!({"offsets": offsets_report.clone()});
-    }
+    let identified = identify(records, held_out, &opts, &plan)?;
+    let offsets_report = &identified.offsets;
+    let refine_report = &identified.refine;
     if let Some(out) = &args.out {
         identified.model.write_path(out)?;
     }
@@ -281,7 +115,7 @@ pub fn run(args: Args) -> Result<()> {
         }
         println!("{}", identified.model.equation_string());
         print_trace(&identified.trace);
-        print_offsets(&offsets_report);
+        print_offsets(offsets_report);
         if !refine_report.is_null() {
             println!("refinement by simulation error: {refine_report}");
         }
@@ -290,32 +124,6 @@ pub fn run(args: Args) -> Result<()> {
         }
     }
     Ok(())
-}
-
-/// Resolves `--offsets auto` by the kind of the input columns; returns the mode and why.
-fn resolve_offsets(requested: Offsets, inputs: &[String]) -> (Offsets, String) {
-    if requested != Offsets::Auto {
-        return (requested, "given with --offsets".to_string());
-    }
-    if inputs.is_empty() {
-        (
-            Offsets::Keep,
-            "auto: no input column, records used as they are".to_string(),
-        )
-    } else if inputs.iter().any(|c| c.starts_with("xb")) {
-        (
-            Offsets::Keep,
-            "auto: base-motion input, displacements are geometric coordinates whose origin matters; records used as they are".to_string(),
-        )
-    } else {
-        (
-            Offsets::Remove,
-            format!(
-                "auto: force-like input(s) [{}] (a rig in raw units): each record's mean removed from every DOF and input channel",
-                inputs.join(", ")
-            ),
-        )
-    }
 }
 
 /// Prints what was done with the channel offsets, one line per record.
@@ -346,18 +154,6 @@ fn print_offsets(report: &serde_json::Value) {
             list.join(", ")
         );
     }
-}
-
-fn spec_libraries(spec: &IdentifySpec) -> Result<Vec<tfs::library::Library>> {
-    let specs: Vec<&String> = if spec.dof_libraries.is_empty() {
-        vec![&spec.library]
-    } else {
-        spec.dof_libraries.iter().collect()
-    };
-    specs
-        .into_iter()
-        .map(|s| Ok(tfs::library::Library::parse(s, &spec.dofs)?))
-        .collect()
 }
 
 /// Prints the criteria trace in a few readable lines.

@@ -7,8 +7,10 @@ use serde_json::json;
 use tfs::basin::{BasinConfig, med_sdof};
 
 use super::basin::run_map;
-use super::systems::{model_sdof, truth_sdof};
-use super::{parse_grid, parse_range, print_json, read_model};
+use tfs::records::read_model;
+use tfs::sdof::{check_med_states, default_search, model_sdof, truth_sdof};
+
+use super::{parse_grid, parse_range, print_json};
 
 /// Arguments of `tfs med`.
 #[derive(Debug, clap::Args)]
@@ -45,33 +47,19 @@ pub fn run(args: Args) -> Result<()> {
     let (nx, ny) = parse_grid(&args.grid)?;
     let x_range = parse_range(&args.x, "--x")?;
     let v_range = parse_range(&args.v, "--v")?;
-    let w = x_range.1 - x_range.0;
-    let search = (x_range.0 - 0.5 * w, x_range.1 + 0.5 * w);
+    let search = default_search(x_range);
     let (sdof, what) = match (&args.model, &args.truth) {
         (Some(path), _) => {
             let model = read_model(path)?;
             (
-                model_sdof(path, &model, search)?,
+                model_sdof(&path.display().to_string(), &model, search)?,
                 path.display().to_string(),
             )
         }
         (None, Some(spec)) => (truth_sdof(spec, search)?, spec.clone()),
         (None, None) => bail!("give --model FILE or --truth SPEC"),
     };
-    let n = sdof.wells.stable().len();
-    if n < 2 {
-        bail!(
-            "{what}: {} stable state(s) on {search:?}; MED needs a bistable system",
-            n
-        );
-    }
-    if args.from == 0 || args.to == 0 || args.from > n || args.to > n || args.from == args.to {
-        bail!(
-            "--from {} --to {}: give two different states between 1 and {n}",
-            args.from,
-            args.to
-        );
-    }
+    check_med_states(&sdof, &what, search, args.from, args.to)?;
     let cfg = BasinConfig::new(nx, ny, x_range, v_range);
     let map = run_map(&sdof, &cfg, "basin")?;
     let med = med_sdof(

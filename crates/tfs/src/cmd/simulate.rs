@@ -3,12 +3,11 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::{Subcommand, ValueEnum};
 use serde_json::json;
-use tfs::origami::{
-    CellSpec, DatasetConfig, Excitation, KreslingParams, NoiseKind, SystemSpec, Truth, generate,
-};
+use tfs::origami::Truth;
+use tfs::simulate::{DatasetRequest, dataset};
 
 use super::print_json;
 
@@ -90,90 +89,28 @@ pub struct Common {
     pub json: bool,
 }
 
-fn parse_excitation(text: &str, ramp: f64) -> Result<Excitation> {
-    let parts: Vec<&str> = text.split(':').collect();
-    let num = |s: &str| -> Result<f64> {
-        s.parse::<f64>()
-            .with_context(|| format!("--excitation '{text}': '{s}' is not a number"))
-    };
-    match parts.as_slice() {
-        ["sweep", f0, f1, amp] => Ok(Excitation::Sweep {
-            f0: num(f0)?,
-            f1: num(f1)?,
-            amplitude: num(amp)?,
-            log: false,
-            ramp,
-        }),
-        ["sine", f, amp] => Ok(Excitation::Sine {
-            freq: num(f)?,
-            amplitude: num(amp)?,
-            phase: 0.0,
-            ramp,
-        }),
-        _ => bail!("--excitation '{text}': expected sweep:F0:F1:AMP or sine:F:AMP"),
-    }
-}
-
 /// Runs `tfs simulate`.
 pub fn run(args: Args) -> Result<()> {
     let (cells, common) = match &args.structure {
         Structure::Kresling { gamma0, common } => (vec![*gamma0], common),
         Structure::Chain { gamma0, common } => (gamma0.clone(), common),
     };
-    if cells.is_empty() {
-        bail!("--gamma0: give at least one cell angle");
-    }
-    let chosen = common.truth.unwrap_or(match &args.structure {
-        Structure::Kresling { .. } => TruthArg::Surrogate,
-        Structure::Chain { .. } => TruthArg::Truss,
-    });
-    let truth = match chosen {
-        TruthArg::Surrogate => Truth::Surrogate,
-        TruthArg::Truss => Truth::Truss,
-    };
-    let specs: Vec<CellSpec> = cells
-        .iter()
-        .map(|g| CellSpec {
-            params: KreslingParams {
-                gamma0_deg: *g,
-                ..KreslingParams::default()
-            },
-            truth,
-            ..CellSpec::default()
-        })
-        .collect();
-    let system = match &args.structure {
-        Structure::Kresling { .. } => SystemSpec::Kresling(specs[0].clone()),
-        Structure::Chain { .. } => SystemSpec::Chain { cells: specs },
-    };
-    let excitations = common
-        .excitations
-        .iter()
-        .map(|e| parse_excitation(e, common.ramp))
-        .collect::<Result<Vec<_>>>()?;
-    let cfg = DatasetConfig {
-        system,
-        excitations,
+    let req = DatasetRequest {
+        gamma0: cells,
+        chain: matches!(args.structure, Structure::Chain { .. }),
+        truth: common.truth.map(|t| match t {
+            TruthArg::Surrogate => Truth::Surrogate,
+            TruthArg::Truss => Truth::Truss,
+        }),
+        excitations: common.excitations.clone(),
         duration: common.duration,
         dt: common.dt,
+        ramp: common.ramp,
         snr_db: common.snr_db,
-        noise: if common.pink {
-            NoiseKind::Pink
-        } else {
-            NoiseKind::White
-        },
+        pink: common.pink,
         seed: common.seed,
-        ..DatasetConfig::default()
     };
-    let data = generate(&cfg).with_context(|| {
-        if chosen == TruthArg::Surrogate {
-            "simulating the dataset (the surrogate force is a polynomial fitted on 0 ≤ h ≤ 1.7 \
-             without the folded stop: if the run diverged, lower the excitation amplitude or use \
-             --truth truss)"
-        } else {
-            "simulating the dataset"
-        }
-    })?;
+    let data = dataset(&req)?;
 
     let mut files = Vec::new();
     let n = data.records.len();

@@ -1,0 +1,94 @@
+//! Scoring a model on held-out records as `tfs compare` and the Python package do: the model
+//! simulated under each record's measured input, R-MSE and RMS error per DOF, and how far a fresh
+//! draw of the input's own noise moves the simulation.
+
+use serde_json::{Value, json};
+use tfs_data::Record;
+use tfs_dynamics::{Trajectory, rms_error, rmse_ratio};
+use tfs_library::Model;
+
+use crate::error::{Context, Result};
+use crate::invalid;
+
+/// One record's score.
+#[derive(Debug, Clone)]
+pub struct RecordScore {
+    /// The record's source.
+    pub record: String,
+    /// Mean R-MSE over the DOFs.
+    pub r_mse: f64,
+    /// Per DOF: `{"dof", "r_mse", "rms_error", "input_noise_spread"}`.
+    pub dofs: Vec<Value>,
+    /// Whether most of the error is the measured input's own noise (`None`: not estimated).
+    pub error_is_input_noise: Option<bool>,
+    /// The simulation.
+    pub trajectory: Trajectory,
+}
+
+impl RecordScore {
+    /// The score as JSON (the CLI's `files` entries, with `path` the record's source).
+    pub fn to_json(&self) -> Value {
+        json!({"path": self.record, "r_mse": self.r_mse, "dofs": self.dofs,
+            "error_is_input_noise": self.error_is_input_noise})
+    }
+}
+
+/// Whether the model has a computed column that is a simulated state (a Maxwell element): then
+/// no input-noise spread is estimated (no input a noise draw could perturb).
+pub fn has_state_columns(model: &Model) -> bool {
+    tfs_diagnose::effects::computed_columns(model)
+        .iter()
+        .any(|c| !c.from_input())
+}
+
+/// Simulates `model` on `record` (offsets already treated) and scores it.
+pub fn score(model: &Model, record: &Record) -> Result<RecordScore> {
+    if model.dofs.is_empty() {
+        invalid!("the model has no DOFs");
+    }
+    let src = record.source().to_string();
+    // The same simulation as `diagnose` and `refit` score with: plain models go straight to
+    // tfs-dynamics; computed input columns are added to the record, and each Maxwell element
+    // is integrated as an extra state driven by the simulated velocity.
+    let traj = tfs_diagnose::simulate(model, record)
+        .with_context(|| format!("{src}: simulating the model"))?;
+    // How far a fresh draw of the input's own noise moves the simulation: an error no larger
+    // than that is the measured input's doing, not the model's.
+    let spread = if has_state_columns(model) {
+        None
+    } else {
+        tfs_diagnose::augment_record(model, record, &Default::default())
+            .ok()
+            .and_then(|aug| tfs_refine::input_noise_spread(model, &aug, &Default::default()).ok())
+            .flatten()
+    };
+    let mut dofs = Vec::new();
+    let mut errors = Vec::new();
+    let mut sum = 0.0;
+    for (i, dof) in model.dofs.iter().enumerate() {
+        let Some(measured) = record.column(dof) else {
+            invalid!("{src}: column '{dof}' needed by the model is missing");
+        };
+        let r =
+            rmse_ratio(measured, &traj.x[i]).with_context(|| format!("{src}: column '{dof}'"))?;
+        let rms = rms_error(measured, &traj.x[i])?;
+        sum += r;
+        errors.push(rms);
+        let s = spread.as_ref().map(|s| s[i]).filter(|v| v.is_finite());
+        dofs.push(json!({"dof": dof, "r_mse": r, "rms_error": rms, "input_noise_spread": s}));
+    }
+    let dominated = spread.as_ref().map(|s| {
+        tfs_refine::noise_dominated(
+            s,
+            &errors,
+            &tfs_refine::displacement_noise_var(model, record),
+        )
+    });
+    Ok(RecordScore {
+        record: src,
+        r_mse: sum / model.dofs.len() as f64,
+        dofs,
+        error_is_input_noise: dominated,
+        trajectory: traj,
+    })
+}

@@ -1,0 +1,378 @@
+//! Identification as `tfs identify` and the Python package run it: the options with the CLI's
+//! defaults, the default libraries, the offsets policy, the fit, and the optional
+//! simulation-error refinement. The CLI and the Python package both call [`plan`] then
+//! [`identify`], so the same records give the same model to the bit.
+//!
+//! Every option of the criteria layer that a caller can set is set here (in [`plan`]), so a change
+//! of that layer's options touches this module only.
+
+use serde_json::{Value, json};
+use tfs_criteria::{
+    IdentifySpec, MassChoice, TieOptions, Trace, identify_sindy, identify_tfs, identify_tfs_tied,
+};
+use tfs_data::Record;
+use tfs_library::{Library, Model};
+
+use crate::error::Result;
+use crate::invalid;
+use crate::records::{Offsets, apply_offsets, guess_dofs, guess_inputs};
+
+/// Identification method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Method {
+    /// T-F-S SINDy: criteria 1–4 with frequency-domain (weak-form) regression (default).
+    #[default]
+    Tfs,
+    /// Classical SINDy: numerical derivatives and time-domain STLSQ (the baseline).
+    Sindy,
+}
+
+impl Method {
+    /// The method by its name (`tfs`, `sindy`); the error names `what`.
+    pub fn parse(text: &str, what: &str) -> Result<Self> {
+        match text {
+            "tfs" => Ok(Method::Tfs),
+            "sindy" => Ok(Method::Sindy),
+            _ => invalid!("{what} '{text}': expected tfs or sindy"),
+        }
+    }
+}
+
+/// What `tfs identify` can be asked, with its defaults.
+#[derive(Debug, Clone, PartialEq)]
+pub struct IdentifyOptions {
+    /// Library spec for every DOF (default: [`default_libraries`]).
+    pub library: Option<String>,
+    /// Identification method.
+    pub method: Method,
+    /// DOF columns (default: `x` or `x1`, `x2`, … found in the records).
+    pub dofs: Vec<String>,
+    /// Fixed sparsity threshold (default: chosen on held-out data).
+    pub threshold: Option<f64>,
+    /// Re-estimate the chosen structure's coefficients by simulation error.
+    pub refine: bool,
+    /// Chains: tie each element's force law between the two DOFs it connects.
+    pub tie: bool,
+    /// With `tie`: `equal`, `estimate` or one positive mass per DOF (`1,0.5`).
+    pub masses: String,
+    /// DC offsets of the DOF and input channels.
+    pub offsets: Offsets,
+}
+
+impl Default for IdentifyOptions {
+    fn default() -> Self {
+        Self {
+            library: None,
+            method: Method::Tfs,
+            dofs: Vec::new(),
+            threshold: None,
+            refine: false,
+            tie: false,
+            masses: "equal".into(),
+            offsets: Offsets::Auto,
+        }
+    }
+}
+
+/// What [`plan`] decided from the options and the records' column names: the spec handed to
+/// the criteria layer, the columns every record must hold, and the offsets policy.
+#[derive(Debug, Clone)]
+pub struct Plan {
+    /// The identification spec.
+    pub spec: IdentifySpec,
+    /// The DOF columns.
+    pub dofs: Vec<String>,
+    /// Every column the libraries name (DOFs first): each record must hold them.
+    pub required: Vec<String>,
+    /// The DOF and input columns the offsets policy applies to.
+    pub channels: Vec<String>,
+    /// The offsets mode after resolving `auto`.
+    pub mode: Offsets,
+    /// Why that mode.
+    pub why: String,
+    /// Whether `constant-term` added `1` to a library.
+    pub added_constant: bool,
+}
+
+impl Plan {
+    /// What is done to the data: `Remove` or `Keep` (`constant-term` keeps the data).
+    pub fn data_mode(&self) -> Offsets {
+        if self.mode == Offsets::Remove {
+            Offsets::Remove
+        } else {
+            Offsets::Keep
+        }
+    }
+}
+
+/// The default library for the given DOFs and inputs: per DOF, the cell's own relative coordinate
+/// (and the next cell's, in a chain) to powers 1..7, their relative velocities, and the inputs.
+pub fn default_libraries(dofs: &[String], inputs: &[String]) -> Vec<String> {
+    let rel = |i: usize| -> String {
+        if i == 0 {
+            dofs[0].clone()
+        } else {
+            format!("({}-{})", dofs[i], dofs[i - 1])
+        }
+    };
+    (0..dofs.len())
+        .map(|i| {
+            let mut parts = vec![format!("{}^1..7", rel(i)), format!("{}'", rel(i))];
+            if i + 1 < dofs.len() {
+                parts.push(format!("{}^1..7", rel(i + 1)));
+                parts.push(format!("{}'", rel(i + 1)));
+            }
+            parts.extend(inputs.iter().cloned());
+            parts.join(", ")
+        })
+        .collect()
+}
+
+/// `--masses`: `equal`, `estimate` (candidate ratios 0.25..4) or one positive mass per DOF.
+pub fn parse_masses(text: &str, n: usize) -> Result<MassChoice> {
+    match text.trim() {
+        "equal" => Ok(MassChoice::Equal),
+        "estimate" => Ok(MassChoice::Estimate {
+            candidates: vec![0.25, 0.33, 0.5, 0.67, 0.8, 1.0, 1.25, 1.5, 2.0, 3.0, 4.0],
+        }),
+        list => {
+            let m: Option<Vec<f64>> = list.split(',').map(|v| v.trim().parse().ok()).collect();
+            let Some(m) = m else {
+                invalid!(
+                    "--masses '{text}': expected 'equal', 'estimate' or {n} comma-separated numbers"
+                )
+            };
+            if m.len() != n || m.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+                invalid!("--masses '{text}': give one positive mass per DOF ({n})");
+            }
+            Ok(MassChoice::Given(m))
+        }
+    }
+}
+
+/// Resolves `--offsets auto` by the kind of the input columns; returns the mode and why.
+pub fn resolve_offsets(requested: Offsets, inputs: &[String]) -> (Offsets, String) {
+    if requested != Offsets::Auto {
+        return (requested, "given with --offsets".to_string());
+    }
+    if inputs.is_empty() {
+        (
+            Offsets::Keep,
+            "auto: no input column, records used as they are".to_string(),
+        )
+    } else if inputs.iter().any(|c| c.starts_with("xb")) {
+        (
+            Offsets::Keep,
+            "auto: base-motion input, displacements are geometric coordinates whose origin matters; records used as they are".to_string(),
+        )
+    } else {
+        (
+            Offsets::Remove,
+            format!(
+                "auto: force-like input(s) [{}] (a rig in raw units): each record's mean removed from every DOF and input channel",
+                inputs.join(", ")
+            ),
+        )
+    }
+}
+
+fn spec_libraries(spec: &IdentifySpec) -> Result<Vec<Library>> {
+    let specs: Vec<&String> = if spec.dof_libraries.is_empty() {
+        vec![&spec.library]
+    } else {
+        spec.dof_libraries.iter().collect()
+    };
+    specs
+        .into_iter()
+        .map(|s| Ok(Library::parse(s, &spec.dofs)?))
+        .collect()
+}
+
+/// Decides the spec, the required columns and the offsets policy from the options and the
+/// column names of the first record (`source` names it in messages).
+pub fn plan(opts: &IdentifyOptions, columns: &[String], source: &str) -> Result<Plan> {
+    let dofs = if opts.dofs.is_empty() {
+        let d = guess_dofs(columns);
+        if d.is_empty() {
+            invalid!(
+                "{source}: no displacement column found (expected 'x' or 'x1', 'x2', …; the header has [{}]); name them with --dofs",
+                columns.join(", ")
+            );
+        }
+        d
+    } else {
+        opts.dofs.clone()
+    };
+    let inputs = guess_inputs(columns);
+    let mut spec = IdentifySpec::new(&dofs.iter().map(String::as_str).collect::<Vec<_>>(), "");
+    match &opts.library {
+        Some(lib) => spec.library = lib.clone(),
+        None => {
+            let libs = default_libraries(&dofs, &inputs);
+            spec.library = libs[0].clone();
+            if dofs.len() > 1 {
+                spec.dof_libraries = libs;
+            }
+        }
+    }
+    if let Some(th) = opts.threshold {
+        if !(th.is_finite() && th >= 0.0) {
+            invalid!("--threshold {th}: must be a finite number ≥ 0");
+        }
+        spec.tfs.threshold = Some(th);
+        spec.sindy.threshold = Some(th);
+    }
+    // Every column the libraries name must be present in every record.
+    let mut required: Vec<String> = dofs.clone();
+    let libs = spec_libraries(&spec)?;
+    for lib in &libs {
+        for c in lib.required_columns() {
+            if !c.ends_with('\'') && !required.contains(&c) {
+                required.push(c);
+            }
+        }
+    }
+    let input_cols: Vec<String> = required
+        .iter()
+        .filter(|c| !dofs.contains(c))
+        .cloned()
+        .collect();
+    let (mode, why) = resolve_offsets(opts.offsets, &input_cols);
+    let mut added_constant = false;
+    if mode == Offsets::ConstantTerm {
+        if spec.dof_libraries.is_empty() {
+            if !libs[0].terms().iter().any(|t| t.is_constant()) {
+                spec.library = format!("1, {}", spec.library);
+                added_constant = true;
+            }
+        } else {
+            for (s, lib) in spec.dof_libraries.iter_mut().zip(&libs) {
+                if !lib.terms().iter().any(|t| t.is_constant()) {
+                    *s = format!("1, {s}");
+                    added_constant = true;
+                }
+            }
+        }
+    }
+    let channels: Vec<String> = dofs.iter().chain(&input_cols).cloned().collect();
+    Ok(Plan {
+        spec,
+        dofs,
+        required,
+        channels,
+        mode,
+        why,
+        added_constant,
+    })
+}
+
+/// An identified model with what was done on the way.
+#[derive(Debug, Clone)]
+pub struct Identification {
+    /// The model; its trace holds the criteria trace and the offsets report.
+    pub model: Model,
+    /// The criteria trace.
+    pub trace: Trace,
+    /// What was done with the channel offsets (mode, why, per record).
+    pub offsets: Value,
+    /// The simulation-error refinement (`null` without `refine`).
+    pub refine: Value,
+}
+
+/// The refinement's report as JSON (the CLI's `refine` key).
+pub fn refine_report(refined: &tfs_refine::Refined) -> Value {
+    json!({
+        "initial_cost": refined.initial_cost,
+        "final_cost": refined.final_cost,
+        "iterations": refined.iterations,
+        "converged": refined.converged,
+        "message": refined.message,
+        "per_record": refined.per_record,
+        "noise_dominated": refined.noise_dominated,
+    })
+}
+
+/// The validation's report as JSON (the `validation` key of the refinement report).
+pub fn validation_report(scores: &tfs_refine::ValidationScores) -> Value {
+    json!({
+        "equation_error_fit": scores.eq_score,
+        "simulation_error_fit": scores.refined_score,
+        "chose_refined": scores.chose_refined,
+        "per_record": scores.per_record,
+        "noise_dominated": scores.noise_dominated,
+    })
+}
+
+/// Identifies a model from validated records (holding `plan.required`): applies the offsets
+/// policy, fits by the chosen method, refines when asked (keeping, with `held_out` records,
+/// whichever fit predicts them better), and records the offsets in the model's trace.
+pub fn identify(
+    mut records: Vec<Record>,
+    mut held_out: Vec<Record>,
+    opts: &IdentifyOptions,
+    plan: &Plan,
+) -> Result<Identification> {
+    let data_mode = plan.data_mode();
+    let mut offsets = apply_offsets(&mut records, &plan.channels, data_mode, &plan.why)?;
+    offsets["requested"] = json!(opts.offsets.name());
+    if plan.mode == Offsets::ConstantTerm {
+        offsets["mode"] = json!(plan.mode.name());
+        offsets["constant_term_added"] = json!(plan.added_constant);
+    }
+    let spec = &plan.spec;
+    let mut identified = match (opts.method, opts.tie) {
+        (Method::Tfs, false) => identify_tfs(&records, spec)?,
+        (Method::Tfs, true) => {
+            let tie = TieOptions {
+                masses: parse_masses(&opts.masses, plan.dofs.len())?,
+            };
+            if tfs_criteria::chain_ties(spec)?.is_empty() {
+                invalid!(
+                    "--tie: no term of a relative coordinate between two DOFs (e.g. '(x2-x1)^3') is in both DOFs' libraries, so nothing can be tied; put the coupling terms in both libraries or drop --tie"
+                );
+            }
+            identify_tfs_tied(&records, spec, &tie)?
+        }
+        (Method::Sindy, false) => identify_sindy(&records, spec)?,
+        (Method::Sindy, true) => {
+            invalid!("--tie works with --method tfs only (the tied fit is a T-F-S regression)")
+        }
+    };
+    let mut refine = Value::Null;
+    if opts.refine {
+        let refined = tfs_refine::refine(
+            &identified.model,
+            &records,
+            &tfs_refine::RefineOptions::default(),
+        )?;
+        refine = refine_report(&refined);
+        if held_out.is_empty() {
+            identified.model = refined.model;
+        } else {
+            apply_offsets(&mut held_out, &plan.channels, data_mode, &plan.why)?;
+            let (chosen, scores) =
+                tfs_refine::choose_by_validation(&identified.model, &refined.model, &held_out)?;
+            refine["validation"] = validation_report(&scores);
+            identified.model = chosen;
+        }
+    } else if !held_out.is_empty() {
+        invalid!("--validate needs --refine (the held-out records choose the refined fit or not)");
+    }
+    set_offsets(&mut identified.model, &offsets);
+    Ok(Identification {
+        model: identified.model,
+        trace: identified.trace,
+        offsets,
+        refine,
+    })
+}
+
+/// Records in the model's trace how the offsets of the records it was fitted on were treated,
+/// so that `compare`, `diagnose` and `refit` treat theirs the same.
+pub fn set_offsets(model: &mut Model, offsets: &Value) {
+    if let Some(obj) = model.trace.as_object_mut() {
+        obj.insert("offsets".into(), offsets.clone());
+    } else {
+        model.trace = json!({"offsets": offsets.clone()});
+    }
+}

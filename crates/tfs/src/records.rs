@@ -1,0 +1,289 @@
+//! Records as every command and the Python package read them: validation with the clipped-channel
+//! policy, the DOF and input columns by the data contract, and the per-channel offsets policy.
+
+use std::path::{Path, PathBuf};
+
+use serde_json::{Value, json};
+use tfs_data::{CsvOptions, Record, Saturation};
+use tfs_library::Model;
+
+use crate::error::{Context, Result};
+use crate::invalid;
+
+/// What to do with a channel that looks clipped (a run of samples stuck at its maximum or minimum).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Clipped {
+    /// Refuse the file (default): clipped samples are wrong values and bias every coefficient.
+    #[default]
+    Error,
+    /// Use the file anyway and print one warning line per clipped channel on stderr.
+    Warn,
+    /// Do not check.
+    Allow,
+}
+
+impl Clipped {
+    /// The policy by its name (`error`, `warn`, `allow`); the error names `what`.
+    pub fn parse(text: &str, what: &str) -> Result<Self> {
+        match text {
+            "error" => Ok(Clipped::Error),
+            "warn" => Ok(Clipped::Warn),
+            "allow" => Ok(Clipped::Allow),
+            _ => invalid!("{what} '{text}': expected error, warn or allow"),
+        }
+    }
+
+    /// The CSV options for this policy with `required` columns.
+    pub fn csv_options(self, required: &[String]) -> CsvOptions {
+        let sat = match self {
+            Clipped::Error => Saturation::Error,
+            Clipped::Warn => Saturation::Warn,
+            Clipped::Allow => Saturation::Allow,
+        };
+        CsvOptions::default()
+            .require(required.iter().cloned())
+            .saturation(sat)
+    }
+}
+
+/// Reads every file with validation; `required` columns must exist in each; records must agree.
+/// Returns the records and the warnings (clipped channels accepted with [`Clipped::Warn`],
+/// timestamps put back on their grid), one line each.
+pub fn read_records(
+    paths: &[PathBuf],
+    required: &[String],
+    clipped: Clipped,
+) -> Result<(Vec<Record>, Vec<String>)> {
+    if paths.is_empty() {
+        invalid!("no data files given; pass one or more CSV files");
+    }
+    let opts = clipped.csv_options(required);
+    let mut records = Vec::with_capacity(paths.len());
+    let mut warnings = Vec::new();
+    for p in paths {
+        let (rec, w) = tfs_data::read_csv_checked(p, &opts)?;
+        warnings.extend(w.iter().map(ToString::to_string));
+        records.push(rec);
+    }
+    tfs_data::check_consistent(&records)?;
+    Ok((records, warnings))
+}
+
+/// Validates records built in memory by the rules [`read_records`] applies to files (the same
+/// `required` columns and clipped policy) and checks that they agree; returns the records
+/// (timestamps put back on their grid where they were rounded) and the warnings.
+pub fn check_records(
+    records: Vec<Record>,
+    required: &[String],
+    clipped: Clipped,
+) -> Result<(Vec<Record>, Vec<String>)> {
+    if records.is_empty() {
+        invalid!("no records given; pass one or more records");
+    }
+    let opts = clipped.csv_options(required);
+    let mut out = Vec::with_capacity(records.len());
+    let mut warnings = Vec::new();
+    for r in records {
+        let (rec, w) = tfs_data::check_record(r, &opts)?;
+        warnings.extend(w.iter().map(ToString::to_string));
+        out.push(rec);
+    }
+    tfs_data::check_consistent(&out)?;
+    Ok((out, warnings))
+}
+
+/// How per-channel DC offsets are treated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Offsets {
+    /// `identify`: `remove` when every input column is a force-like channel (`u`, `force`,
+    /// `voltage`, … — a rig recorded in raw units, where DC is a sensor or amplifier offset),
+    /// `keep` when there is no input or a base-motion input (`xb_*`: the displacements are then
+    /// geometric coordinates whose origin matters). Other commands: follow what the model's
+    /// trace says `identify` did, else `keep`.
+    Auto,
+    /// Use the records as they are.
+    Keep,
+    /// Subtract each record's mean from every DOF and input column (each record its own mean).
+    Remove,
+    /// `identify` only: keep the records and add the constant term `1` to every library.
+    ConstantTerm,
+}
+
+impl Offsets {
+    /// The name used on the command line and in traces.
+    pub fn name(self) -> &'static str {
+        match self {
+            Offsets::Auto => "auto",
+            Offsets::Keep => "keep",
+            Offsets::Remove => "remove",
+            Offsets::ConstantTerm => "constant-term",
+        }
+    }
+
+    /// The mode by its name (`auto`, `keep`, `remove`, `constant-term`); the error names `what`.
+    pub fn parse(text: &str, what: &str) -> Result<Self> {
+        match text {
+            "auto" => Ok(Offsets::Auto),
+            "keep" => Ok(Offsets::Keep),
+            "remove" => Ok(Offsets::Remove),
+            "constant-term" => Ok(Offsets::ConstantTerm),
+            _ => invalid!("{what} '{text}': expected auto, keep, remove or constant-term"),
+        }
+    }
+}
+
+/// Mean of every listed column of every record (for the trace when offsets are kept).
+fn channel_means(records: &[Record], channels: &[String]) -> Vec<Value> {
+    records
+        .iter()
+        .map(|r| {
+            let means: serde_json::Map<String, Value> = channels
+                .iter()
+                .filter_map(|c| {
+                    let x = r.column(c)?;
+                    let m = x.iter().sum::<f64>() / x.len().max(1) as f64;
+                    Some((c.clone(), json!(m)))
+                })
+                .collect();
+            json!({"record": r.source(), "mean": means})
+        })
+        .collect()
+}
+
+/// Applies an offsets mode already resolved to `Keep` or `Remove` to the records' `channels`
+/// and returns what was done, as JSON for the trace: the mode, why, and per record either the
+/// offsets removed or the channel means left in place.
+pub fn apply_offsets(
+    records: &mut [Record],
+    channels: &[String],
+    mode: Offsets,
+    why: &str,
+) -> Result<Value> {
+    let per_record = match mode {
+        Offsets::Remove => {
+            let mut out = Vec::with_capacity(records.len());
+            for r in records.iter_mut() {
+                let present: Vec<&String> =
+                    channels.iter().filter(|c| r.column(c).is_some()).collect();
+                let removed = r.remove_offsets(&present)?;
+                let map: serde_json::Map<String, Value> =
+                    removed.into_iter().map(|(c, v)| (c, json!(v))).collect();
+                out.push(json!({"record": r.source(), "removed": map}));
+            }
+            out
+        }
+        _ => channel_means(records, channels),
+    };
+    Ok(json!({
+        "mode": mode.name(),
+        "why": why,
+        "channels": channels,
+        "per_record": per_record,
+    }))
+}
+
+/// For commands that use a model (`compare`, `diagnose`, `refit`): resolves `requested` against
+/// what the model's trace says `identify` did, applies it to the records' DOF and input columns,
+/// and returns the report and, when the request contradicts how the model was identified, a
+/// warning.
+pub fn offsets_for_model(
+    records: &mut [Record],
+    model: &Model,
+    channels: &[String],
+    requested: Offsets,
+) -> Result<(Value, Option<String>)> {
+    let identified = model
+        .trace
+        .get("offsets")
+        .and_then(|o| o.get("mode"))
+        .and_then(|m| m.as_str());
+    let (mode, why) = match requested {
+        Offsets::ConstantTerm => invalid!(
+            "--offsets constant-term applies to `tfs identify` only (it changes the library); use auto, keep or remove here"
+        ),
+        Offsets::Keep | Offsets::Remove => (requested, "given with --offsets".to_string()),
+        Offsets::Auto => match identified {
+            Some("remove") => (
+                Offsets::Remove,
+                "the model was identified on records with their offsets removed".to_string(),
+            ),
+            Some(m) => (
+                Offsets::Keep,
+                format!("the model was identified with offsets '{m}'"),
+            ),
+            None => (
+                Offsets::Keep,
+                "the model does not say how offsets were treated: records used as they are"
+                    .to_string(),
+            ),
+        },
+    };
+    let mut warning = None;
+    if let (Some(m), true) = (identified, requested != Offsets::Auto) {
+        let same = (m == "remove") == (mode == Offsets::Remove);
+        if !same {
+            warning = Some(format!(
+                "--offsets {} differs from how the model was identified (offsets '{m}'); its simulation will be shifted",
+                mode.name()
+            ));
+        }
+    }
+    Ok((apply_offsets(records, channels, mode, &why)?, warning))
+}
+
+/// Reads only the header-level facts of a file: its column names (for guessing DOFs and inputs).
+pub fn peek_columns(path: &Path) -> Result<Vec<String>> {
+    // Only the names are used here: the full checks (clipping included) run when the records
+    // are read with the command's options.
+    let opts = CsvOptions::default()
+        .min_rows(2)
+        .saturation(Saturation::Allow);
+    let r = tfs_data::read_csv_with(path, &opts)?;
+    Ok(r.names().to_vec())
+}
+
+/// DOF columns by the data contract: `x` or `x1`, `x2`, … (base columns `xb*` excluded).
+pub fn guess_dofs(columns: &[String]) -> Vec<String> {
+    let mut dofs: Vec<String> = columns
+        .iter()
+        .filter(|c| {
+            c.as_str() == "x"
+                || (c.len() > 1
+                    && c.starts_with('x')
+                    && c[1..].chars().all(|ch| ch.is_ascii_digit()))
+        })
+        .cloned()
+        .collect();
+    dofs.sort_by_key(|d| d[1..].parse::<u32>().unwrap_or(0));
+    dofs
+}
+
+/// Input columns by the data contract: `xb_acc`, else `u`, `force` or `voltage`, whichever exist.
+pub fn guess_inputs(columns: &[String]) -> Vec<String> {
+    ["xb_acc", "u", "force", "voltage"]
+        .iter()
+        .filter(|n| columns.iter().any(|c| c == *n))
+        .map(|s| s.to_string())
+        .collect()
+}
+
+/// The columns a record must hold to simulate `model`: its DOFs and its inputs, less the effect
+/// columns `tfs diagnose`/`refit` add (delayed or filtered inputs, Maxwell elements), which are
+/// computed from the record.
+pub fn measured_columns(model: &Model) -> Vec<String> {
+    let computed = tfs_diagnose::effects::computed_columns(model);
+    let mut required = model.dofs.clone();
+    required.extend(
+        model
+            .inputs
+            .iter()
+            .filter(|i| !computed.iter().any(|c| c.name() == **i))
+            .cloned(),
+    );
+    required
+}
+
+/// Reads a model file with its path in the error.
+pub fn read_model(path: &Path) -> Result<Model> {
+    Model::from_path(path).with_context(|| format!("reading model {}", path.display()))
+}

@@ -1,0 +1,179 @@
+//! Refitting as `tfs refit` and the Python package do: named effects added one by one, then
+//! optionally simulation-error refinement, with the error ladder and what it warns about.
+
+use serde_json::Value;
+use tfs_data::Record;
+use tfs_diagnose::{LadderStep, add_effect, error_ladder};
+use tfs_library::Model;
+
+use crate::error::{Context, Result};
+use crate::identify::{refine_report, set_offsets, validation_report};
+use crate::invalid;
+
+/// A refitted model with its history.
+#[derive(Debug, Clone)]
+pub struct Refitted {
+    /// The model; its trace holds the offsets report and the ladder's history.
+    pub model: Model,
+    /// R-MSE after each step.
+    pub ladder: Vec<LadderStep>,
+    /// What the ladder says against the steps taken (see [`ladder_warnings`]).
+    pub warnings: Vec<String>,
+    /// The simulation-error refinement (`null` without `refine`).
+    pub refine: Value,
+}
+
+/// Appends the model's input-derived computed columns (delayed or filtered inputs) to each
+/// record so the model can be simulated under them. State-dependent ones (Maxwell) cannot be
+/// precomputed from measurements: refinement refuses them with a clear error.
+pub fn with_computed_inputs(model: &Model, records: &mut [Record]) -> Result<()> {
+    for c in tfs_diagnose::effects::computed_columns(model) {
+        if !c.from_input() {
+            invalid!(
+                "--refine: the model has the state-dependent column '{}' (a hidden Maxwell \
+                 element); simulation-error refinement supports input-derived columns only — \
+                 refine before adding it, or drop --refine",
+                c.name()
+            );
+        }
+        for r in records.iter_mut() {
+            let v = c
+                .compute(r, r.dt())
+                .with_context(|| format!("{}: computing '{}'", r.source(), c.name()))?;
+            r.set_column(c.name(), v)
+                .with_context(|| format!("{}: adding column '{}'", r.source(), c.name()))?;
+        }
+    }
+    Ok(())
+}
+
+/// What the error ladder says against the steps just taken: an added effect under which some
+/// record's simulation fails, or one that makes the mean R-MSE worse than the step before it
+/// (the records do not support it; `tfs diagnose` tests that before anything is added).
+pub fn ladder_warnings(ladder: &[LadderStep]) -> Vec<String> {
+    let mut out = Vec::new();
+    for pair in ladder.windows(2) {
+        let (before, after) = (&pair[0], &pair[1]);
+        if after.incomplete() {
+            out.push(format!(
+                "after '{}', the simulation fails on {} of {} record(s) ({}); the model is not \
+                 usable on them. `tfs diagnose` says which effects the records support",
+                after.step,
+                after.failed.len(),
+                after.failed.len() + after.r_mse.len(),
+                after.failed[0]
+            ));
+        } else if !before.incomplete()
+            && before.mean_r_mse.is_finite()
+            && after.mean_r_mse > before.mean_r_mse
+        {
+            out.push(format!(
+                "'{}' made the mean R-MSE worse ({:.4e} -> {:.4e}): the records do not support \
+                 it. `tfs diagnose` says which effects they do",
+                after.step, before.mean_r_mse, after.mean_r_mse
+            ));
+        }
+    }
+    out
+}
+
+/// Adds the effects `add` (catalogue names, `name@dof`) to `model` one by one, refitting on
+/// `records` (offsets already treated as `offsets` says); with `refine`, re-estimates the
+/// resulting structure by simulation error, keeping with `held_out` records (offsets treated
+/// the same) whichever fit predicts them better.
+pub fn refit(
+    model: &Model,
+    add: &[String],
+    records: &[Record],
+    refine: bool,
+    mut held_out: Vec<Record>,
+    offsets: &Value,
+) -> Result<Refitted> {
+    if add.is_empty() {
+        invalid!("--add: give at least one effect name");
+    }
+    let mut model = model.clone();
+    for name in add {
+        model = add_effect(&model, name, records).with_context(|| format!("--add {name}"))?;
+    }
+    let mut report = Value::Null;
+    if refine {
+        let mut train = records.to_vec();
+        with_computed_inputs(&model, &mut train)?;
+        let refined = tfs_refine::refine(&model, &train, &tfs_refine::RefineOptions::default())
+            .context("--refine")?;
+        report = refine_report(&refined);
+        if held_out.is_empty() {
+            model = refined.model;
+        } else {
+            with_computed_inputs(&model, &mut held_out)?;
+            let (chosen, scores) =
+                tfs_refine::choose_by_validation(&model, &refined.model, &held_out)
+                    .context("--validate")?;
+            report["validation"] = validation_report(&scores);
+            model = chosen;
+        }
+    } else if !held_out.is_empty() {
+        invalid!("--validate needs --refine (the held-out records choose the refined fit or not)");
+    }
+    // The refitted model was fitted on records treated this way: say so in its trace, so that
+    // `compare` and `diagnose` treat them the same.
+    set_offsets(&mut model, offsets);
+    let ladder = error_ladder(&model);
+    let warnings = ladder_warnings(&ladder);
+    Ok(Refitted {
+        model,
+        ladder,
+        warnings,
+        refine: report,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tfs_library::RecordScore;
+
+    fn step(name: &str, scores: &[f64], failed: &[&str]) -> LadderStep {
+        let r_mse: Vec<RecordScore> = scores
+            .iter()
+            .map(|&v| RecordScore {
+                record: "r".into(),
+                r_mse: v,
+            })
+            .collect();
+        LadderStep {
+            step: name.into(),
+            added: Vec::new(),
+            mean_r_mse: if r_mse.is_empty() {
+                f64::NAN
+            } else {
+                scores.iter().sum::<f64>() / scores.len() as f64
+            },
+            r_mse,
+            failed: failed.iter().map(|s| s.to_string()).collect(),
+        }
+    }
+
+    /// An added effect that makes the error worse, or under which a record's simulation fails,
+    /// is warned about; one that lowers it is not.
+    #[test]
+    fn warns_when_an_added_effect_does_not_help() {
+        let good = [step("start", &[0.02], &[]), step("add a", &[0.01], &[])];
+        assert!(ladder_warnings(&good).is_empty());
+        let worse = [step("start", &[0.01], &[]), step("add a", &[0.02], &[])];
+        let w = ladder_warnings(&worse);
+        assert_eq!(w.len(), 1);
+        assert!(w[0].contains("'add a' made the mean R-MSE worse"), "{w:?}");
+        let broke = [
+            step("start", &[0.01, 0.01], &[]),
+            step("add a", &[0.01], &["r1: blew up"]),
+        ];
+        let w = ladder_warnings(&broke);
+        assert_eq!(w.len(), 1);
+        assert!(
+            w[0].contains("fails on 1 of 2") && w[0].contains("blew up"),
+            "{w:?}"
+        );
+    }
+}
