@@ -3,8 +3,7 @@
 use std::io::Read;
 use std::path::Path;
 
-use crate::validate::{Table, check_table, missing_column};
-use crate::{CsvOptions, DataError, Record, Result};
+use crate::{CsvOptions, CsvTable, DataError, Record, Result};
 
 /// Reads and validates a CSV file with default options (time column `t`, no required columns).
 pub fn read_csv(path: impl AsRef<Path>) -> Result<Record> {
@@ -17,170 +16,20 @@ pub fn read_csv_with(path: impl AsRef<Path>, opts: &CsvOptions) -> Result<Record
     read_csv_checked(path, opts).map(|(r, _)| r)
 }
 
-/// Reads and validates a CSV file, returning the record and the warnings raised.
+/// Reads and validates a CSV file (`-` reads standard input), returning the record and the
+/// warnings raised. The file is read once.
 pub fn read_csv_checked(
     path: impl AsRef<Path>,
     opts: &CsvOptions,
 ) -> Result<(Record, Vec<DataError>)> {
-    let path = path.as_ref();
-    let name = path.display().to_string();
-    let file = std::fs::File::open(path).map_err(|source| DataError::Io {
-        file: name.clone(),
-        action: "read",
-        source,
-    })?;
-    parse(&name, std::io::BufReader::new(file), opts)
+    crate::read_table(path)?.into_record(opts)
 }
 
 /// Reads and validates CSV text from any reader; `source` names it in messages.
 pub fn from_reader<R: Read>(source: &str, reader: R, opts: &CsvOptions) -> Result<Record> {
-    parse(source, reader, opts).map(|(r, _)| r)
-}
-
-fn csv_error(file: &str, e: &csv::Error) -> DataError {
-    if let csv::ErrorKind::Io(io) = e.kind() {
-        return DataError::Io {
-            file: file.to_string(),
-            action: "read",
-            source: std::io::Error::new(io.kind(), io.to_string()),
-        };
-    }
-    DataError::Csv {
-        file: file.to_string(),
-        row: e.position().map_or(0, |p| p.line()),
-        message: e.to_string().replace('\n', " "),
-    }
-}
-
-fn parse<R: Read>(file: &str, reader: R, opts: &CsvOptions) -> Result<(Record, Vec<DataError>)> {
-    let mut rdr = csv::ReaderBuilder::new()
-        .has_headers(false)
-        .flexible(true)
-        .trim(csv::Trim::All)
-        .comment(Some(b'#'))
-        .from_reader(reader);
-    let mut records = rdr.records();
-    let header = match records.next() {
-        None => {
-            return Err(DataError::NoHeader {
-                file: file.to_string(),
-                message: "row 1: the file is empty; write a header line (e.g. 't,x,xb_acc') followed by data rows".into(),
-            });
-        }
-        Some(r) => r.map_err(|e| csv_error(file, &e))?,
-    };
-    let header_line = header.position().map_or(1, |p| p.line());
-    let names: Vec<String> = header.iter().map(str::to_string).collect();
-    if names.iter().all(|c| c.parse::<f64>().is_ok()) {
-        return Err(DataError::NoHeader {
-            file: file.to_string(),
-            message: format!(
-                "row {header_line}: the first line is numbers, not column names; add a header line such as 't,x,xb_acc'"
-            ),
-        });
-    }
-    if let Some(i) = names.iter().position(String::is_empty) {
-        return Err(DataError::NoHeader {
-            file: file.to_string(),
-            message: format!(
-                "row {header_line}: header cell {} is empty; give every column a name",
-                i + 1
-            ),
-        });
-    }
-    for (j, name) in names.iter().enumerate() {
-        if let Some(i) = names[..j].iter().position(|n| n == name) {
-            return Err(DataError::DuplicateColumn {
-                file: file.to_string(),
-                row: header_line,
-                column: name.clone(),
-                first: i + 1,
-                second: j + 1,
-            });
-        }
-    }
-    let tcol = &opts.time_column;
-    let ti = names.iter().position(|n| n == tcol).ok_or_else(|| {
-        missing_column(
-            file,
-            header_line,
-            tcol,
-            "time column",
-            &names,
-            "; name the time column 't' or choose it with the time-column option",
-        )
-    })?;
-    for req in &opts.required {
-        if !names.contains(req) {
-            return Err(missing_column(
-                file,
-                header_line,
-                req,
-                "required column",
-                &names,
-                "; add the column or choose another with the matching option",
-            ));
-        }
-    }
-
-    let ncol = names.len();
-    let mut cols: Vec<Vec<f64>> = vec![Vec::new(); ncol];
-    let mut lines = Vec::new();
-    let mut time_resolution = f64::INFINITY;
-    for rec in records {
-        let rec = rec.map_err(|e| csv_error(file, &e))?;
-        let line = rec.position().map_or(0, |p| p.line());
-        if rec.len() != ncol {
-            return Err(DataError::Ragged {
-                file: file.to_string(),
-                row: line,
-                expected: ncol,
-                found: rec.len(),
-            });
-        }
-        for (j, cell) in rec.iter().enumerate() {
-            let v: f64 = cell.parse().map_err(|_| DataError::NonNumeric {
-                file: file.to_string(),
-                row: line,
-                column: names[j].clone(),
-                cell: cell.to_string(),
-            })?;
-            if !v.is_finite() {
-                return Err(DataError::NonFinite {
-                    file: file.to_string(),
-                    row: line,
-                    column: names[j].clone(),
-                    cell: cell.to_string(),
-                });
-            }
-            cols[j].push(v);
-        }
-        time_resolution = time_resolution.min(crate::validate::printed_resolution(&rec[ti]));
-        lines.push(line);
-    }
-    let mut t = cols.remove(ti);
-    let mut data_names = names.clone();
-    data_names.remove(ti);
-    let warnings = check_table(
-        &Table {
-            file,
-            t: &t,
-            names: &data_names,
-            data: &cols,
-            lines: &lines,
-            time_resolution,
-        },
-        opts,
-    )?;
-    if let Some((t0, dt)) = warnings.iter().find_map(|w| match w {
-        DataError::TimeRounded { t0, dt, .. } => Some((*t0, *dt)),
-        _ => None,
-    }) {
-        // Rounded timestamps: use the uniform grid they round from.
-        t = (0..t.len()).map(|k| t0 + k as f64 * dt).collect();
-    }
-    let record = Record::new(file, t, data_names.into_iter().zip(cols).collect())?;
-    Ok((record, warnings))
+    CsvTable::from_reader(source, reader)?
+        .into_record(opts)
+        .map(|(r, _)| r)
 }
 
 /// Validates a record built in memory (from arrays rather than a file) by the same rules as a CSV
@@ -244,7 +93,8 @@ fn fmt_f64(v: f64) -> String {
 }
 
 /// Writes a record as CSV: header `t,<names…>`, one row per sample, values written so that
-/// reading them back gives the same `f64` bits. Non-finite values are rejected (row and column named).
+/// reading them back gives the same `f64` bits. Non-finite values are rejected (row and column
+/// named). The file is written atomically: on any error the previous file is left as it was.
 pub fn write_csv(path: impl AsRef<Path>, record: &Record) -> Result<()> {
     let path = path.as_ref();
     let name = path.display().to_string();
@@ -267,22 +117,23 @@ pub fn write_csv(path: impl AsRef<Path>, record: &Record) -> Result<()> {
             });
         }
     }
-    let file = std::fs::File::create(path).map_err(io_err)?;
-    let mut w = csv::Writer::from_writer(std::io::BufWriter::new(file));
-    let to_err = |e: csv::Error| match e.into_kind() {
-        csv::ErrorKind::Io(source) => io_err(source),
-        other => io_err(std::io::Error::other(format!("{other:?}"))),
-    };
-    w.write_record(cols.iter().map(|(c, _)| *c))
-        .map_err(to_err)?;
-    let mut row: Vec<String> = Vec::with_capacity(cols.len());
-    for i in 0..record.len() {
-        row.clear();
-        row.extend(cols.iter().map(|(_, x)| fmt_f64(x[i])));
-        w.write_record(&row).map_err(to_err)?;
-    }
-    w.flush().map_err(io_err)?;
-    Ok(())
+    crate::write_atomic_with(path, |out| {
+        let mut w = csv::Writer::from_writer(out);
+        let to_io = |e: csv::Error| match e.into_kind() {
+            csv::ErrorKind::Io(source) => source,
+            other => std::io::Error::other(format!("{other:?}")),
+        };
+        w.write_record(cols.iter().map(|(c, _)| *c))
+            .map_err(to_io)?;
+        let mut row: Vec<String> = Vec::with_capacity(cols.len());
+        for i in 0..record.len() {
+            row.clear();
+            row.extend(cols.iter().map(|(_, x)| fmt_f64(x[i])));
+            w.write_record(&row).map_err(to_io)?;
+        }
+        w.flush()
+    })
+    .map_err(io_err)
 }
 
 /// Checks that records can be used together: the same set of column names and sampling

@@ -1,5 +1,9 @@
 //! Measurement records: named, uniformly sampled columns, read from and written to CSV with
-//! validation that names the file, row and column of every problem.
+//! validation that names the file, row and column of every problem; and the atomic file writes
+//! every tfs output goes through ([`write_atomic`], [`AtomicFile`]).
+//!
+//! A file is read once ([`read_table`], `-` for standard input) into a [`CsvTable`]; its column
+//! names can be looked at before it is validated against [`CsvOptions`] into a [`Record`].
 //!
 //! Architecture invariant: this crate knows nothing about models or numerics beyond checking data.
 //!
@@ -27,14 +31,18 @@
 
 #![warn(missing_docs)]
 
+mod atomic;
 mod csv_io;
+mod read;
 mod record;
 mod validate;
 
+pub use atomic::{AtomicFile, write_atomic, write_atomic_with};
 pub use csv_io::{
     check_consistent, check_record, from_reader, read_csv, read_csv_checked, read_csv_with,
     write_csv,
 };
+pub use read::{CsvTable, STDIN_NAME, read_table};
 pub use record::{Columns, Record};
 pub use validate::{CsvOptions, Saturation};
 
@@ -106,7 +114,7 @@ pub enum DataError {
     },
     /// A data row has a different number of cells from the header.
     #[error(
-        "{file}: row {row}: has {found} cells but the header has {expected}; every row needs one value per column"
+        "{file}: row {row}: has {found} cells but the header has {expected} (cells separated by {separator}, as in the header); every row needs one value per column"
     )]
     Ragged {
         /// The file.
@@ -117,10 +125,12 @@ pub enum DataError {
         expected: usize,
         /// Cells in this row.
         found: usize,
+        /// The separator the header chose ("commas", "semicolons", "tabs" or "spaces").
+        separator: &'static str,
     },
     /// A cell is not a number.
     #[error(
-        "{file}: row {row}, column '{column}': cell \"{cell}\" is not a number; write a decimal number"
+        "{file}: row {row}, column '{column}': cell \"{cell}\" is not a number{hint}; write a decimal number"
     )]
     NonNumeric {
         /// The file.
@@ -131,6 +141,8 @@ pub enum DataError {
         column: String,
         /// The cell text.
         cell: String,
+        /// Empty, or what looks wrong (an empty cell, a decimal comma), starting with "; ".
+        hint: String,
     },
     /// A cell is NaN or infinite.
     #[error(

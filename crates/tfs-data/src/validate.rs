@@ -116,18 +116,42 @@ fn edit_distance(a: &str, b: &str) -> usize {
     prev[b.len()]
 }
 
-/// The closest existing name to `wanted`: a case-insensitive match, else one at edit distance
-/// ≤ 2 (smallest distance, first in header order on ties).
+/// The closest existing name to `wanted`: a case-insensitive match, else one within an edit
+/// distance of a third of the name's length, at most 2 (smallest distance, first in header
+/// order on ties): `xb_ac` → `xb_acc`, but a one-letter name is never "corrected" to another
+/// one-letter name (`t` is not a misspelt `x`).
 pub(crate) fn suggest<'a>(wanted: &str, available: &'a [String]) -> Option<&'a str> {
     if let Some(n) = available.iter().find(|n| n.eq_ignore_ascii_case(wanted)) {
         return Some(n);
     }
+    let limit = (wanted.chars().count() / 3).min(2);
     available
         .iter()
         .map(|n| (edit_distance(&n.to_lowercase(), &wanted.to_lowercase()), n))
-        .filter(|(d, _)| *d <= 2)
+        .filter(|(d, _)| *d <= limit)
         .min_by_key(|(d, _)| *d)
         .map(|(_, n)| n.as_str())
+}
+
+/// The hint for a missing time column: a header cell that looks like a time axis (`time`,
+/// `Time [s]`, `t_s`, `seconds`, …) is named with how to choose it; else how to name it.
+pub(crate) fn time_hint(wanted: &str, available: &[String]) -> String {
+    let looks_like_time = |n: &str| {
+        let l = n.to_lowercase();
+        let word: String = l.chars().take_while(|c| c.is_alphabetic()).collect();
+        matches!(
+            word.as_str(),
+            "t" | "time" | "times" | "sec" | "secs" | "second" | "seconds"
+        ) && l != wanted.to_lowercase()
+    };
+    match available.iter().find(|n| looks_like_time(n)) {
+        Some(n) => format!(
+            "; '{n}' looks like the time axis: rename it '{wanted}' or choose it with the time-column option (CLI: --time-column '{n}')"
+        ),
+        None => format!(
+            "; add a time column in seconds named '{wanted}', or choose another with the time-column option (CLI: --time-column NAME)"
+        ),
+    }
 }
 
 /// Builds the error for a missing column.
@@ -175,21 +199,6 @@ pub(crate) struct Table<'a> {
     pub lines: &'a [u64],
     /// Printed resolution of the time column (finest over its cells; 0 if unknown).
     pub time_resolution: f64,
-}
-
-/// The resolution a decimal number is printed with: `"0.0003"` → 1e-4, `"1.5e-3"` → 1e-4,
-/// `"12"` → 1 (0 when the text is not a plain decimal number).
-pub(crate) fn printed_resolution(cell: &str) -> f64 {
-    let cell = cell.trim();
-    let (mant, exp) = match cell.find(['e', 'E']) {
-        Some(i) => match cell[i + 1..].parse::<i32>() {
-            Ok(e) => (&cell[..i], e),
-            Err(_) => return 0.0,
-        },
-        None => (cell, 0),
-    };
-    let decimals = mant.split_once('.').map_or(0, |(_, d)| d.len()) as i32;
-    10f64.powi(exp - decimals)
 }
 
 /// The step allowance for timestamps rounded to `q`: `q` when the sampling interval `dt` is not a
@@ -436,12 +445,7 @@ mod tests {
     }
 
     #[test]
-    fn printed_resolution_of_decimal_text() {
-        assert_eq!(printed_resolution("0.0003"), 1e-4);
-        assert_eq!(printed_resolution("12"), 1.0);
-        assert_eq!(printed_resolution(" 1.5e-3 "), 1e-4);
-        assert_eq!(printed_resolution("2E2"), 100.0);
-        assert_eq!(printed_resolution("1e"), 0.0);
+    fn rounding_allowance_when_dt_is_not_a_multiple() {
         assert_eq!(rounding_allowance(1e-4, 1.0 / 3000.0), 1e-4);
         assert_eq!(rounding_allowance(1e-3, 1e-3), 0.0);
         assert_eq!(rounding_allowance(1e-17, 1e-3), 0.0);
