@@ -44,7 +44,10 @@ mod term;
 
 pub use compiled::CompiledModel;
 pub use library::{ColumnSet, Library, evaluate_term};
-pub use model::{Equation, HistoryEntry, MODEL_FORMAT, Model, ModelTerm, RecordScore, sig4};
+pub use model::{
+    Equation, HistoryEntry, MAX_MODEL_BYTES, MODEL_FORMAT, Model, ModelTerm, RecordScore, sig4,
+};
+pub use parse::{MAX_POWER, MAX_SPEC_TERMS};
 pub use potential::{Polynomial, Restoring};
 pub use term::{Coord, ExactDerivative, Factor, Term, Var};
 

@@ -12,6 +12,9 @@ use crate::{LibraryError, Result};
 /// The format tag written to and required in model JSON files.
 pub const MODEL_FORMAT: &str = "tfs-model/1";
 
+/// The largest model file [`Model::from_path`] reads (64 MiB).
+pub const MAX_MODEL_BYTES: u64 = 64 << 20;
+
 /// One term of an equation with its coefficient and optional uncertainty information.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ModelTerm {
@@ -51,7 +54,7 @@ pub struct Equation {
 pub struct RecordScore {
     /// Record name or path.
     pub record: String,
-    /// Relative mean-squared simulation error (Appendix B).
+    /// Relative mean-squared simulation error on the record's variance (mean removed).
     pub r_mse: f64,
 }
 
@@ -388,23 +391,49 @@ impl Model {
         Self::from_json_named(text, "model JSON")
     }
 
-    /// Reads and validates a model file.
+    /// Reads and validates a model file (at most [`MAX_MODEL_BYTES`]; a model file is a few
+    /// kilobytes to a few megabytes with its trace).
     pub fn from_path(path: impl AsRef<Path>) -> Result<Self> {
+        use std::io::Read;
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|e| LibraryError::Io {
-            path: path.display().to_string(),
-            message: e.to_string(),
+        let name = path.display().to_string();
+        let io = |e: std::io::Error| LibraryError::Io {
+            path: name.clone(),
+            message: format!("cannot read the model file: {e}"),
+        };
+        let mut bytes = Vec::new();
+        std::fs::File::open(path)
+            .map_err(io)?
+            .take(MAX_MODEL_BYTES + 1)
+            .read_to_end(&mut bytes)
+            .map_err(io)?;
+        if bytes.len() as u64 > MAX_MODEL_BYTES {
+            return Err(LibraryError::Io {
+                path: name,
+                message: format!(
+                    "larger than {} MiB, which no model file is; check that this is the model (tfs-model/1 JSON)",
+                    MAX_MODEL_BYTES >> 20
+                ),
+            });
+        }
+        let text = String::from_utf8(bytes).map_err(|e| LibraryError::Io {
+            path: name.clone(),
+            message: format!(
+                "not a model file: byte {} is not UTF-8 text (a model is tfs-model/1 JSON written by tfs identify or tfs refit)",
+                e.utf8_error().valid_up_to()
+            ),
         })?;
-        Self::from_json_named(&text, &path.display().to_string())
+        Self::from_json_named(&text, &name)
     }
 
-    /// Writes the model as pretty JSON.
+    /// Writes the model as pretty JSON, atomically: on any failure (a full disk, a killed
+    /// process) the previous file at `path` is left as it was.
     pub fn write_path(&self, path: impl AsRef<Path>) -> Result<()> {
         let path = path.as_ref();
         let s = self.to_json_string()?;
-        std::fs::write(path, s + "\n").map_err(|e| LibraryError::Io {
+        tfs_data::write_atomic(path, (s + "\n").as_bytes()).map_err(|e| LibraryError::Io {
             path: path.display().to_string(),
-            message: e.to_string(),
+            message: format!("cannot write the model file: {e}"),
         })
     }
 
@@ -446,7 +475,7 @@ impl Model {
                     ),
                 ));
             }
-            let mut terms = Vec::with_capacity(e.terms.len());
+            let mut terms: Vec<ModelTerm> = Vec::with_capacity(e.terms.len());
             for (j, t) in e.terms.into_iter().enumerate() {
                 let term = Term::parse(&t.term, &raw.dofs).map_err(|err| {
                     invalid(
@@ -454,6 +483,16 @@ impl Model {
                         format!("{source}: {err}"),
                     )
                 })?;
+                // A term listed twice would be summed silently: the file is not what it says.
+                if let Some(k) = terms.iter().position(|m| m.term == term) {
+                    return Err(invalid(
+                        format!("equations[{i}].terms[{j}].term"),
+                        format!(
+                            "{source}: term '{term}' of {}'' appears twice (also terms[{k}]); list each term once with its whole coefficient",
+                            e.dof
+                        ),
+                    ));
+                }
                 terms.push(ModelTerm {
                     term,
                     coef: t.coef,
@@ -462,6 +501,14 @@ impl Model {
                 });
             }
             equations.push(Equation { dof: e.dof, terms });
+        }
+        if equations.iter().all(|e| e.terms.is_empty()) {
+            return Err(invalid(
+                "equations",
+                format!(
+                    "{source}: the model has no terms (every equation reads x'' = 0), so it predicts nothing; identify a model with data first"
+                ),
+            ));
         }
         let mut m = Model::new(raw.dofs, equations, raw.method)?;
         if let Some(inputs) = raw.inputs {

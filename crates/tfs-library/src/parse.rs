@@ -16,6 +16,15 @@ use crate::{LibraryError, Result};
 /// One parsed factor slot: the alternatives a range expands to (`None` = power 0, i.e. `1`).
 type Choices = Vec<Option<Factor>>;
 
+/// The most terms a library spec may expand to (ranges, products of ranges and `poly` counted
+/// before anything is built): every candidate is a matrix column over every sample, and sparse
+/// regression needs far more independent samples than candidates.
+pub const MAX_SPEC_TERMS: usize = 4096;
+
+/// The highest power a term may have: beyond it every value other than ±1 and 0 under- or
+/// overflows a double.
+pub const MAX_POWER: u32 = 1024;
+
 struct Parser<'a> {
     text: &'a str,
     chars: Vec<char>,
@@ -128,7 +137,7 @@ impl<'a> Parser<'a> {
             .map_err(|_| self.err_at(start, format!("'{s}'"), "an integer that fits in 32 bits"))
     }
 
-    fn number(&mut self) -> Result<f64> {
+    fn number(&mut self, expected: &str) -> Result<f64> {
         self.skip_ws();
         let start = self.pos;
         let digits = |p: &mut Self| {
@@ -145,7 +154,7 @@ impl<'a> Parser<'a> {
         }
         if !any {
             self.pos = start;
-            return Err(self.err("a positive number such as 0.01"));
+            return Err(self.err(expected));
         }
         if matches!(self.chars.get(self.pos), Some('e' | 'E')) {
             let save = self.pos;
@@ -159,7 +168,7 @@ impl<'a> Parser<'a> {
         }
         let s: String = self.chars[start..self.pos].iter().collect();
         s.parse::<f64>()
-            .map_err(|_| self.err_at(start, format!("'{s}'"), "a number such as 0.01"))
+            .map_err(|_| self.err_at(start, format!("'{s}'"), expected))
     }
 
     fn is_dof(&self, name: &str) -> bool {
@@ -269,7 +278,9 @@ impl<'a> Parser<'a> {
                 self.skip_ws();
                 let negative = self.eat('-');
                 let npos = self.pos;
-                let c = self.number()?;
+                let c = self.number(&format!(
+                    "the stop's position, a finite number such as 0.5 or -0.12, in {func}(v, c)"
+                ))?;
                 if !c.is_finite() {
                     return Err(self.err_at(
                         npos,
@@ -298,7 +309,8 @@ impl<'a> Parser<'a> {
                     _ => {
                         self.expect('/', "'/' and a smoothing width: tanh(v/eps)")?;
                         let npos = self.pos;
-                        let eps = self.number()?;
+                        let eps =
+                            self.number("a positive smoothing width such as 0.01 in tanh(v/eps)")?;
                         if !(eps > 0.0 && eps.is_finite()) {
                             return Err(self.err_at(
                                 npos,
@@ -329,6 +341,13 @@ impl<'a> Parser<'a> {
             self.pos
         };
         let lo = self.uint("an integer power after '^'")?;
+        if lo > MAX_POWER {
+            return Err(self.err_at(
+                kpos,
+                format!("'{lo}'"),
+                format!("a power of at most {MAX_POWER}"),
+            ));
+        }
         let hi = if self.peek() == Some('.') && self.chars.get(self.pos + 1) == Some(&'.') {
             if !self.allow_ranges {
                 return Err(
@@ -348,6 +367,13 @@ impl<'a> Parser<'a> {
                     format!("an upper bound not below the lower bound {lo}"),
                 ));
             }
+            if hi > MAX_POWER {
+                return Err(self.err_at(
+                    hpos,
+                    format!("'{hi}'"),
+                    format!("a power of at most {MAX_POWER}"),
+                ));
+            }
             hi
         } else {
             if lo == 0 {
@@ -364,10 +390,22 @@ impl<'a> Parser<'a> {
             .collect())
     }
 
-    fn product(&mut self) -> Result<Vec<Term>> {
+    fn product(&mut self, budget: usize) -> Result<Vec<Term>> {
+        let start = {
+            self.skip_ws();
+            self.pos
+        };
         let mut slots = vec![self.factor()?];
         while self.eat('*') {
             slots.push(self.factor()?);
+        }
+        // Count before expanding: a product of ranges multiplies their lengths.
+        let count = slots
+            .iter()
+            .try_fold(1usize, |acc, s| acc.checked_mul(s.len()))
+            .filter(|&c| c <= budget);
+        if count.is_none() {
+            return Err(self.too_many(start));
         }
         // Cartesian product of the slots' alternatives.
         let mut terms: Vec<Vec<Factor>> = vec![vec![]];
@@ -387,7 +425,23 @@ impl<'a> Parser<'a> {
         Ok(terms.into_iter().map(Term::new).collect())
     }
 
-    fn poly(&mut self) -> Result<Vec<Term>> {
+    /// The error for a spec that expands past [`MAX_SPEC_TERMS`], at the item that does it.
+    fn too_many(&self, pos: usize) -> LibraryError {
+        let item: String = self.chars[pos..self.pos].iter().collect();
+        self.err_at(
+            pos,
+            format!("'{}'", item.trim()),
+            format!(
+                "a library of at most {MAX_SPEC_TERMS} terms in all (this item takes it past that); narrow the ranges"
+            ),
+        )
+    }
+
+    fn poly(&mut self, budget: usize) -> Result<Vec<Term>> {
+        let start = {
+            self.skip_ws();
+            self.pos
+        };
         self.ident();
         self.expect('(', "'(' after poly")?;
         let mut vars = vec![self.var()?];
@@ -413,6 +467,29 @@ impl<'a> Parser<'a> {
             ));
         }
         self.expect(')', "')' closing poly(")?;
+        if hi > MAX_POWER {
+            return Err(self.err_at(
+                hpos,
+                format!("'{hi}'"),
+                format!("a total degree of at most {MAX_POWER}"),
+            ));
+        }
+        // Monomials of degree d in v variables: C(d + v - 1, v - 1), counted before building.
+        let v = vars.len() as u128;
+        let mut count: u128 = 0;
+        for d in lo..=hi {
+            let mut c: u128 = 1;
+            for i in 1..v {
+                c = c * (d as u128 + i) / i;
+                if c > budget as u128 {
+                    break;
+                }
+            }
+            count += c;
+            if count > budget as u128 {
+                return Err(self.too_many(start));
+            }
+        }
         let mut out = Vec::new();
         for d in lo..=hi {
             let mut exps = vec![0u32; vars.len()];
@@ -421,14 +498,15 @@ impl<'a> Parser<'a> {
         Ok(out)
     }
 
-    fn item(&mut self) -> Result<Vec<Term>> {
+    /// One list item, expanding to at most `budget` terms.
+    fn item(&mut self, budget: usize) -> Result<Vec<Term>> {
         if self.at_call("poly") {
             if !self.allow_ranges {
                 return Err(self.err("a single term; poly(...) is only allowed in library specs"));
             }
-            self.poly()
+            self.poly(budget)
         } else {
-            self.product()
+            self.product(budget)
         }
     }
 }
@@ -458,7 +536,7 @@ pub(crate) fn parse_term(text: &str, dofs: &[&str]) -> Result<Term> {
     if p.at_end() {
         return Err(p.err("a term such as x^3 or x'"));
     }
-    let mut terms = p.item()?;
+    let mut terms = p.item(1)?;
     if !p.at_end() {
         return Err(p.err("'*' or the end of the term"));
     }
@@ -467,12 +545,13 @@ pub(crate) fn parse_term(text: &str, dofs: &[&str]) -> Result<Term> {
 }
 
 /// Parses a comma-separated library spec into terms (duplicates kept; the caller removes them).
+/// The expansion is bounded by [`MAX_SPEC_TERMS`] before anything is built.
 pub(crate) fn parse_spec(text: &str, dofs: &[&str]) -> Result<Vec<Term>> {
     let mut p = Parser::new(text, dofs, true);
     if p.at_end() {
         return Err(p.err("a library spec such as \"x^1..7, x'\""));
     }
-    let mut out = p.item()?;
+    let mut out = p.item(MAX_SPEC_TERMS)?;
     loop {
         if p.at_end() {
             break;
@@ -480,7 +559,8 @@ pub(crate) fn parse_spec(text: &str, dofs: &[&str]) -> Result<Vec<Term>> {
         if !p.eat(',') {
             return Err(p.err("',' between terms, '*' inside a product, or the end of the spec"));
         }
-        out.extend(p.item()?);
+        let more = p.item(MAX_SPEC_TERMS - out.len())?;
+        out.extend(more);
     }
     Ok(out)
 }
