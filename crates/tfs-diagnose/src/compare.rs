@@ -4,7 +4,7 @@
 
 use serde::Serialize;
 use tfs_data::Record;
-use tfs_dynamics::{rms_error, rmse_ratio};
+use tfs_dynamics::{rms_error, rmse_ratio, rmse_variance};
 use tfs_library::Model;
 use tfs_signal::amplitude_spectrum;
 
@@ -18,7 +18,8 @@ pub struct WindowScore {
     pub t0: f64,
     /// Window end (s).
     pub t1: f64,
-    /// R-MSE inside the window (mean over DOFs).
+    /// Mean squared error inside the window over the record's variance (mean over DOFs): the
+    /// windows of a record compare with each other and average to its R-MSE.
     pub r_mse: f64,
 }
 
@@ -70,8 +71,12 @@ pub struct PhasePortrait {
 pub struct RecordComparison {
     /// The record's source.
     pub record: String,
-    /// R-MSE per DOF (None if the simulation failed).
+    /// R-MSE per DOF on the measured variance, `mean((x − x̂)²) / var(x)` (None if the
+    /// simulation failed).
     pub r_mse: Option<Vec<f64>>,
+    /// R-MSE per DOF as the paper's Appendix B defines it, over the mean square
+    /// `mean((x − x̂)²) / mean(x²)`, which moves with the record's DC level.
+    pub r_mse_mean_square: Option<Vec<f64>>,
     /// RMS error per DOF, in the record's units.
     pub rms_error: Option<Vec<f64>>,
     /// R-MSE per time window.
@@ -125,6 +130,7 @@ fn compare_one(model: &Model, record: &Record, opts: &DiagnoseOptions) -> Result
     let mut out = RecordComparison {
         record: record.source().to_string(),
         r_mse: None,
+        r_mse_mean_square: None,
         rms_error: None,
         windows: Vec::new(),
         spectra: Vec::new(),
@@ -144,25 +150,30 @@ fn compare_one(model: &Model, record: &Record, opts: &DiagnoseOptions) -> Result
         .iter()
         .map(|d| record.column(d).ok_or_else(|| missing(model, record, d)))
         .collect::<Result<_>>()?;
-    let mut r = Vec::new();
-    let mut e = Vec::new();
+    let (mut r, mut ms, mut e) = (Vec::new(), Vec::new(), Vec::new());
     for (i, m) in meas.iter().enumerate() {
-        r.push(rmse_ratio(m, &tr.x[i])?);
+        r.push(rmse_variance(m, &tr.x[i])?);
+        ms.push(rmse_ratio(m, &tr.x[i])?);
         e.push(rms_error(m, &tr.x[i])?);
     }
     out.r_mse = Some(r);
+    out.r_mse_mean_square = Some(ms);
     out.rms_error = Some(e);
+    let var: Vec<f64> = meas
+        .iter()
+        .map(|m| {
+            let mean = m.iter().sum::<f64>() / n as f64;
+            (m.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n as f64)
+                .max(f64::MIN_POSITIVE)
+        })
+        .collect();
     let w = opts.windows.min(n / 2).max(1);
     for k in 0..w {
         let (a, b) = (k * n / w, (k + 1) * n / w);
         let mut s = 0.0;
         for (i, m) in meas.iter().enumerate() {
             let num: f64 = (a..b).map(|j| (m[j] - tr.x[i][j]).powi(2)).sum();
-            let den: f64 = (a..b)
-                .map(|j| m[j] * m[j])
-                .sum::<f64>()
-                .max(f64::MIN_POSITIVE);
-            s += num / den;
+            s += num / ((b - a) as f64 * var[i]);
         }
         out.windows.push(WindowScore {
             t0: record.t()[a],

@@ -9,7 +9,7 @@
 use tfs_data::Record;
 use tfs_dynamics::{
     Dopri5, Integrator, SampledInput, SecondOrderSystem, SimulateOptions, Trajectory,
-    choose_initial_state, initial_velocity, rmse_ratio, simulate_model_on_record,
+    choose_initial_state, initial_velocity, rmse_variance, simulate_model_on_record,
 };
 use tfs_library::{CompiledModel, Model};
 use tfs_signal::spectral_derivative;
@@ -182,13 +182,14 @@ pub fn simulate(model: &Model, record: &Record) -> Result<Trajectory> {
     Ok(tr)
 }
 
-/// R-MSE of a simulation of `model` on `record`, averaged over the DOFs.
+/// R-MSE of a simulation of `model` on `record` on each DOF's variance (its mean removed, so
+/// the record's DC level does not flatter or penalise the score), averaged over the DOFs.
 pub fn r_mse(model: &Model, record: &Record) -> Result<f64> {
     let tr = simulate(model, record)?;
     let mut s = 0.0;
     for (i, d) in model.dofs.iter().enumerate() {
         let m = record.column(d).ok_or_else(|| missing(model, record, d))?;
-        s += rmse_ratio(m, &tr.x[i])?;
+        s += rmse_variance(m, &tr.x[i])?;
     }
     Ok(s / model.dofs.len().max(1) as f64)
 }

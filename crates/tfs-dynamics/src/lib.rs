@@ -51,7 +51,7 @@ pub use error::{DynError, Result};
 pub use initial::{InitialFit, InitialState, choose_initial_state, fit_horizon, fit_initial_state};
 pub use input::{Interpolation, SampledInput};
 pub use integrate::{Integrator, Stats, Trajectory};
-pub use metrics::{rms_error, rmse_ratio};
+pub use metrics::{rms_error, rmse_ratio, rmse_variance};
 pub use model::{SimulateOptions, initial_velocity, simulate_model_on_record};
 pub use rk4::{Rk4, Rk4Scratch, rk4_step};
 pub use system::{FnSystem, SecondOrderSystem};

@@ -64,3 +64,65 @@ pub fn rms_error(measured: &[f64], predicted: &[f64]) -> Result<f64> {
         .sum();
     Ok((num / measured.len() as f64).sqrt())
 }
+
+/// R-MSE on the variance: `mean((x − x̂)²) / var(x)`, the measured signal's mean removed from the
+/// denominator. Unlike [`rmse_ratio`] (the paper's Appendix B, over the mean square) it does not
+/// depend on where the record's zero is: a displacement measured about another origin (a sensor
+/// offset, a DC level) scores the same model error the same. 0 is a perfect match; 1 is as bad as
+/// predicting the record's own mean.
+///
+/// ```
+/// let x = [1.0, -1.0, 1.0, -1.0];
+/// let p = [0.9, -1.1, 0.9, -1.1];
+/// let r = tfs_dynamics::rmse_variance(&x, &p).unwrap();
+/// assert!((r - 0.01).abs() < 1e-12);
+/// // The same error on the same record shifted by 100 scores the same.
+/// let shift = |v: &[f64]| v.iter().map(|z| z + 100.0).collect::<Vec<_>>();
+/// let r2 = tfs_dynamics::rmse_variance(&shift(&x), &shift(&p)).unwrap();
+/// assert!((r2 - r).abs() < 1e-9);
+/// ```
+pub fn rmse_variance(measured: &[f64], predicted: &[f64]) -> Result<f64> {
+    check(measured, predicted)?;
+    let n = measured.len() as f64;
+    let mean = measured.iter().sum::<f64>() / n;
+    let den: f64 = measured.iter().map(|x| (x - mean) * (x - mean)).sum();
+    if den == 0.0 {
+        return Err(DynError::InvalidParameter {
+            name: "measured",
+            reason:
+                "signal is constant, so R-MSE on its variance is undefined; use rms_error instead"
+                    .into(),
+        });
+    }
+    let num: f64 = measured
+        .iter()
+        .zip(predicted)
+        .map(|(x, p)| (x - p) * (x - p))
+        .sum();
+    Ok(num / den)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Appendix B's ratio moves with the record's DC level; the variance ratio does not.
+    #[test]
+    fn variance_ratio_ignores_the_dc_level() {
+        let x: Vec<f64> = (0..200).map(|k| (0.1 * k as f64).sin()).collect();
+        let p: Vec<f64> = x.iter().map(|v| 0.8 * v).collect();
+        let shift = |v: &[f64], c: f64| v.iter().map(|z| z + c).collect::<Vec<_>>();
+        let (a, b) = (
+            rmse_ratio(&x, &p).unwrap(),
+            rmse_ratio(&shift(&x, 100.0), &shift(&p, 100.0)).unwrap(),
+        );
+        assert!(b < 1e-3 * a, "Appendix B: {a} vs shifted {b}");
+        let (c, d) = (
+            rmse_variance(&x, &p).unwrap(),
+            rmse_variance(&shift(&x, 100.0), &shift(&p, 100.0)).unwrap(),
+        );
+        assert!((c - d).abs() < 1e-9 * c, "{c} vs {d}");
+        assert!((c - 0.04).abs() < 2e-3, "{c}");
+        assert!(rmse_variance(&[2.0; 8], &[2.0; 8]).is_err());
+    }
+}

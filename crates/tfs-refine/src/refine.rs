@@ -652,7 +652,11 @@ fn refine_records(model: &Model, train: &[Record], opts: &RefineOptions) -> Resu
                 .dofs
                 .iter()
                 .filter_map(|d| r.column(d))
-                .map(|c| c.iter().map(|v| v * v).sum::<f64>() / c.len() as f64)
+                .map(|c| {
+                    // The variance (mean removed), as the ladder's other steps score.
+                    let m = c.iter().sum::<f64>() / c.len() as f64;
+                    c.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / c.len() as f64
+                })
                 .sum();
             RecordScore {
                 record: r.source().to_string(),
