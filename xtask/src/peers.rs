@@ -515,8 +515,8 @@ fn write_draws_summary(out: &Path, draws: &[Vec<Value>], quick: bool) -> Result<
             );
         }
     }
-    std::fs::write(out.join("peers_draws.md"), md)?;
-    std::fs::write(
+    tfs::data::write_atomic(out.join("peers_draws.md"), md)?;
+    tfs::data::write_atomic(
         out.join("peers_draws.json"),
         serde_json::to_string_pretty(
             &json!({"format": "tfs-peers-draws/1", "quick": quick, "draws": n, "cells": json_cells}),
@@ -768,7 +768,7 @@ fn venv(args: &PeersArgs) -> Result<PathBuf> {
             req.display()
         );
     }
-    std::fs::write(&stamp, want)?;
+    tfs::data::write_atomic(&stamp, want)?;
     Ok(py)
 }
 
@@ -921,8 +921,8 @@ fn write_outputs(out: &Path, rows: &[Value], quick: bool, draw: u64, total: f64)
         }
     }
     md += "\nEquations and the PySINDy selection grids are in peers.json; models in models/, data in data/.\n\n![force error](peers_force_error.svg) ![BOA error](peers_boa_error.svg)\n";
-    std::fs::write(out.join("peers.md"), md)?;
-    std::fs::write(
+    tfs::data::write_atomic(out.join("peers.md"), md)?;
+    tfs::data::write_atomic(
         out.join("peers.json"),
         serde_json::to_string_pretty(
             &json!({"format": "tfs-peers/1", "quick": quick, "draw": draw, "total_seconds": total, "rows": rows}),

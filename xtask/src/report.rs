@@ -164,7 +164,7 @@ impl Study {
         let dir = self.out.join("tables");
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
         let p = dir.join(format!("{}.csv", t.name));
-        std::fs::write(&p, t.csv()).with_context(|| format!("writing {}", p.display()))?;
+        tfs::data::write_atomic(&p, t.csv()).with_context(|| format!("writing {}", p.display()))?;
         self.blocks.push(Block::Table(t));
         Ok(())
     }
@@ -188,7 +188,8 @@ impl Study {
         std::fs::create_dir_all(&to).with_context(|| format!("creating {}", to.display()))?;
         for ext in ["svg", "png"] {
             let from = dir.join(format!("{stem}.{ext}"));
-            std::fs::copy(&from, to.join(format!("{stem}.{ext}")))
+            std::fs::read(&from)
+                .and_then(|bytes| tfs::data::write_atomic(to.join(format!("{stem}.{ext}")), bytes))
                 .with_context(|| format!("copying {}", from.display()))?;
         }
         self.blocks.push(Block::Figure {
@@ -281,14 +282,14 @@ impl Report {
             "failed_studies": self.failures().iter().map(|(k, _)| k.clone()).collect::<Vec<_>>(),
         });
         let p = self.out.join("results.json");
-        std::fs::write(&p, serde_json::to_string_pretty(&results)?)
+        tfs::data::write_atomic(&p, serde_json::to_string_pretty(&results)?)
             .with_context(|| format!("writing {}", p.display()))?;
-        std::fs::write(
+        tfs::data::write_atomic(
             self.out.join("report.md"),
             self.markdown(total_seconds, preamble),
         )
         .context("writing report.md")?;
-        std::fs::write(
+        tfs::data::write_atomic(
             self.out.join("index.html"),
             self.html(total_seconds, preamble),
         )
@@ -318,7 +319,7 @@ impl Report {
     pub fn write_summary_csv(&self) -> Result<()> {
         let dir = self.out.join("tables");
         std::fs::create_dir_all(&dir)?;
-        std::fs::write(dir.join("summary.csv"), self.summary_table().csv())?;
+        tfs::data::write_atomic(dir.join("summary.csv"), self.summary_table().csv())?;
         Ok(())
     }
 

@@ -51,12 +51,14 @@ pub enum BasinError {
     Dynamics(#[from] tfs_dynamics::DynError),
     /// No pair of neighbouring cells separates the two basins, so no MED can be found.
     #[error(
-        "no basin boundary between state {from} and state {to} on this grid; widen the grid ranges (the boundary must lie inside them) or refine the grid"
+        "no basin boundary between S{} and S{} on this grid; widen the grid ranges (the boundary must lie inside them) or refine the grid",
+        .from + 1,
+        .to + 1
     )]
     NoBoundary {
-        /// Index of the starting stable state.
+        /// 0-based index of the starting stable state (printed 1-based, as S1, S2, …).
         from: usize,
-        /// Index of the target stable state.
+        /// 0-based index of the target stable state (printed 1-based).
         to: usize,
     },
 }
@@ -69,5 +71,17 @@ pub(crate) fn invalid(name: &'static str, reason: impl Into<String>) -> BasinErr
     BasinError::InvalidParameter {
         name,
         reason: reason.into(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::BasinError;
+
+    /// States are counted from 1 in messages, as in the CLI's `--from`/`--to` flags.
+    #[test]
+    fn no_boundary_names_states_from_one() {
+        let m = BasinError::NoBoundary { from: 0, to: 1 }.to_string();
+        assert!(m.contains("between S1 and S2"), "{m}");
     }
 }

@@ -307,7 +307,11 @@ pub fn med_chain<S: SecondOrderSystem + ?Sized>(
         if k >= n_states {
             return Err(invalid(
                 name,
-                format!("state index {k} out of range: there are {n_states} stable states"),
+                format!(
+                    "state index {k} (S{}) out of range: there are {n_states} stable states, S1..S{n_states} (indices 0..{})",
+                    k + 1,
+                    n_states.saturating_sub(1)
+                ),
             ));
         }
     }

@@ -3,6 +3,7 @@
 use std::io::Read;
 use std::path::Path;
 
+use crate::validate::{Table, check_table, missing_column};
 use crate::{CsvOptions, CsvTable, DataError, Record, Result};
 
 /// Reads and validates a CSV file with default options (time column `t`, no required columns).

@@ -137,7 +137,8 @@ impl Figure {
     }
 
     /// Writes `<stem>.svg` and `<stem>.png` (each [`SIZE`] pixels), creating the folder if
-    /// needed, and returns both paths.
+    /// needed, and returns both paths. The files are written atomically: a failure while
+    /// drawing or writing leaves any previous figures at those paths as they were.
     pub fn save(&self, stem: &Path) -> Result<Vec<PathBuf>> {
         self.validate()?;
         register_fonts()?;
@@ -153,18 +154,28 @@ impl Figure {
             file: p.display().to_string(),
             message,
         };
+        let io_err = |p: &Path| {
+            let file = p.display().to_string();
+            move |source| PlotError::Io { file, source }
+        };
+        // Both figures are drawn into temporary files beside their targets and replace them
+        // only when both are complete: a failure leaves the previous figures as they were.
+        let svg_tmp = tfs_data::AtomicFile::create(&svg).map_err(io_err(&svg))?;
+        let png_tmp = tfs_data::AtomicFile::create(&png).map_err(io_err(&png))?;
         {
-            let root = SVGBackend::new(&svg, SIZE).into_drawing_area();
+            let root = SVGBackend::new(svg_tmp.temp_path(), SIZE).into_drawing_area();
             self.draw(&root).map_err(|m| draw_err(&svg, m))?;
             root.present().map_err(|e| draw_err(&svg, e.to_string()))?;
         }
         {
-            let root = BitMapBackend::new(&png, SIZE).into_drawing_area();
+            let root = BitMapBackend::new(png_tmp.temp_path(), SIZE).into_drawing_area();
             self.draw(&root).map_err(|m| draw_err(&png, m))?;
             root.present().map_err(|e| draw_err(&png, e.to_string()))?;
         }
-        for p in [&svg, &png] {
-            let ok = std::fs::metadata(p).map(|m| m.len() > 0).unwrap_or(false);
+        for (tmp, p) in [(&svg_tmp, &svg), (&png_tmp, &png)] {
+            let ok = std::fs::metadata(tmp.temp_path())
+                .map(|m| m.len() > 0)
+                .unwrap_or(false);
             if !ok {
                 return Err(PlotError::Io {
                     file: p.display().to_string(),
@@ -172,6 +183,8 @@ impl Figure {
                 });
             }
         }
+        svg_tmp.commit().map_err(io_err(&svg))?;
+        png_tmp.commit().map_err(io_err(&png))?;
         Ok(vec![svg, png])
     }
 

@@ -1,23 +1,34 @@
 //! Scoring a model on held-out records as `tfs compare` and the Python package do: the model
-//! simulated under each record's measured input, R-MSE and RMS error per DOF, and how far a fresh
-//! draw of the input's own noise moves the simulation.
+//! simulated under each record's measured input, R-MSE (on the variance, and the paper's Appendix B
+//! ratio over the mean square) and RMS error per DOF, and how far a fresh draw of the input's own
+//! noise moves the simulation.
 
 use serde_json::{Value, json};
 use tfs_data::Record;
-use tfs_dynamics::{Trajectory, rms_error, rmse_ratio};
+use tfs_dynamics::{Trajectory, rms_error, rmse_ratio, rmse_variance};
 use tfs_library::Model;
 
 use crate::error::{Context, Result};
 use crate::invalid;
+
+/// What `r_mse` is, for the output.
+pub const R_MSE_DEFINITION: &str =
+    "mean squared error over the measured variance (mean removed), so a DC level does not change it";
+
+/// What `r_mse_mean_square` is, for the output.
+pub const R_MSE_MEAN_SQUARE_DEFINITION: &str = "mean squared error over the measured mean square, the paper's Appendix B definition (a DC level in the record lowers it)";
 
 /// One record's score.
 #[derive(Debug, Clone)]
 pub struct RecordScore {
     /// The record's source.
     pub record: String,
-    /// Mean R-MSE over the DOFs.
+    /// Mean R-MSE over the DOFs, on each DOF's variance ([`R_MSE_DEFINITION`]).
     pub r_mse: f64,
-    /// Per DOF: `{"dof", "r_mse", "rms_error", "input_noise_spread"}`.
+    /// Mean R-MSE over the DOFs as the paper's Appendix B defines it
+    /// ([`R_MSE_MEAN_SQUARE_DEFINITION`]).
+    pub r_mse_mean_square: f64,
+    /// Per DOF: `{"dof", "r_mse", "r_mse_mean_square", "rms_error", "input_noise_spread"}`.
     pub dofs: Vec<Value>,
     /// Whether most of the error is the measured input's own noise (`None`: not estimated).
     pub error_is_input_noise: Option<bool>,
@@ -28,7 +39,8 @@ pub struct RecordScore {
 impl RecordScore {
     /// The score as JSON (the CLI's `files` entries, with `path` the record's source).
     pub fn to_json(&self) -> Value {
-        json!({"path": self.record, "r_mse": self.r_mse, "dofs": self.dofs,
+        json!({"path": self.record, "r_mse": self.r_mse,
+            "r_mse_mean_square": self.r_mse_mean_square, "dofs": self.dofs,
             "error_is_input_noise": self.error_is_input_noise})
     }
 }
@@ -64,18 +76,22 @@ pub fn score(model: &Model, record: &Record) -> Result<RecordScore> {
     };
     let mut dofs = Vec::new();
     let mut errors = Vec::new();
-    let mut sum = 0.0;
+    let (mut sum, mut sum_b) = (0.0, 0.0);
     for (i, dof) in model.dofs.iter().enumerate() {
         let Some(measured) = record.column(dof) else {
             invalid!("{src}: column '{dof}' needed by the model is missing");
         };
-        let r =
+        let r = rmse_variance(measured, &traj.x[i])
+            .with_context(|| format!("{src}: column '{dof}'"))?;
+        let r_b =
             rmse_ratio(measured, &traj.x[i]).with_context(|| format!("{src}: column '{dof}'"))?;
         let rms = rms_error(measured, &traj.x[i])?;
         sum += r;
+        sum_b += r_b;
         errors.push(rms);
         let s = spread.as_ref().map(|s| s[i]).filter(|v| v.is_finite());
-        dofs.push(json!({"dof": dof, "r_mse": r, "rms_error": rms, "input_noise_spread": s}));
+        dofs.push(json!({"dof": dof, "r_mse": r, "r_mse_mean_square": r_b,
+            "rms_error": rms, "input_noise_spread": s}));
     }
     let dominated = spread.as_ref().map(|s| {
         tfs_refine::noise_dominated(
@@ -87,6 +103,7 @@ pub fn score(model: &Model, record: &Record) -> Result<RecordScore> {
     Ok(RecordScore {
         record: src,
         r_mse: sum / model.dofs.len() as f64,
+        r_mse_mean_square: sum_b / model.dofs.len() as f64,
         dofs,
         error_is_input_noise: dominated,
         trajectory: traj,

@@ -188,6 +188,108 @@ fn spec_libraries(spec: &IdentifySpec) -> Result<Vec<Library>> {
         .collect()
 }
 
+/// The most terms a library may have in `identify` (per DOF).
+pub const MAX_LIBRARY_COLUMNS: usize = 512;
+
+/// The time column among `columns` when the caller passed the header with it (`t` otherwise).
+fn time_column(columns: &[String]) -> &str {
+    columns
+        .iter()
+        .find(|c| *c == "t")
+        .map_or("t", String::as_str)
+}
+
+/// Refuses DOFs that cannot be displacements: the time column, an input column of the data
+/// contract (base motion `xb*`, force-like `u`, `force`, `voltage`), a measured velocity
+/// (`*_vel`), or a name given twice.
+pub fn check_dofs(dofs: &[String], time_column: &str) -> Result<()> {
+    for (i, d) in dofs.iter().enumerate() {
+        if dofs[..i].contains(d) {
+            invalid!("--dofs: '{d}' is given twice; name each displacement column once");
+        }
+        if d == time_column || d == "t" {
+            invalid!(
+                "--dofs {d}: '{d}' is the time column, not a displacement; name the displacement columns (e.g. --dofs x)"
+            );
+        }
+        let input = d.starts_with("xb") || ["u", "force", "voltage"].contains(&d.as_str());
+        if input || d.ends_with("_vel") {
+            let what = if input {
+                "an input (excitation) column"
+            } else {
+                "a measured velocity"
+            };
+            invalid!(
+                "--dofs {d}: '{d}' is {what}, not a displacement; a DOF is a measured displacement column such as x or x1, x2"
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Refuses a record on which a library term is not finite (a cell of 1e300 squares to
+/// infinity), naming the file, the time, the term and the values of its columns there — before
+/// the fit, which would only see a segment's row. Velocities are taken by central differences.
+pub fn check_terms_finite(spec: &IdentifySpec, records: &[Record]) -> Result<()> {
+    use tfs_data::Columns;
+    use tfs_library::{ColumnSet, LibraryError, evaluate_term};
+    let libs = spec_libraries(spec)?;
+    for rec in records {
+        let mut cols = ColumnSet::new(rec);
+        for d in &spec.dofs {
+            if let Some(x) = rec.column(d)
+                && let Ok(v) = tfs_signal::diff::central_difference(x, rec.dt(), 1)
+            {
+                cols.insert(format!("{d}'"), v)?;
+            }
+        }
+        for term in libs.iter().flat_map(|l| l.terms()) {
+            if let Err(LibraryError::NonFinite { row, .. }) = evaluate_term(term, &cols) {
+                let values: Vec<String> = term
+                    .required_columns()
+                    .iter()
+                    .filter_map(|c| cols.column(c).map(|v| format!("{c} = {:e}", v[row])))
+                    .collect();
+                invalid!(
+                    "{}: data row {} (t = {} s): library term '{term}' is not finite there ({}); the value is out of range for this term: check that cell, or use a library without the high powers",
+                    rec.source(),
+                    row + 1,
+                    rec.t()[row],
+                    values.join(", ")
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A warning per DOF whose equation kept no term (`x'' = 0`: the model predicts nothing for it);
+/// an error when no equation kept any, so no empty model is written or reported as a result.
+pub fn empty_equation_warnings(model: &Model, method: Method) -> Result<Vec<String>> {
+    let advice =
+        "check that the records excite this DOF, lower --threshold, or use a smaller library";
+    let method = match method {
+        Method::Tfs => "T-F-S",
+        Method::Sindy => "classical SINDy",
+    };
+    if model.equations.iter().all(|e| e.terms.is_empty()) {
+        invalid!(
+            "nothing identified: the {method} fit kept no library term in any equation (every equation is x'' = 0), so no model is written; {advice}"
+        );
+    }
+    Ok(model
+        .equations
+        .iter()
+        .filter(|e| e.terms.is_empty())
+        .map(|e| {
+            format!(
+                "{}: the {method} fit kept no library term ({}'' = 0), so the model predicts nothing for it; {advice}",
+                e.dof, e.dof
+            )
+        })
+        .collect())
+}
+
 /// Decides the spec, the required columns and the offsets policy from the options and the
 /// column names of the first record (`source` names it in messages).
 pub fn plan(opts: &IdentifyOptions, columns: &[String], source: &str) -> Result<Plan> {
@@ -203,6 +305,7 @@ pub fn plan(opts: &IdentifyOptions, columns: &[String], source: &str) -> Result<
     } else {
         opts.dofs.clone()
     };
+    check_dofs(&dofs, time_column(columns))?;
     let inputs = guess_inputs(columns);
     let mut spec = IdentifySpec::new(&dofs.iter().map(String::as_str).collect::<Vec<_>>(), "");
     match &opts.library {
@@ -225,6 +328,19 @@ pub fn plan(opts: &IdentifyOptions, columns: &[String], source: &str) -> Result<
     // Every column the libraries name must be present in every record.
     let mut required: Vec<String> = dofs.clone();
     let libs = spec_libraries(&spec)?;
+    for (lib, d) in libs.iter().zip(&dofs) {
+        if lib.len() > MAX_LIBRARY_COLUMNS {
+            let which = if libs.len() == 1 {
+                "the library".to_string()
+            } else {
+                format!("the library of {d}''")
+            };
+            invalid!(
+                "--library: {which} has {} terms; at most {MAX_LIBRARY_COLUMNS} are allowed (every candidate is a column over every sample, and a sparse fit needs far more independent samples than candidates): narrow the ranges",
+                lib.len()
+            );
+        }
+    }
     for lib in &libs {
         for c in lib.required_columns() {
             if !c.ends_with('\'') && !required.contains(&c) {
@@ -277,6 +393,9 @@ pub struct Identification {
     pub offsets: Value,
     /// The simulation-error refinement (`null` without `refine`).
     pub refine: Value,
+    /// What the user must know about the result: the criteria trace's warnings and a DOF whose
+    /// equation kept no term.
+    pub warnings: Vec<String>,
 }
 
 /// The refinement's report as JSON (the CLI's `refine` key).
@@ -320,6 +439,7 @@ pub fn identify(
         offsets["constant_term_added"] = json!(plan.added_constant);
     }
     let spec = &plan.spec;
+    check_terms_finite(spec, &records)?;
     let mut identified = match (opts.method, opts.tie) {
         (Method::Tfs, false) => identify_tfs(&records, spec)?,
         (Method::Tfs, true) => {
@@ -359,11 +479,14 @@ pub fn identify(
         invalid!("--validate needs --refine (the held-out records choose the refined fit or not)");
     }
     set_offsets(&mut identified.model, &offsets);
+    let mut warnings = identified.trace.warnings();
+    warnings.extend(empty_equation_warnings(&identified.model, opts.method)?);
     Ok(Identification {
         model: identified.model,
         trace: identified.trace,
         offsets,
         refine,
+        warnings,
     })
 }
 

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use serde_json::{Value, json};
-use tfs_data::{CsvOptions, Record, Saturation};
+use tfs_data::{CsvOptions, CsvTable, Record, Saturation};
 use tfs_library::Model;
 
 use crate::error::{Context, Result};
@@ -48,25 +48,101 @@ impl Clipped {
 
 /// Reads every file with validation; `required` columns must exist in each; records must agree.
 /// Returns the records and the warnings (clipped channels accepted with [`Clipped::Warn`],
-/// timestamps put back on their grid), one line each.
+/// timestamps put back on their grid), one line each. Each file is read once (`-` is standard
+/// input); a file given twice, or two files with the same samples, are refused.
 pub fn read_records(
     paths: &[PathBuf],
     required: &[String],
     clipped: Clipped,
 ) -> Result<(Vec<Record>, Vec<String>)> {
+    records_from(read_tables(paths)?, required, clipped, "t")
+}
+
+/// How a path names its file for "the same file twice": device and inode where the file
+/// exists (a link or another spelling of the path is the same file), else the path as given.
+pub fn file_identity(p: &Path) -> String {
+    if p.as_os_str() == "-" {
+        return "-".into();
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        if let Ok(m) = std::fs::metadata(p) {
+            return format!("{}:{}", m.dev(), m.ino());
+        }
+    }
+    std::fs::canonicalize(p)
+        .unwrap_or_else(|_| p.to_path_buf())
+        .display()
+        .to_string()
+}
+
+/// Refuses a file given twice among `paths` (by identity, so `./a.csv` and `a.csv` are one):
+/// a record counted twice looks like twice the evidence and narrows every interval.
+pub fn refuse_repeated(paths: &[&Path]) -> Result<()> {
+    let ids: Vec<String> = paths.iter().map(|p| file_identity(p)).collect();
+    for j in 0..ids.len() {
+        if let Some(i) = ids[..j].iter().position(|id| *id == ids[j]) {
+            invalid!(
+                "{} is given twice (as {} and {}); pass each record once: a record counted twice looks like twice the evidence and narrows the intervals",
+                paths[j].display(),
+                paths[i].display(),
+                paths[j].display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Reads every file once, in order (`-` is standard input), without validating it against
+/// options yet: the column names can be looked at first. A file given twice is refused.
+pub fn read_tables(paths: &[PathBuf]) -> Result<Vec<CsvTable>> {
     if paths.is_empty() {
         invalid!("no data files given; pass one or more CSV files");
     }
-    let opts = clipped.csv_options(required);
-    let mut records = Vec::with_capacity(paths.len());
+    refuse_repeated(&paths.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
+    paths
+        .iter()
+        .map(|p| Ok(tfs_data::read_table(p)?))
+        .collect()
+}
+
+/// Validates tables read by [`read_tables`] (time column `time_column`): `required` columns
+/// must exist in each; records must agree and be different recordings. Returns the records and
+/// the warnings, one line each.
+pub fn records_from(
+    tables: Vec<CsvTable>,
+    required: &[String],
+    clipped: Clipped,
+    time_column: &str,
+) -> Result<(Vec<Record>, Vec<String>)> {
+    let opts = clipped.csv_options(required).time_column(time_column);
+    let mut records = Vec::with_capacity(tables.len());
     let mut warnings = Vec::new();
-    for p in paths {
-        let (rec, w) = tfs_data::read_csv_checked(p, &opts)?;
+    for t in tables {
+        let (rec, w) = t.into_record(&opts)?;
         warnings.extend(w.iter().map(ToString::to_string));
         records.push(rec);
     }
     tfs_data::check_consistent(&records)?;
+    for j in 0..records.len() {
+        if let Some(i) = (0..j).find(|&i| same_samples(&records[i], &records[j])) {
+            invalid!(
+                "{} and {} hold the same samples; pass each record once: a record counted twice looks like twice the evidence and narrows the intervals",
+                records[i].source(),
+                records[j].source()
+            );
+        }
+    }
     Ok((records, warnings))
+}
+
+/// Two records with the same time axis and the same values in every column (to the bit).
+fn same_samples(a: &Record, b: &Record) -> bool {
+    a.len() == b.len()
+        && a.t() == b.t()
+        && a.names() == b.names()
+        && a.names().iter().all(|n| a.column(n) == b.column(n))
 }
 
 /// Validates records built in memory by the rules [`read_records`] applies to files (the same
@@ -232,14 +308,10 @@ pub fn offsets_for_model(
 }
 
 /// Reads only the header-level facts of a file: its column names (for guessing DOFs and inputs).
+/// A caller that reads the records too should use [`read_tables`] instead (one read per file).
 pub fn peek_columns(path: &Path) -> Result<Vec<String>> {
-    // Only the names are used here: the full checks (clipping included) run when the records
-    // are read with the command's options.
-    let opts = CsvOptions::default()
-        .min_rows(2)
-        .saturation(Saturation::Allow);
-    let r = tfs_data::read_csv_with(path, &opts)?;
-    Ok(r.names().to_vec())
+    let names = tfs_data::read_table(path)?.names().to_vec();
+    Ok(names.into_iter().filter(|n| n != "t").collect())
 }
 
 /// DOF columns by the data contract: `x` or `x1`, `x2`, … (base columns `xb*` excluded).

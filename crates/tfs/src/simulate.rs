@@ -83,8 +83,36 @@ impl Default for DatasetRequest {
     }
 }
 
+/// The most samples one simulated record may have (about a gigabyte of columns and integrator
+/// output for one cell): a size a user sets must not run the machine out of memory.
+pub const MAX_SAMPLES: f64 = 10_000_000.0;
+
+/// Refuses a duration and sampling interval that are not positive and finite, or that would
+/// produce more than [`MAX_SAMPLES`] samples per record.
+fn check_size(duration: f64, dt: f64) -> Result<()> {
+    if !(duration.is_finite() && duration > 0.0) {
+        invalid!("--duration {duration}: give a positive number of seconds");
+    }
+    if !(dt.is_finite() && dt > 0.0) {
+        invalid!("--dt {dt}: give a positive sampling interval in seconds");
+    }
+    let n = (duration / dt).round() + 1.0;
+    if n > MAX_SAMPLES {
+        invalid!(
+            "--duration {duration} --dt {dt}: a record would have {n:.4e} samples; at most {MAX_SAMPLES:.0} are allowed per record (memory grows with it): shorten --duration or raise --dt"
+        );
+    }
+    if n < 16.0 {
+        invalid!(
+            "--duration {duration} --dt {dt}: a record would have only {n} samples; give at least 16 (a longer --duration or a smaller --dt)"
+        );
+    }
+    Ok(())
+}
+
 /// Simulates the records a [`DatasetRequest`] asks for.
 pub fn dataset(req: &DatasetRequest) -> Result<Dataset> {
+    check_size(req.duration, req.dt)?;
     if req.gamma0.is_empty() {
         invalid!("--gamma0: give at least one cell angle");
     }
@@ -132,16 +160,17 @@ pub fn dataset(req: &DatasetRequest) -> Result<Dataset> {
         seed: req.seed,
         ..DatasetConfig::default()
     };
-    generate(&cfg).with_context(|| {
-        if truth == Truth::Surrogate {
-            "simulating the dataset (the surrogate force is a polynomial fitted on 0 ≤ h ≤ 1.7 \
-             without the folded stop: if the run diverged, lower the excitation amplitude or use \
-             --truth truss)"
-                .to_string()
-        } else {
-            "simulating the dataset".to_string()
+    match generate(&cfg) {
+        Ok(d) => Ok(d),
+        // The surrogate's advice belongs to a run that diverged, not to every error.
+        Err(e @ tfs_origami::OrigamiError::Simulation { .. }) if truth == Truth::Surrogate => {
+            Err::<Dataset, _>(e).context(
+                "simulating the dataset (the surrogate force is a polynomial fitted on 0 ≤ h ≤ 1.7 \
+                 without the folded stop: lower the excitation amplitude or use --truth truss)",
+            )
         }
-    })
+        Err(e) => Err::<Dataset, _>(e).context("simulating the dataset"),
+    }
 }
 
 /// Simulates `model` from `x0`, `v0` at the uniformly spaced times `t` under the inputs `u` (one

@@ -48,6 +48,9 @@ pub struct Args {
 
 /// Runs `tfs basin`.
 pub fn run(args: Args) -> Result<()> {
+    if let Some(out) = &args.out {
+        super::prepare_output(out, &[args.model.as_path()], "--out")?;
+    }
     let (nx, ny) = parse_grid(&args.grid)?;
     let x_range = parse_range(&args.x, "--x")?;
     let v_range = parse_range(&args.v, "--v")?;

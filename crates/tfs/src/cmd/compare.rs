@@ -49,18 +49,23 @@ pub fn run(args: Args) -> Result<()> {
             .with_context(|| format!("--plots {}: cannot create the directory", dir.display()))?;
     }
     let mut files = Vec::new();
+    let pb = super::progress(records.len() as u64, "simulating");
     for (path, rec) in args.data.iter().zip(&records) {
+        pb.inc(1);
         let scored = score(&model, rec)?;
         if let Some(dir) = &args.plots {
             plot_record(dir, path, rec, &model.dofs, &scored.trajectory)?;
         }
         files.push(scored.to_json());
     }
+    pb.finish_and_clear();
     if args.json {
         print_json(&json!({
             "model": args.model.display().to_string(),
             "files": files,
             "offsets": offsets_report,
+            "r_mse_definition": tfs::compare::R_MSE_DEFINITION,
+            "r_mse_mean_square_definition": tfs::compare::R_MSE_MEAN_SQUARE_DEFINITION,
         }))?;
     } else {
         println!(
@@ -69,15 +74,16 @@ pub fn run(args: Args) -> Result<()> {
             offsets_report["why"].as_str().unwrap_or("")
         );
         println!(
-            "{:<40} {:>12} {:>14} {:>14}",
-            "file", "R-MSE", "RMS error", "input-noise spread"
+            "{:<40} {:>12} {:>14} {:>14} {:>14}",
+            "file", "R-MSE", "R-MSE (App. B)", "RMS error", "input-noise spread"
         );
         for f in &files {
             for d in f["dofs"].as_array().into_iter().flatten() {
                 println!(
-                    "{:<40} {:>12.4e} {:>14.4e} {:>14}  ({})",
+                    "{:<40} {:>12.4e} {:>14.4e} {:>14.4e} {:>14}  ({})",
                     f["path"].as_str().unwrap_or(""),
                     d["r_mse"].as_f64().unwrap_or(f64::NAN),
+                    d["r_mse_mean_square"].as_f64().unwrap_or(f64::NAN),
                     d["rms_error"].as_f64().unwrap_or(f64::NAN),
                     d["input_noise_spread"]
                         .as_f64()
@@ -92,6 +98,11 @@ pub fn run(args: Args) -> Result<()> {
                 );
             }
         }
+        println!(
+            "(R-MSE: {}; App. B: {})",
+            tfs::compare::R_MSE_DEFINITION,
+            tfs::compare::R_MSE_MEAN_SQUARE_DEFINITION
+        );
         println!(
             "(RMS error and spread in the record's units; the spread is how far a fresh draw of the input's estimated noise moves the simulation)"
         );

@@ -53,7 +53,10 @@ pub fn run(args: Args) -> Result<()> {
         min_share: args.min_share,
         ..DiagnoseOptions::default()
     };
-    let d = diagnose(&model, &records, &opts).context("diagnosing the model")?;
+    let d = super::with_spinner("diagnosing: testing the catalogue's effects", || {
+        diagnose(&model, &records, &opts).map_err(anyhow::Error::from)
+    })
+    .context("diagnosing the model")?;
     if let Some(dir) = &args.plots {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("--plots {}: cannot create the directory", dir.display()))?;
@@ -83,7 +86,12 @@ pub fn run(args: Args) -> Result<()> {
         }
         for r in &d.records {
             match (&r.r_mse, &r.error) {
-                (Some(v), _) => println!("{}: R-MSE {:?}", r.record, v),
+                (Some(v), _) => println!(
+                    "{}: R-MSE {} (on the variance; Appendix B, over the mean square: {})",
+                    r.record,
+                    sci4(v),
+                    sci4(r.r_mse_mean_square.as_deref().unwrap_or(&[]))
+                ),
                 (_, Some(e)) => println!("{}: simulation failed: {e}", r.record),
                 _ => {}
             }
@@ -111,6 +119,14 @@ pub fn run(args: Args) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// Numbers with 4 significant digits, comma-separated.
+fn sci4(v: &[f64]) -> String {
+    v.iter()
+        .map(|x| format!("{x:.4e}"))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 fn write_plots(dir: &std::path::Path, d: &tfs::diagnose::Diagnosis) -> Result<()> {

@@ -2,13 +2,14 @@
 
 use std::path::PathBuf;
 
-use anyhow::Result;
+use anyhow::{Result, bail};
 pub use tfs::identify::Method;
 use tfs::identify::{IdentifyOptions, identify, plan};
 
-use tfs::records::peek_columns;
-
-use super::{DataArgs, Offsets, print_json, read_records};
+use super::{
+    DataArgs, Offsets, prepare_output, print_json, read_records, records_from, with_spinner,
+    write_model,
+};
 
 /// Arguments of `tfs identify`.
 #[derive(Debug, clap::Args)]
@@ -85,19 +86,47 @@ impl Args {
 /// Runs `tfs identify`.
 pub fn run(args: Args) -> Result<()> {
     let opts = args.options();
-    let columns = peek_columns(&args.data[0])?;
+    let inputs: Vec<&std::path::Path> = args
+        .data
+        .iter()
+        .chain(&args.validate)
+        .map(PathBuf::as_path)
+        .collect();
+    if let Some(out) = &args.out {
+        prepare_output(out, &inputs, "--out")?;
+    }
+    tfs::records::refuse_repeated(&inputs)?;
+    // Each file is read once: the first one's header chooses the DOFs and inputs, then every
+    // table is validated with the columns the libraries need.
+    let tables = tfs::records::read_tables(&args.data)?;
+    let time_column = &args.data_args.time_column;
+    let columns: Vec<String> = tables[0]
+        .names()
+        .iter()
+        .filter(|c| *c != time_column)
+        .cloned()
+        .collect();
+    if args.dofs.iter().any(|d| d == time_column) {
+        bail!("--dofs {time_column}: '{time_column}' is the time column, not a displacement; name the displacement columns (e.g. --dofs x)");
+    }
     let plan = plan(&opts, &columns, &args.data[0].display().to_string())?;
-    let records = read_records(&args.data, &plan.required, &args.data_args)?;
+    let records = records_from(tables, &plan.required, &args.data_args)?;
     let held_out = if args.validate.is_empty() {
         Vec::new()
     } else {
         read_records(&args.validate, &plan.required, &args.data_args)?
     };
-    let identified = identify(records, held_out, &opts, &plan)?;
+    let identified = if opts.refine {
+        with_spinner("identifying and refining by simulation error", || {
+            identify(records, held_out, &opts, &plan)
+        })?
+    } else {
+        identify(records, held_out, &opts, &plan)?
+    };
     let offsets_report = &identified.offsets;
     let refine_report = &identified.refine;
     if let Some(out) = &args.out {
-        identified.model.write_path(out)?;
+        write_model(&identified.model, out, "--out")?;
     }
     if args.json {
         print_json(&serde_json::json!({
@@ -105,11 +134,11 @@ pub fn run(args: Args) -> Result<()> {
             "trace": serde_json::to_value(&identified.trace)?,
             "refine": refine_report,
             "offsets": offsets_report,
-            "warnings": identified.trace.warnings(),
+            "warnings": identified.warnings,
         }))?;
     } else {
         // The data cannot support the library: say so before anything else, on stderr too.
-        for w in identified.trace.warnings() {
+        for w in &identified.warnings {
             eprintln!("warning: {w}");
             println!("WARNING {w}");
         }

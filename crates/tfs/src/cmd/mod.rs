@@ -10,7 +10,7 @@ pub mod plots;
 pub mod refit;
 pub mod simulate;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use tfs::data::Record;
@@ -24,20 +24,103 @@ pub struct DataArgs {
     /// record) is clipped by the sensor or the acquisition card. Default: refuse the file.
     #[arg(long, value_enum, default_value_t = Clipped::Error)]
     pub clipped: Clipped,
+    /// The name of the time column (seconds) in the CSV files.
+    #[arg(long, default_value = "t")]
+    pub time_column: String,
 }
 
-/// Reads every file with validation; `required` columns must exist in each; records must agree.
-/// Warnings (clipped channels accepted with `--clipped warn`) go to stderr, one line each.
+/// Prints warnings on stderr, one line each.
+fn warn_all(warnings: Vec<String>) {
+    for w in warnings {
+        eprintln!("warning: {w}");
+    }
+}
+
+/// Reads every file once with validation (`-` is standard input); `required` columns must exist
+/// in each; records must agree and be different recordings. Warnings (clipped channels accepted
+/// with `--clipped warn`) go to stderr, one line each.
 pub fn read_records(
     paths: &[PathBuf],
     required: &[String],
     data: &DataArgs,
 ) -> Result<Vec<Record>> {
-    let (records, warnings) = tfs::records::read_records(paths, required, data.clipped)?;
-    for w in warnings {
-        eprintln!("warning: {w}");
-    }
+    records_from(tfs::records::read_tables(paths)?, required, data)
+}
+
+/// Validates tables already read (see [`read_records`]).
+pub fn records_from(
+    tables: Vec<tfs::data::CsvTable>,
+    required: &[String],
+    data: &DataArgs,
+) -> Result<Vec<Record>> {
+    let (records, warnings) =
+        tfs::records::records_from(tables, required, data.clipped, &data.time_column)?;
+    warn_all(warnings);
     Ok(records)
+}
+
+/// Checks an output path before anything is computed: it must not be one of the `inputs`
+/// (writing there would replace a measurement or a model with the result), and its folder is
+/// created when missing. `flag` names the option in messages.
+pub fn prepare_output(out: &Path, inputs: &[&Path], flag: &str) -> Result<()> {
+    if out.as_os_str() == "-" {
+        bail!("{flag} -: write to a file; the result goes to stdout with --json");
+    }
+    if out.is_dir() {
+        bail!("{flag} {}: is a directory; give a file name", out.display());
+    }
+    let id = tfs::records::file_identity(out);
+    if let Some(p) = inputs
+        .iter()
+        .find(|p| tfs::records::file_identity(p) == id)
+    {
+        bail!(
+            "{flag} {}: this is also an input ({}); writing there would replace it with the result. Choose another file name",
+            out.display(),
+            p.display()
+        );
+    }
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| {
+            format!(
+                "{flag} {}: cannot create the folder {}",
+                out.display(),
+                dir.display()
+            )
+        })?;
+    }
+    Ok(())
+}
+
+/// Writes a model file atomically (the previous file survives any failure).
+pub fn write_model(model: &Model, path: &Path, flag: &str) -> Result<()> {
+    model
+        .write_path(path)
+        .with_context(|| format!("{flag} {}", path.display()))
+}
+
+/// A spinner with the step's name and the time elapsed, for a step whose length is not known in
+/// advance (diagnosis, refinement); drawn only when stderr is a terminal.
+pub fn spinner(what: &str) -> indicatif::ProgressBar {
+    use std::io::IsTerminal;
+    if !std::io::stderr().is_terminal() {
+        return indicatif::ProgressBar::hidden();
+    }
+    let pb = indicatif::ProgressBar::new_spinner();
+    if let Ok(style) = indicatif::ProgressStyle::with_template("{spinner} {msg} ({elapsed})") {
+        pb.set_style(style);
+    }
+    pb.set_message(what.to_string());
+    pb.enable_steady_tick(std::time::Duration::from_millis(120));
+    pb
+}
+
+/// Runs `step` under a [`spinner`] named `what`.
+pub fn with_spinner<T>(what: &str, step: impl FnOnce() -> T) -> T {
+    let pb = spinner(what);
+    let out = step();
+    pb.finish_and_clear();
+    out
 }
 
 /// For commands that use a model (`compare`, `diagnose`, `refit`): resolves `--offsets` against

@@ -53,6 +53,13 @@ pub struct Args {
 
 /// Runs `tfs refit`.
 pub fn run(args: Args) -> Result<()> {
+    let inputs: Vec<&std::path::Path> = std::iter::once(&args.model)
+        .chain(&args.data)
+        .chain(&args.validate)
+        .map(PathBuf::as_path)
+        .collect();
+    super::prepare_output(&args.out, &inputs, "--out")?;
+    tfs::records::refuse_repeated(&inputs[1..])?;
     let model = read_model(&args.model)?;
     let required = measured_columns(&model);
     let mut records = read_records(&args.data, &required, &args.data_args)?;
@@ -62,19 +69,19 @@ pub fn run(args: Args) -> Result<()> {
         held_out = read_records(&args.validate, &required, &args.data_args)?;
         offsets_for_model(&mut held_out, &model, &required, args.offsets)?;
     }
-    let refitted = tfs::refit::refit(
-        &model,
-        &args.add,
-        &records,
-        args.refine,
-        held_out,
-        &offsets_report,
-    )?;
+    let refitted = super::with_spinner("adding the effects and refitting", || {
+        tfs::refit::refit(
+            &model,
+            &args.add,
+            &records,
+            args.refine,
+            held_out,
+            &offsets_report,
+        )
+    })?;
     let (model, ladder, warnings) = (refitted.model, refitted.ladder, refitted.warnings);
     let refine_report = refitted.refine;
-    model
-        .write_path(&args.out)
-        .with_context(|| format!("--out {}", args.out.display()))?;
+    super::write_model(&model, &args.out, "--out")?;
     for w in &warnings {
         eprintln!("warning: {w}");
     }

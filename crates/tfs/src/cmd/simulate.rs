@@ -110,6 +110,7 @@ pub fn run(args: Args) -> Result<()> {
         pink: common.pink,
         seed: common.seed,
     };
+    super::prepare_output(&common.out, &[], "--out")?;
     let data = dataset(&req)?;
 
     let mut files = Vec::new();
@@ -130,7 +131,7 @@ pub fn run(args: Args) -> Result<()> {
         files.push(path.display().to_string());
     }
     let meta_path = common.out.with_extension("meta.json");
-    std::fs::write(&meta_path, serde_json::to_string_pretty(&data.meta)?)
+    tfs::data::write_atomic(&meta_path, serde_json::to_string_pretty(&data.meta)?)
         .with_context(|| format!("writing {}", meta_path.display()))?;
     if common.json {
         print_json(
