@@ -176,5 +176,8 @@ fn endless_line_is_refused() {
 fn decimal_comma_is_named() {
     let text = good_text(20, ";").replacen("0.01;", "0,01;", 1);
     let e = check(text.as_bytes()).unwrap_err().to_string();
-    assert!(e.contains("\"0,01\"") && e.contains("decimal point (0.01)"), "{e}");
+    assert!(
+        e.contains("\"0,01\"") && e.contains("decimal point (0.01)"),
+        "{e}"
+    );
 }

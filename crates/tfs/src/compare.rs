@@ -12,8 +12,7 @@ use crate::error::{Context, Result};
 use crate::invalid;
 
 /// What `r_mse` is, for the output.
-pub const R_MSE_DEFINITION: &str =
-    "mean squared error over the measured variance (mean removed), so a DC level does not change it";
+pub const R_MSE_DEFINITION: &str = "mean squared error over the measured variance (mean removed), so a DC level does not change it";
 
 /// What `r_mse_mean_square` is, for the output.
 pub const R_MSE_MEAN_SQUARE_DEFINITION: &str = "mean squared error over the measured mean square, the paper's Appendix B definition (a DC level in the record lowers it)";

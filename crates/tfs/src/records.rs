@@ -101,10 +101,7 @@ pub fn read_tables(paths: &[PathBuf]) -> Result<Vec<CsvTable>> {
         invalid!("no data files given; pass one or more CSV files");
     }
     refuse_repeated(&paths.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
-    paths
-        .iter()
-        .map(|p| Ok(tfs_data::read_table(p)?))
-        .collect()
+    paths.iter().map(|p| Ok(tfs_data::read_table(p)?)).collect()
 }
 
 /// Validates tables read by [`read_tables`] (time column `time_column`): `required` columns

@@ -107,7 +107,9 @@ pub fn run(args: Args) -> Result<()> {
         .cloned()
         .collect();
     if args.dofs.iter().any(|d| d == time_column) {
-        bail!("--dofs {time_column}: '{time_column}' is the time column, not a displacement; name the displacement columns (e.g. --dofs x)");
+        bail!(
+            "--dofs {time_column}: '{time_column}' is the time column, not a displacement; name the displacement columns (e.g. --dofs x)"
+        );
     }
     let plan = plan(&opts, &columns, &args.data[0].display().to_string())?;
     let records = records_from(tables, &plan.required, &args.data_args)?;

@@ -70,10 +70,7 @@ pub fn prepare_output(out: &Path, inputs: &[&Path], flag: &str) -> Result<()> {
         bail!("{flag} {}: is a directory; give a file name", out.display());
     }
     let id = tfs::records::file_identity(out);
-    if let Some(p) = inputs
-        .iter()
-        .find(|p| tfs::records::file_identity(p) == id)
-    {
+    if let Some(p) = inputs.iter().find(|p| tfs::records::file_identity(p) == id) {
         bail!(
             "{flag} {}: this is also an input ({}); writing there would replace it with the result. Choose another file name",
             out.display(),
