@@ -395,11 +395,22 @@ fn compare_reports_rms_error_in_record_units() {
     assert!(r1 > 1e-3, "the wrong model should show an error: {r1}");
     assert!((r2 - r1).abs() <= 1e-6 * r1, "R-MSE {r1} vs {r2}");
     assert!((e2 / e1 - 1000.0).abs() <= 1e-3, "RMS error {e1} vs {e2}");
+    // R-MSE is on the variance (mean removed); Appendix B's ratio over the mean square beside it.
     let x = rec.column("x").unwrap();
+    let m = mean(x);
+    let var = x.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / x.len() as f64;
+    assert!(
+        (e1 * e1 - r1 * var).abs() <= 1e-9 * e1 * e1,
+        "{e1}² vs {r1}·{var}"
+    );
+    let v = json_of(&tfs(&["compare", "--model", &s(&m1), &s(&p1), "--json"]));
+    let rb = v["files"][0]["dofs"][0]["r_mse_mean_square"]
+        .as_f64()
+        .unwrap();
     let ms = x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64;
     assert!(
-        (e1 * e1 - r1 * ms).abs() <= 1e-9 * e1 * e1,
-        "{e1}² vs {r1}·{ms}"
+        (e1 * e1 - rb * ms).abs() <= 1e-9 * e1 * e1,
+        "{e1}² vs {rb}·{ms}"
     );
 }
 
