@@ -28,6 +28,15 @@ fn check(measured: &[f64], predicted: &[f64]) -> Result<()> {
     Ok(())
 }
 
+/// `Σ (x − x̂)²`.
+fn sum_sq_error(measured: &[f64], predicted: &[f64]) -> f64 {
+    measured
+        .iter()
+        .zip(predicted)
+        .map(|(x, p)| (x - p) * (x - p))
+        .sum()
+}
+
 /// R-MSE of the paper's Appendix B: `mean((x − x̂)²) / mean(x²)` with `x` the measured and `x̂`
 /// the predicted signal (for zero-mean responses this is the MSE over the response variance).
 /// 0 is a perfect match; 1 is as bad as predicting zero.
@@ -46,22 +55,14 @@ pub fn rmse_ratio(measured: &[f64], predicted: &[f64]) -> Result<f64> {
                 .into(),
         });
     }
-    let num: f64 = measured
-        .iter()
-        .zip(predicted)
-        .map(|(x, p)| (x - p) * (x - p))
-        .sum();
+    let num = sum_sq_error(measured, predicted);
     Ok(num / den)
 }
 
 /// Root-mean-square error `sqrt(mean((x − x̂)²))`, in the signal's own units.
 pub fn rms_error(measured: &[f64], predicted: &[f64]) -> Result<f64> {
     check(measured, predicted)?;
-    let num: f64 = measured
-        .iter()
-        .zip(predicted)
-        .map(|(x, p)| (x - p) * (x - p))
-        .sum();
+    let num = sum_sq_error(measured, predicted);
     Ok((num / measured.len() as f64).sqrt())
 }
 
@@ -94,11 +95,7 @@ pub fn rmse_variance(measured: &[f64], predicted: &[f64]) -> Result<f64> {
                     .into(),
         });
     }
-    let num: f64 = measured
-        .iter()
-        .zip(predicted)
-        .map(|(x, p)| (x - p) * (x - p))
-        .sum();
+    let num = sum_sq_error(measured, predicted);
     Ok(num / den)
 }
 

@@ -1,6 +1,9 @@
 //! The CLI's answer to bad input: exit code 2 and one line on stderr naming the file, the row or
 //! column, and what to do — never a panic.
 
+mod common;
+use common::assert_fails;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -29,21 +32,6 @@ fn good_csv(n: usize) -> String {
         ));
     }
     s
-}
-
-/// Asserts a failed run with exit code 2, one stderr line, containing every `needle`.
-fn assert_fails(out: &Output, needles: &[&str]) {
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "stderr: {err}");
-    assert!(!err.contains("panicked"), "panic: {err}");
-    assert_eq!(
-        err.trim_end().lines().count(),
-        1,
-        "one line expected: {err}"
-    );
-    for n in needles {
-        assert!(err.contains(n), "'{n}' missing from: {err}");
-    }
 }
 
 fn identify(file: &Path) -> Output {

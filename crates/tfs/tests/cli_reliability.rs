@@ -3,6 +3,9 @@
 //! sizes users set, and the small bad-input cases of issue 32 — each answered with a clear
 //! one-line error instead of a silent result.
 
+mod common;
+use common::assert_fails;
+
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
@@ -22,21 +25,6 @@ fn s(p: &Path) -> &str {
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-/// Asserts a failed run with exit code 2, one stderr line, containing every `needle`.
-fn assert_fails(o: &Output, needles: &[&str]) {
-    let err = stderr(o);
-    assert_eq!(o.status.code(), Some(2), "stderr: {err}");
-    assert!(!err.contains("panicked"), "panic: {err}");
-    assert_eq!(
-        err.trim_end().lines().count(),
-        1,
-        "one line expected: {err}"
-    );
-    for n in needles {
-        assert!(err.contains(n), "'{n}' missing from: {err}");
-    }
 }
 
 /// A simulated Kresling record (the project's own simulator, 40 dB), `t,x,xb_acc` only.

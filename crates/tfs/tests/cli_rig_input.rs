@@ -3,6 +3,9 @@
 //! and the column; per-channel DC offsets are handled as `--offsets` says and the trace shows it;
 //! `compare` reports the error in the record's own units.
 
+mod common;
+use common::assert_fails;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -25,21 +28,6 @@ fn tfs(args: &[&str]) -> Output {
 
 fn s(p: &Path) -> String {
     p.display().to_string()
-}
-
-/// Asserts a failed run with exit code 2, one stderr line, containing every `needle`.
-fn assert_fails(out: &Output, needles: &[&str]) {
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "stderr: {err}");
-    assert!(!err.contains("panicked"), "panic: {err}");
-    assert_eq!(
-        err.trim_end().lines().count(),
-        1,
-        "one line expected: {err}"
-    );
-    for n in needles {
-        assert!(err.contains(n), "'{n}' missing from: {err}");
-    }
 }
 
 fn json_of(out: &Output) -> serde_json::Value {
