@@ -222,7 +222,7 @@ fn monte_carlo(
                     .zip(cx)
                     .map(|(a, b)| a - b)
                     .collect();
-                let lp = |f: f64| tfs_criteria::spectral::low_pass(&n, 0.005, f);
+                let lp = |f: f64| tfs_signal::band::low_pass(&n, 0.005, f);
                 let (nh, nl) = (lp(hi), lp(lo));
                 let x: Vec<f64> = (0..n.len()).map(|k| cx[k] + nh[k] - nl[k]).collect();
                 Record::new(
@@ -324,8 +324,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for r in read(&dir)? {
             let x = r.column("x").unwrap();
             let n = x.len();
-            let mut pl = realfft::RealFftPlanner::<f64>::new();
-            let f = pl.plan_fft_forward(2 * n);
+            let f = tfs_signal::fft::plan_forward(2 * n);
             let mut buf = f.make_input_vec();
             buf[..n].copy_from_slice(x);
             for i in 0..n {
@@ -334,8 +333,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let mut sp = f.make_output_vec();
             f.process(&mut buf, &mut sp).unwrap();
             let p: Vec<f64> = sp.iter().map(|c| c.norm_sqr()).collect();
-            let (a, b) = tfs_criteria::spectral::fit_floor(&p);
-            let (kc, _, _) = tfs_criteria::spectral::choose_cutoff(&p, 1);
+            let fl = tfs_signal::NoiseFloor::fit(&p);
+            let (a, b) = (fl.log_a, fl.beta);
+            let (kc, _, _) = tfs_signal::choose_cutoff(&p, 1);
             let df = 1.0 / (2.0 * n as f64 * r.dt());
             println!(
                 "{}: beta {b:.3} kc {kc} ({:.2} Hz)",
@@ -363,8 +363,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for r in read(&dir)? {
             let x = r.column("x").unwrap();
             // As the pipeline sees it: cut to a fast FFT length first.
-            let x = &x[..tfs_criteria::spectral::smooth_len(x.len())];
-            let b = tfs_criteria::spectral::band_limit(x, r.dt(), None).band;
+            let x = &x[..tfs_signal::smooth_len(x.len())];
+            let b = tfs_signal::band::reconstruct(x, r.dt(), None).band;
             println!(
                 "{}: cutoff {:.2} beta {:.3} noise_var {:.3e} total {:.3e} share {:.4}",
                 r.source(),
@@ -393,9 +393,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let sw = (f0, f1, duration, amplitude);
             let noisy = sweep(&sys, "n", sw, Some((snr, kind, 17 * i as u64)))?;
             let clean = sweep(&sys, "c", sw, None)?;
-            let sn =
-                tfs_criteria::spectral::band_limit(noisy.column("x").unwrap(), noisy.dt(), None);
-            let sc = tfs_criteria::spectral::band_limit(
+            let sn = tfs_signal::band::reconstruct(noisy.column("x").unwrap(), noisy.dt(), None);
+            let sc = tfs_signal::band::reconstruct(
                 clean.column("x").unwrap(),
                 clean.dt(),
                 Some(sn.band.cutoff_hz),
@@ -405,7 +404,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let var = |u: &[f64], v: &[f64]| {
                 (a..b).map(|k| (u[k] - v[k]).powi(2)).sum::<f64>() / (b - a) as f64
             };
-            let dr = tfs_criteria::spectral::band_noise(&sn.band, n, 1).unwrap();
+            let dr = tfs_signal::band::noise_draw(&sn.band, n, 1).unwrap();
             let z = vec![0.0; n];
             println!(
                 "rec {i}: cutoff {:.2} Hz; x: est {:.3e} actual {:.3e} draw {:.3e}; v: actual {:.3e} draw {:.3e}",

@@ -11,7 +11,7 @@
 //! 1–2 % small, which lowers the barrier between the wells.
 //!
 //! The correction estimates `D` and `d` by simulation: draws of each record's own noise model
-//! (its fitted noise floor, limited to its cut-off; see [`crate::spectral::band_noise`]) are pushed through the
+//! (its fitted noise floor, limited to its cut-off; see [`tfs_signal::band::noise_draw`]) are pushed through the
 //! same term evaluation, windows, kept bins and bin weights as the data, and the coefficients of
 //! the selected structure solve `(AᵀA − D)β = Aᵀy − d`. Each draw is used as an antithetic pair
 //! (`x̂ ± δ`, half the difference), which keeps the part of every row that is odd in the noise —
@@ -26,19 +26,18 @@ use std::sync::OnceLock;
 use faer::linalg::solvers::Solve;
 use faer::{Mat, Side};
 use rayon::prelude::*;
-use realfft::num_complex::Complex;
 use tfs_library::{Library, Var};
 use tfs_regress::Compressed;
+use tfs_signal::Complex;
 
 use crate::error::Result;
 use crate::pipeline::TfsOptions;
 use crate::prepare::{
     Prepared, RecordSeries, Series, TransformForm, WindowTransform, decimate, decimated_inputs,
-    decimated_series, record_series, rows_for,
+    decimated_series, record_series, rows_for, window,
 };
-use crate::spectral::{
-    Band, NoiseSpectrum, Smoothed, bin_omegas, noise_spectrum, window, window_layout,
-};
+use tfs_signal::band::noise_spectrum;
+use tfs_signal::{Band, NoiseSpectrum, Smoothed, bin_omegas, window_layout};
 
 /// Second moments of the noise part of the regression rows, over the columns of one support.
 #[derive(Debug, Clone)]

@@ -6,7 +6,8 @@
 //!   user's own data.
 //! * Criterion 2 ([`prune_library`], [`prune_factor`]): backward elimination on κ, run on the small
 //!   factor of one thin QR.
-//! * Criterion 3 ([`spectral`]): windowed transforms (plain or derivative-transfer "weak" form),
+//! * Criterion 3 ([`TransformForm`], on `tfs_signal`'s windows and band-limited reconstruction):
+//!   windowed transforms (plain or derivative-transfer "weak" form),
 //!   bins kept where `|ẍ̂| ≥ δ·max` and where `|ẍ̂|²` exceeds the variance the estimated
 //!   displacement noise gives at that bin ([`TfsOptions::min_bin_snr`]; noise of `x` enters both
 //!   sides of the regression there and would bias it), nonlinear terms evaluated on a
@@ -17,7 +18,7 @@
 //!   ([`TfsOptions::refit_all_records`]). [`identify_sindy`] is the classical baseline.
 //! * The final coefficients are corrected for errors in variables
 //!   ([`TfsOptions::noise_correction_draws`]): draws of each record's estimated noise, pushed
-//!   through the same reconstruction, windows, bins and weights ([`spectral::band_noise`]),
+//!   through the same reconstruction, windows, bins and weights (`tfs_signal::band::noise_draw`),
 //!   estimate the noise's share of the normal equations, which is removed before solving.
 //! * Every kept coefficient gets a 95 % interval (a jackknife over clusters of neighbouring bins)
 //!   and an inclusion probability (bootstrap over the same clusters); a kept term must pass the
@@ -54,7 +55,6 @@ mod kappa;
 mod pipeline;
 mod prepare;
 mod prune;
-pub mod spectral;
 pub mod synthetic;
 mod tied;
 

@@ -4,7 +4,6 @@ use std::time::Instant;
 
 use faer::{Mat, MatRef};
 use rayon::prelude::*;
-use realfft::RealFftPlanner;
 use serde::{Deserialize, Serialize};
 use tfs_data::Record;
 use tfs_library::{Equation, Library, Model, ModelTerm};
@@ -59,7 +58,7 @@ pub struct TfsOptions {
     /// reconstructs `x` times √2). That cut-off balances noise let in against signal lost, as
     /// a denoiser should; the regression on `x̂^k` needs the weak harmonics above it more than
     /// it fears the noise, whose bias the errors-in-variables correction removes (see
-    /// [`crate::spectral::band_limit_guarded`]). 0 = the reconstruction's own cut-off; ignored
+    /// [`tfs_signal::band::reconstruct_guarded`]). 0 = the reconstruction's own cut-off; ignored
     /// when `cutoff_hz` is given and by the paper's plain Savitzky–Golay form.
     #[serde(default = "default_guard_octaves")]
     pub guard_octaves: f64,
@@ -415,7 +414,7 @@ pub(crate) fn blocks_of(records: &[Record]) -> Result<Vec<Record>> {
         return records
             .par_iter()
             .map(|r| {
-                let m = crate::spectral::smooth_len(r.len());
+                let m = tfs_signal::smooth_len(r.len());
                 if m == r.len() {
                     Ok(r.clone())
                 } else {
@@ -426,9 +425,9 @@ pub(crate) fn blocks_of(records: &[Record]) -> Result<Vec<Record>> {
     }
     let r = &records[0];
     let n = r.len();
-    let h = crate::spectral::smooth_len(n / 2);
+    let h = tfs_signal::smooth_len(n / 2);
     let mut out = Vec::new();
-    for (k, (a, b)) in [(0, h), (h, h + crate::spectral::smooth_len(n - h))]
+    for (k, (a, b)) in [(0, h), (h, h + tfs_signal::smooth_len(n - h))]
         .into_iter()
         .enumerate()
     {
@@ -695,9 +694,7 @@ fn unweighted_transforms(
             series
                 .par_iter()
                 .with_max_len(1)
-                .map(|s| {
-                    window_transforms(s, wc, dmin, opt.min_bin_snr, &mut RealFftPlanner::new())
-                })
+                .map(|s| window_transforms(s, wc, dmin, opt.min_bin_snr))
                 .collect()
         })
         .collect();

@@ -2,16 +2,45 @@
 //! every DOF, evaluation of library terms on the reconstruction, and windowed transforms.
 
 use faer::Mat;
-use realfft::RealFftPlanner;
-use realfft::num_complex::Complex;
 use tfs_data::{Columns, Record};
 use tfs_library::{ColumnSet, Factor, Library, Term, Var, evaluate_term};
+use tfs_signal::band::{low_pass, reconstruct_guarded};
+use tfs_signal::{
+    Band, Complex, Smoothed, Weighting, Window, WindowSamples, bin_omegas, window_layout,
+    windowed_bins,
+};
 
 use crate::error::{CriteriaError, Result, invalid};
-use crate::spectral::{
-    Band, Smoothed, Weighting, band_limit_guarded, bin_omegas, hermite_power, low_pass, window,
-    window_bins, window_layout,
-};
+
+/// Unbiased powers under Gaussian noise: with `y = x + e`, `e ~ N(0, s2)`, the scaled Hermite
+/// polynomial `m_k(y) = s^k He_k(y/s)` satisfies `E[m_k(y)] = x^k` (recursion
+/// `m_{k+1} = y·m_k − k·s2·m_{k−1}`, `m_0 = 1`, `m_1 = y`).
+pub fn hermite_power(y: &[f64], k: u32, s2: f64) -> Vec<f64> {
+    if k == 0 {
+        return vec![1.0; y.len()];
+    }
+    // The recurrence `He_{j+1} = y·He_j − j·s²·He_{j−1}` a whole column at a time (the same
+    // operations on every sample as one sample at a time, in a loop the compiler vectorises).
+    let mut a = vec![1.0; y.len()];
+    let mut b = y.to_vec();
+    for j in 1..k {
+        let js2 = j as f64 * s2;
+        for ((a, b), &v) in a.iter_mut().zip(b.iter_mut()).zip(y) {
+            let c = v * *b - js2 * *a;
+            *a = *b;
+            *b = c;
+        }
+    }
+    b
+}
+
+/// The periodic `sin⁴` window of `len` samples at step `dt` with its time derivatives (see
+/// [`Window::sample_periodic`]); `len ≥ 2` and `dt > 0` hold for every window of a checked record.
+pub(crate) fn window(len: usize, dt: f64) -> WindowSamples {
+    Window::HannSquared
+        .sample_periodic(len, dt)
+        .expect("windows of checked records have at least 8 samples and a positive step")
+}
 
 /// How the frequency-domain rows are formed (Criterion 3 variants).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize, Default)]
@@ -70,7 +99,7 @@ pub(crate) struct Prepared<'a> {
 }
 
 /// Validates a record and reconstructs every DOF: band-limited at `cutoff_hz`, or at the
-/// data-chosen cut-off raised by `guard_octaves` (see [`band_limit_guarded`]).
+/// data-chosen cut-off raised by `guard_octaves` (see [`reconstruct_guarded`]).
 pub(crate) fn prepare<'a>(
     rec: &'a Record,
     dofs: &[String],
@@ -81,7 +110,7 @@ pub(crate) fn prepare<'a>(
     let smooth = dofs
         .iter()
         .map(|d| {
-            band_limit_guarded(
+            reconstruct_guarded(
                 rec.column(d).expect("checked"),
                 dt,
                 cutoff_hz,
@@ -123,22 +152,22 @@ pub(crate) struct RecordSeries {
 }
 
 impl RecordSeries {
-    /// Transform of the left-hand side over the window of `win.0.len()` samples starting at
+    /// Transform of the left-hand side over the window of `win.w.len()` samples starting at
     /// `st`, at the bins `bins`; `win` and `om` are that length's window and bin frequencies.
     pub(crate) fn lhs_spectrum_at(
         &self,
         st: usize,
-        win: &(Vec<f64>, Vec<f64>, Vec<f64>),
+        win: &WindowSamples,
         om: &[f64],
         bins: &[usize],
     ) -> Vec<Complex<f64>> {
-        let x = &self.lhs[st..st + win.0.len()];
+        let x = &self.lhs[st..st + win.w.len()];
         let weighting = if self.weak_lhs {
             Weighting::Second
         } else {
             Weighting::Plain
         };
-        window_bins(x, self.dt, om, bins, weighting)
+        windowed_bins(x, self.dt, om, bins, weighting)
     }
 
     /// Transform of term `j` over the same window (see [`RecordSeries::lhs_spectrum_at`]), in
@@ -147,15 +176,17 @@ impl RecordSeries {
         &self,
         j: usize,
         st: usize,
-        win: &(Vec<f64>, Vec<f64>, Vec<f64>),
+        win: &WindowSamples,
         om: &[f64],
         bins: &[usize],
     ) -> Vec<Complex<f64>> {
-        let len = win.0.len();
+        let len = win.w.len();
         match &self.terms[j] {
-            Series::Plain(v) => window_bins(&v[st..st + len], self.dt, om, bins, Weighting::Plain),
+            Series::Plain(v) => {
+                windowed_bins(&v[st..st + len], self.dt, om, bins, Weighting::Plain)
+            }
             Series::Transfer(g) => {
-                window_bins(&g[st..st + len], self.dt, om, bins, Weighting::First)
+                windowed_bins(&g[st..st + len], self.dt, om, bins, Weighting::First)
             }
         }
     }
@@ -447,17 +478,13 @@ pub(crate) struct WindowTransform {
 /// noise alone produces: for noise of two-sided density `S(f)` the windowed integral of
 /// `n·(w'' − 2iωw' − ω²w)` has variance `S(f)·∫|w'' − 2iωw' − ω²w|² dt`
 /// `= S(f)·(∫w''² − 2ω²∫w w'' + ω⁴∫w² + 4ω²∫w'²)`.
-fn lhs_noise_var(
-    win: &(Vec<f64>, Vec<f64>, Vec<f64>),
-    om: &[f64],
-    dt: f64,
-    noise: &(Band, f64),
-) -> Vec<f64> {
-    let int = |f: &dyn Fn(usize) -> f64| (0..win.0.len()).map(f).sum::<f64>() * dt;
-    let i0 = int(&|i| win.0[i] * win.0[i]);
-    let i1 = int(&|i| win.1[i] * win.1[i]);
-    let i2 = int(&|i| win.2[i] * win.2[i]);
-    let i02 = int(&|i| win.0[i] * win.2[i]);
+fn lhs_noise_var(win: &WindowSamples, om: &[f64], dt: f64, noise: &(Band, f64)) -> Vec<f64> {
+    let (w, w1, w2) = (&win.w, &win.dw, &win.ddw);
+    let int = |f: &dyn Fn(usize) -> f64| (0..w.len()).map(f).sum::<f64>() * dt;
+    let i0 = int(&|i| w[i] * w[i]);
+    let i1 = int(&|i| w1[i] * w1[i]);
+    let i2 = int(&|i| w2[i] * w2[i]);
+    let i02 = int(&|i| w[i] * w2[i]);
     om.iter()
         .map(|&w| {
             let f = w / (2.0 * std::f64::consts::PI);
@@ -476,7 +503,6 @@ pub(crate) fn window_transforms(
     count: usize,
     delta_min: f64,
     min_bin_snr: Option<f64>,
-    _planner: &mut RealFftPlanner<f64>,
 ) -> Vec<WindowTransform> {
     let dt = s.dt;
     let n = s.lhs.len();
@@ -976,7 +1002,7 @@ mod tests {
             let bins: Vec<usize> = (0..om.len())
                 .filter(|&k| om[k] <= 2.0 * std::f64::consts::PI * fc)
                 .collect();
-            window_bins(&gd, dt * step as f64, &om, &bins, weighting)
+            windowed_bins(&gd, dt * step as f64, &om, &bins, weighting)
         };
         for weighting in [Weighting::Plain, Weighting::First, Weighting::Second] {
             let full = at(1, weighting);
@@ -1090,6 +1116,33 @@ mod tests {
             for j in 0..2 {
                 assert!((a2[(i, j)] - wt * a1[(i, j)]).abs() <= 1e-12 * (1.0 + a2[(i, j)].abs()));
             }
+        }
+    }
+
+    /// The Hermite powers are `He_k(y; s²)`: `He_2 = y² − s²`, `He_3 = y³ − 3s²y`, and the column
+    /// recurrence gives the same bits as the recurrence run one sample at a time.
+    #[test]
+    fn hermite_powers_follow_the_recurrence() {
+        let y: Vec<f64> = (0..37).map(|i| (i as f64 * 0.37).sin() * 1.7).collect();
+        let s2 = 0.013;
+        for k in 0..9u32 {
+            let got = hermite_power(&y, k, s2);
+            for (&v, &g) in y.iter().zip(&got) {
+                let (mut a, mut b) = (1.0, v);
+                for j in 1..k {
+                    let c = v * b - j as f64 * s2 * a;
+                    a = b;
+                    b = c;
+                }
+                let want = if k == 0 { 1.0 } else { b };
+                assert_eq!(g.to_bits(), want.to_bits(), "k = {k}");
+            }
+        }
+        let h2 = hermite_power(&y, 2, s2);
+        let h3 = hermite_power(&y, 3, s2);
+        for ((&v, a), b) in y.iter().zip(h2).zip(h3) {
+            assert!((a - (v * v - s2)).abs() < 1e-14);
+            assert!((b - (v * v * v - 3.0 * s2 * v)).abs() < 1e-13);
         }
     }
 }

@@ -209,9 +209,8 @@ fn compare_one(model: &Model, record: &Record, opts: &DiagnoseOptions) -> Result
         let sc: Vec<f64> = tr.x[i].iter().map(|v| v - smean).collect();
         let (f, am) = amplitude_spectrum(&mc, dt)?;
         let (_, asim) = amplitude_spectrum(&sc, dt)?;
-        let mut upper: Vec<f64> = am[am.len() / 2..].to_vec();
-        upper.sort_by(f64::total_cmp);
-        let floor = upper[upper.len() / 2];
+        // The median amplitude of the upper half (the noise floor of `crate::prepare`).
+        let floor = tfs_signal::NoiseFloor::fit_with(&am, 1, 1.0).at(1);
         let mut harmonics = Vec::new();
         let mut missing_orders = Vec::new();
         if let Some((lo, hi)) = drive {

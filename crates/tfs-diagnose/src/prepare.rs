@@ -3,13 +3,14 @@
 //!
 //! Derivatives come from the spectral differentiator of `tfs-signal` with a cut-off chosen from the
 //! displacement spectrum: the noise floor is the median amplitude of the upper half of the band
-//! (oversampled vibration data has no signal there), and the cut-off is 10 % above the highest
+//! (oversampled vibration data has no signal there; `tfs_signal`'s [`NoiseFloor`] with one
+//! sub-band), and the cut-off is 10 % above the highest
 //! frequency whose amplitude is at least [`DiagnoseOptions::floor_factor`] times that floor.
 //! Rows within three cut-off periods of either end are not used (end effects of the transform).
 
 use tfs_data::{Columns, Record};
 use tfs_library::Model;
-use tfs_signal::{amplitude_spectrum, spectral_derivative};
+use tfs_signal::{NoiseFloor, amplitude_spectrum, spectral_derivative};
 
 use crate::{DiagnoseError, Result};
 
@@ -140,10 +141,9 @@ pub fn choose_cutoff(x: &[f64], dt: f64, floor_factor: f64) -> Result<f64> {
         .map(|(k, v)| v - x[0] - slope * k as f64)
         .collect();
     let (f, amp) = amplitude_spectrum(&detrended, dt)?;
-    let half = amp.len() / 2;
-    let mut upper: Vec<f64> = amp[half..].to_vec();
-    upper.sort_by(f64::total_cmp);
-    let floor = upper[upper.len() / 2].max(f64::MIN_POSITIVE);
+    let floor = NoiseFloor::fit_with(&amp, 1, 1.0)
+        .at(1)
+        .max(f64::MIN_POSITIVE);
     let last = (1..amp.len())
         .rev()
         .find(|&k| amp[k] >= floor_factor * floor)

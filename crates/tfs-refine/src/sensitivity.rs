@@ -9,10 +9,10 @@
 //! on the paper's cell at 20 dB the refinement turned a model within 1 % of the truth into one
 //! with twice its stiffness, because it lowered the free-run error by hedging between wells.
 
-use tfs_criteria::spectral::{band_limit, band_noise};
 use tfs_data::Record;
 use tfs_dynamics::{SimulateOptions, simulate_model_on_record};
 use tfs_library::Model;
+use tfs_signal::band::{noise_draw, reconstruct};
 
 use crate::Result;
 
@@ -33,7 +33,7 @@ pub const NOISE_SHARE: f64 = 0.5;
 /// inputs plus a fresh draw of their estimated noise (root mean square over two draws).
 ///
 /// Each input's noise is estimated from its own spectrum: the power-law floor that
-/// `tfs_criteria::spectral` fits to the upper half of the spectrum (white or coloured), drawn over
+/// `tfs_signal::band` fits to the upper half of the spectrum (white or coloured), drawn over
 /// the whole band. An input whose spectrum reaches into that half (a broadband excitation) has no
 /// noise-only floor and is left unperturbed; `Ok(None)` when no input could be perturbed or the
 /// model has no inputs. Input columns the record lacks are a simulation error.
@@ -55,14 +55,14 @@ pub fn input_noise_spread(
             let Some(col) = record.column(name) else {
                 continue;
             };
-            let mut band = band_limit(col, dt, None).band;
+            let mut band = reconstruct(col, dt, None).band;
             if !band.floor_is_noise_only() {
                 continue;
             }
             // The whole band: a draw of the noise the raw channel carries, not its in-band part.
             band.cutoff_hz = f64::INFINITY;
             let seed = 0x5eed_0000 + 97 * ci as u64 + draw;
-            let Some(noise) = band_noise(&band, col.len(), seed) else {
+            let Some(noise) = noise_draw(&band, col.len(), seed) else {
                 continue;
             };
             let v: Vec<f64> = col.iter().zip(&noise.x).map(|(a, b)| a + b).collect();
@@ -95,7 +95,7 @@ pub fn input_noise_spread(
 }
 
 /// Per DOF: the variance of the displacement's measurement noise, from the power-law floor
-/// that `tfs_criteria::spectral` fits to the upper half of its spectrum (0 where the spectrum
+/// that `tfs_signal::band` fits to the upper half of its spectrum (0 where the spectrum
 /// reaches into that half, so no noise-only floor exists).
 pub fn displacement_noise_var(model: &Model, record: &Record) -> Vec<f64> {
     model
@@ -103,7 +103,7 @@ pub fn displacement_noise_var(model: &Model, record: &Record) -> Vec<f64> {
         .iter()
         .map(|d| {
             record.column(d).map_or(0.0, |x| {
-                let band = band_limit(x, record.dt(), None).band;
+                let band = reconstruct(x, record.dt(), None).band;
                 if band.floor_is_noise_only() {
                     band.total_noise_var()
                 } else {

@@ -1,15 +1,137 @@
-//! Thin helpers over `realfft`: cached plans, forward/inverse real transforms, frequency axes,
-//! amplitude spectra and band-limited reconstruction.
+//! The one FFT planner of tfs and thin helpers over `realfft`: cached plans shared by every
+//! thread, per-thread work buffers, forward/inverse real transforms, fast transform lengths,
+//! frequency axes, amplitude spectra and band masks.
 //!
 //! Conventions: [`SpectrumPlanner::rfft`] is unnormalised (`X_k = Σ x_j e^{−2πijk/n}`, `n/2+1`
 //! bins); [`SpectrumPlanner::irfft`] divides by `n`, so `irfft(rfft(x)) = x`.
 
-use crate::{Complex, Result, SignalError, check_dt, check_signal, invalid};
-use realfft::RealFftPlanner;
+use std::sync::{Arc, Mutex, OnceLock};
 
-/// Caches `realfft` plans by length; reuse one planner for many transforms of equal length.
+use crate::{Complex, Result, SignalError, check_dt, check_signal, invalid};
+use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
+
+/// Process-wide cache of FFT plans: planning a length costs several transforms of it, and the
+/// same lengths are transformed many times (records, windows, noise draws), from several
+/// threads.
+fn planner() -> &'static Mutex<RealFftPlanner<f64>> {
+    static PLANNER: OnceLock<Mutex<RealFftPlanner<f64>>> = OnceLock::new();
+    PLANNER.get_or_init(|| Mutex::new(RealFftPlanner::new()))
+}
+
+/// The (cached) forward real FFT of length `n`.
+pub fn plan_forward(n: usize) -> Arc<dyn RealToComplex<f64>> {
+    // A poisoned lock only means another thread panicked while planning; the cache is still valid.
+    let mut pl = planner().lock().unwrap_or_else(|e| e.into_inner());
+    pl.plan_fft_forward(n)
+}
+
+/// The (cached) inverse real FFT of length `n`.
+pub fn plan_inverse(n: usize) -> Arc<dyn ComplexToReal<f64>> {
+    let mut pl = planner().lock().unwrap_or_else(|e| e.into_inner());
+    pl.plan_fft_inverse(n)
+}
+
+/// Per-thread work buffers of the transforms (real signal, half spectrum, FFT scratch). A fresh
+/// buffer of a record's length is fresh memory from the operating system, and touching it costs
+/// more than the FFT itself (measured: 0.9 ms of page faults against 0.37 ms of transform at
+/// 100,000 points), so the buffers are kept between calls.
+#[derive(Default)]
+pub(crate) struct Work {
+    pub real: Vec<f64>,
+    pub spec: Vec<Complex<f64>>,
+    pub scratch: Vec<Complex<f64>>,
+}
+
+thread_local! {
+    static WORK: std::cell::RefCell<Work> = std::cell::RefCell::new(Work::default());
+}
+
+/// Runs `f` with this thread's work buffers.
+pub(crate) fn with_work<R>(f: impl FnOnce(&mut Work) -> R) -> R {
+    WORK.with_borrow_mut(f)
+}
+
+/// Inverse transform of `spec` (overwritten) into `out` (length `m`) with the thread's scratch.
+pub(crate) fn inverse_with(
+    inv: &Arc<dyn ComplexToReal<f64>>,
+    spec: &mut [Complex<f64>],
+    out: &mut [f64],
+    scratch: &mut Vec<Complex<f64>>,
+) {
+    scratch.resize(inv.get_scratch_len(), Complex::new(0.0, 0.0));
+    inv.process_with_scratch(spec, out, scratch)
+        .expect("buffer sizes come from the plan");
+}
+
+/// The FFT (bins 0..=len/2) of `f ⊙ w` over one window of `len = f.len()` samples (`w = None`:
+/// no window), scaled by `dt` (a Riemann sum of the integral), handed to `read` in the thread's
+/// work buffer (a fit makes thousands of these, and fresh buffers for each cost more in
+/// allocation, zeroing and page faults than the transform).
+pub(crate) fn with_fft<R>(
+    f: &[f64],
+    w: Option<&[f64]>,
+    dt: f64,
+    read: impl FnOnce(&[Complex<f64>]) -> R,
+) -> R {
+    let fft = plan_forward(f.len());
+    with_work(|work| {
+        let Work {
+            real: input,
+            spec,
+            scratch,
+        } = work;
+        input.clear();
+        match w {
+            Some(w) => input.extend(f.iter().zip(w).map(|(a, b)| a * b * dt)),
+            None => input.extend(f.iter().map(|a| a * dt)),
+        }
+        spec.resize(f.len() / 2 + 1, Complex::new(0.0, 0.0));
+        scratch.resize(fft.get_scratch_len(), Complex::new(0.0, 0.0));
+        fft.process_with_scratch(input, spec, scratch)
+            .expect("buffer sizes come from the plan");
+        read(spec)
+    })
+}
+
+/// The smallest even `m ≥ n` whose only prime factors are 2, 3, 5 and 7 (fast FFT lengths).
+pub fn fast_even_len(n: usize) -> usize {
+    let mut m = n.max(2);
+    loop {
+        if m % 2 == 0 {
+            let mut r = m;
+            for p in [2, 3, 5, 7] {
+                while r % p == 0 {
+                    r /= p;
+                }
+            }
+            if r == 1 {
+                return m;
+            }
+        }
+        m += 1;
+    }
+}
+
+/// The largest `m ≤ n` whose only prime factors are 2, 3 and 5 (fast FFT lengths).
+pub fn smooth_len(n: usize) -> usize {
+    let mut m = n.max(1);
+    loop {
+        let mut r = m;
+        for p in [2, 3, 5] {
+            while r % p == 0 {
+                r /= p;
+            }
+        }
+        if r == 1 {
+            return m;
+        }
+        m -= 1;
+    }
+}
+
+/// Forward and inverse real transforms through the shared plan cache (see [`plan_forward`]).
 pub struct SpectrumPlanner {
-    planner: RealFftPlanner<f64>,
+    _cache: (),
 }
 
 impl Default for SpectrumPlanner {
@@ -25,17 +147,15 @@ impl std::fmt::Debug for SpectrumPlanner {
 }
 
 impl SpectrumPlanner {
-    /// A planner with an empty plan cache.
+    /// A handle on the shared plan cache.
     pub fn new() -> Self {
-        Self {
-            planner: RealFftPlanner::new(),
-        }
+        Self { _cache: () }
     }
 
     /// Forward real FFT of `x` (unnormalised), returning `x.len()/2 + 1` bins.
     pub fn rfft(&mut self, x: &[f64]) -> Result<Vec<Complex<f64>>> {
         check_signal("rfft input", x, 1)?;
-        let plan = self.planner.plan_fft_forward(x.len());
+        let plan = plan_forward(x.len());
         let mut input = x.to_vec();
         let mut out = plan.make_output_vec();
         // Lengths match by construction, so the transform cannot fail.
@@ -72,7 +192,7 @@ impl SpectrumPlanner {
                 value: if v.re.is_finite() { v.im } else { v.re },
             });
         }
-        let plan = self.planner.plan_fft_inverse(n);
+        let plan = plan_inverse(n);
         let mut input = spectrum.to_vec();
         input[0].im = 0.0;
         if n % 2 == 0 {
@@ -126,12 +246,12 @@ impl SpectrumPlanner {
     }
 }
 
-/// Forward real FFT with a one-off planner (see [`SpectrumPlanner::rfft`]).
+/// Forward real FFT through the shared plan cache (see [`SpectrumPlanner::rfft`]).
 pub fn rfft(x: &[f64]) -> Result<Vec<Complex<f64>>> {
     SpectrumPlanner::new().rfft(x)
 }
 
-/// Inverse real FFT with a one-off planner (see [`SpectrumPlanner::irfft`]).
+/// Inverse real FFT through the shared plan cache (see [`SpectrumPlanner::irfft`]).
 pub fn irfft(spectrum: &[Complex<f64>], n: usize) -> Result<Vec<f64>> {
     SpectrumPlanner::new().irfft(spectrum, n)
 }
@@ -167,12 +287,12 @@ pub fn amplitude_spectrum(x: &[f64], dt: f64) -> Result<(Vec<f64>, Vec<f64>)> {
     Ok((freqs, amps))
 }
 
-/// Band-limited reconstruction with a one-off planner (see [`SpectrumPlanner::band_limit`]).
+/// Band-limited reconstruction by a mask of frequency bands (see [`SpectrumPlanner::band_limit`]).
 pub fn band_limit(x: &[f64], dt: f64, bands: &[(f64, f64)]) -> Result<Vec<f64>> {
     SpectrumPlanner::new().band_limit(x, dt, bands)
 }
 
-/// Mask-based band limiting with a one-off planner (see [`SpectrumPlanner::band_limit_mask`]).
+/// Mask-based band limiting (see [`SpectrumPlanner::band_limit_mask`]).
 pub fn band_limit_mask(x: &[f64], mask: &[bool]) -> Result<Vec<f64>> {
     SpectrumPlanner::new().band_limit_mask(x, mask)
 }
@@ -225,5 +345,26 @@ mod tests {
         assert!(rfft(&[1.0, f64::NAN]).is_err());
         assert!(frequencies(10, 0.0).is_err());
         assert!(irfft(&[Complex::new(1.0, 0.0)], 5).is_err());
+    }
+
+    #[test]
+    fn fast_lengths_are_the_smallest_even_7_smooth_ones() {
+        let smooth = |mut m: usize| {
+            for p in [2, 3, 5, 7] {
+                while m % p == 0 {
+                    m /= p;
+                }
+            }
+            m == 1
+        };
+        for n in [1usize, 2, 7, 12_014, 40_002, 100_010] {
+            let m = fast_even_len(n);
+            assert!(m >= n && m % 2 == 0 && smooth(m), "{n} -> {m}");
+            assert!(
+                (n.max(2)..m).all(|k| k % 2 == 1 || !smooth(k)),
+                "{n} -> {m}"
+            );
+        }
+        assert_eq!(fast_even_len(100_010), 100_352);
     }
 }

@@ -1,5 +1,6 @@
-//! Signal processing for tfs: windows with analytic time derivatives, real-FFT helpers,
-//! numerical differentiation, noise at a given SNR and excitation signals.
+//! Signal processing for tfs: the one FFT planner, windows with analytic time derivatives and
+//! windowed transforms, band-limited reconstruction with its noise floor, numerical
+//! differentiation, noise at a given SNR and excitation signals.
 //!
 //! Architecture invariant: this crate does no I/O and knows nothing about models; every function
 //! works on plain `&[f64]` sample slices with a uniform time step `dt` (seconds).
@@ -7,8 +8,15 @@
 //! * [`window`] — [`Window`] shapes sampled with analytic first and second time derivatives, as
 //!   needed by the derivative-transfer (weak) form
 //!   `∫ x'' w e^{−iωt} dt = ∫ x (w'' − 2iω w' − ω² w) e^{−iωt} dt`.
-//! * [`fft`] — thin helpers over `realfft` ([`SpectrumPlanner`], [`rfft`], [`irfft`],
-//!   [`frequencies`], [`band_limit`]).
+//! * [`fft`] — the shared plan cache and thin helpers over `realfft` ([`SpectrumPlanner`],
+//!   [`rfft`], [`irfft`], [`frequencies`], [`band_limit`], fast lengths).
+//! * [`windowed`] — overlapping windows and the transform of a signal times the periodic `sin⁴`
+//!   window at chosen bins, plain or in the weak form of its derivatives ([`windowed_bins`]).
+//! * [`floor`] — the noise floor of a spectrum ([`NoiseFloor`]) and the cut-off that balances
+//!   noise let in against signal lost ([`choose_cutoff`]).
+//! * [`band`] — band-limited reconstruction with spectral derivatives, the band chosen from the
+//!   data ([`band::reconstruct`], [`Band`]), and draws of the noise it carries
+//!   ([`band::noise_draw`]).
 //! * [`diff`] — central differences, Savitzky–Golay and spectral derivatives behind one
 //!   [`Differentiator`] enum.
 //! * [`noise`] — white and pink Gaussian noise scaled exactly to a requested SNR.
@@ -42,24 +50,31 @@
 
 #![warn(missing_docs)]
 
+pub mod band;
 pub mod diff;
 pub mod excitation;
 pub mod fft;
+pub mod floor;
 pub mod noise;
 pub mod window;
+pub mod windowed;
 
+pub use band::{Band, NoiseSpectrum, Smoothed};
 pub use diff::{
     Differentiator, SpectralEnds, central_difference, central_difference4, savitzky_golay,
     savitzky_golay_weights, spectral_derivative, spectral_derivative_with,
 };
 pub use excitation::{Excitation, Multisine, NoiseBurst, Sine, Sweep, SweepKind};
 pub use fft::{
-    SpectrumPlanner, amplitude_spectrum, band_limit, band_limit_mask, frequencies, irfft, rfft,
+    SpectrumPlanner, amplitude_spectrum, band_limit, band_limit_mask, fast_even_len, frequencies,
+    irfft, rfft, smooth_len,
 };
+pub use floor::{NoiseFloor, choose_cutoff};
 pub use noise::{NoiseKind, SnrReference};
 /// Complex numbers as used by the FFT helpers (re-exported from `realfft`'s `num_complex`).
 pub use realfft::num_complex::Complex;
 pub use window::{Window, WindowSamples};
+pub use windowed::{Weighting, bin_omegas, window_layout, windowed_bins};
 
 /// Errors raised by signal-processing routines; every message names the offending parameter.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

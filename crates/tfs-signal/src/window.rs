@@ -85,11 +85,10 @@ impl Window {
             Window::Hann => hann(s),
             Window::HannSquared => {
                 let (sn, cs) = (PI * s).sin_cos();
-                let (s2, c2) = (sn * sn, cs * cs);
                 (
-                    s2 * s2,
-                    4.0 * PI * s2 * sn * cs,
-                    4.0 * PI * PI * (3.0 * s2 * c2 - s2 * s2),
+                    sn.powi(4),
+                    4.0 * PI * sn.powi(3) * cs,
+                    4.0 * PI * PI * (3.0 * sn * sn * cs * cs - sn.powi(4)),
                 )
             }
             Window::Tukey { alpha } => {
@@ -153,6 +152,33 @@ impl Window {
             w.push(a);
             dw.push(b / span);
             ddw.push(c / (span * span));
+        }
+        Ok(WindowSamples { w, dw, ddw })
+    }
+}
+
+impl Window {
+    /// Samples the window as a periodic one over `len` points spaced `dt` apart: sample `k` sits
+    /// at `s = k/len`, so the window returns to its start value one step past the last sample
+    /// (what a `len`-point transform sees), with time derivatives over the span `len·dt`. For
+    /// [`Window::HannSquared`] the value and first two derivatives vanish at `s = 0` and `s = 1`.
+    pub fn sample_periodic(&self, len: usize, dt: f64) -> Result<WindowSamples> {
+        self.validate()?;
+        check_dt(dt)?;
+        if len < 2 {
+            return Err(SignalError::TooShort {
+                what: "window length",
+                needed: 2,
+                got: len,
+            });
+        }
+        let l = len as f64 * dt;
+        let (mut w, mut dw, mut ddw) = (vec![0.0; len], vec![0.0; len], vec![0.0; len]);
+        for i in 0..len {
+            let (a, b, c) = self.eval_unit(i as f64 / len as f64);
+            w[i] = a;
+            dw[i] = b / l;
+            ddw[i] = c / (l * l);
         }
         Ok(WindowSamples { w, dw, ddw })
     }
