@@ -61,6 +61,17 @@ pub fn f4(v: f64) -> String {
     format!("{v:.dec$}")
 }
 
+/// `v` with `dec` decimals, without the sign of a value that rounds to zero (`0.000`, never
+/// `-0.000`).
+pub fn fixed(v: f64, dec: usize) -> String {
+    let s = format!("{v:.dec$}");
+    if s.starts_with('-') && s[1..].chars().all(|c| c == '0' || c == '.') {
+        s[1..].to_string()
+    } else {
+        s
+    }
+}
+
 /// `100·v` with two decimals and a percent sign.
 pub fn pct(v: f64) -> String {
     if v.is_finite() {
@@ -197,6 +208,19 @@ pub fn curve(lo: f64, hi: f64, n: usize, f: impl Fn(f64) -> f64) -> Vec<(f64, f6
             (x, f(x))
         })
         .collect()
+}
+
+/// Signed relative difference of `v` from `reference` in percent, e.g. `+1.23%` (`—` when
+/// either is not finite or the reference is zero).
+pub fn dev(v: f64, reference: f64) -> String {
+    let d = 100.0 * (v - reference) / reference.abs();
+    if d.is_finite() && d.abs() < 0.005 {
+        "0.00%".into()
+    } else if d.is_finite() {
+        format!("{d:+.2}%")
+    } else {
+        "—".into()
+    }
 }
 
 /// Relative deviation |ours − paper| / |paper|.

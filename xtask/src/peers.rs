@@ -870,6 +870,14 @@ fn cell(v: &Value, key: &str) -> String {
     }
 }
 
+/// Which build the fit times come from: `release` (`cargo run --release -p xtask -- peers`), or
+/// the shared `dev` build of `cargo xtask` (optimised, but with our crates' debug assertions).
+const BUILD: &str = if cfg!(debug_assertions) {
+    "dev (`cargo xtask`)"
+} else {
+    "release"
+};
+
 fn write_outputs(out: &Path, rows: &[Value], quick: bool, draw: u64, total: f64) -> Result<()> {
     let mut md = String::from("# tfs vs PySINDy: side by side\n\n");
     if draw > 0 {
@@ -878,13 +886,14 @@ fn write_outputs(out: &Path, rows: &[Value], quick: bool, draw: u64, total: f64)
         );
     }
     md += &format!(
-        "S-DOF Kresling cell, surrogate truth (γ0 = 30°, m = 1, c = 2). Four training sweeps {TRAIN:?} and test sweep {TEST:?} (f0 Hz, f1 Hz, T s, amplitude), {RAMP} s ramps, 200 Hz{}; noise on x and xb_acc at the SNR of each signal. Force error: relative RMS over 0 ≤ h ≤ 1.8. BOA error: share of a {} grid of (x0, v0) ∈ [0, 2] × [−3, 3] labelled differently from the truth. Test R-MSE: model driven by the measured test input, against the noise-free test displacement; the row `{TRUTH_ROW}` is the true model scored the same way, so its R-MSE is what the noise on the measured input alone costs a perfect model. Every simulation starts from a state fitted to the test record's first two periods. PySINDy settings (weak: test-function half-width and threshold; classical: threshold) are chosen by the lowest test R-MSE — an oracle that sees the test record; tfs and SINDy (tfs) choose theirs from the training data only. Fit time: tfs and SINDy (tfs), the median of five identical calls in this process; PySINDy, the selected candidate's velocity smoothing, library rows and STLSQ fit, each the median of five identical calls (no import or start-up). Total run time {total:.0} s.\n\n",
+        "S-DOF Kresling cell, surrogate truth (γ0 = 30°, m = 1, c = 2). Four training sweeps {TRAIN:?} and test sweep {TEST:?} (f0 Hz, f1 Hz, T s, amplitude), {RAMP} s ramps, 200 Hz{}; noise on x and xb_acc at the SNR of each signal. Force error: relative RMS over 0 ≤ h ≤ 1.8. BOA error: share of a {} grid of (x0, v0) ∈ [0, 2] × [−3, 3] labelled differently from the truth. Test R-MSE: model driven by the measured test input, against the noise-free test displacement; the row `{TRUTH_ROW}` is the true model scored the same way, so its R-MSE is what the noise on the measured input alone costs a perfect model. Every simulation starts from a state fitted to the test record's first two periods. PySINDy settings (weak: test-function half-width and threshold; classical: threshold) are chosen by the lowest test R-MSE — an oracle that sees the test record; tfs and SINDy (tfs) choose theirs from the training data only. Fit time: tfs and SINDy (tfs), the median of five identical calls in this process; PySINDy, the selected candidate's velocity smoothing, library rows and STLSQ fit, each the median of five identical calls (no import or start-up), from a {} build. Total run time {total:.0} s.\n\n",
         if quick {
             ", records shortened to 30% (--quick)"
         } else {
             ""
         },
-        if quick { "61×61" } else { "200×200" }
+        if quick { "61×61" } else { "200×200" },
+        BUILD
     );
     md += "| case | method | force error | BOA error | test R-MSE | fit time (ms) | PySINDy weak's fit time / this one's |\n|---|---|---|---|---|---|---|\n";
     let fit_secs = |r: &Value| r.get("fit_seconds").and_then(Value::as_f64);
@@ -925,7 +934,7 @@ fn write_outputs(out: &Path, rows: &[Value], quick: bool, draw: u64, total: f64)
     tfs::data::write_atomic(
         out.join("peers.json"),
         serde_json::to_string_pretty(
-            &json!({"format": "tfs-peers/1", "quick": quick, "draw": draw, "total_seconds": total, "rows": rows}),
+            &json!({"format": "tfs-peers/1", "quick": quick, "draw": draw, "total_seconds": total, "build": BUILD, "rows": rows}),
         )?,
     )?;
     // Figure: errors against SNR for the white-noise cases.
@@ -944,8 +953,8 @@ fn write_outputs(out: &Path, rows: &[Value], quick: bool, draw: u64, total: f64)
         // Log scale: the errors span 0.01 % to 10⁵ %. Exact zeros are drawn at the floor.
         let mut ch = LineChart::new(
             format!("{what} vs SNR (white noise)"),
-            "SNR [dB]",
-            format!("{what} [%, log; < {LOG_FLOOR_PCT}% drawn at {LOG_FLOOR_PCT}%]"),
+            "SNR (dB)",
+            format!("{what} (%, log; < {LOG_FLOOR_PCT}% drawn at {LOG_FLOOR_PCT}%)"),
         )
         .log_y(true);
         for m in methods {

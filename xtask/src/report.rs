@@ -77,7 +77,8 @@ impl Table {
         s
     }
 
-    fn html(&self) -> String {
+    /// The table as HTML; `row_class(i)` gives row `i` a CSS class (e.g. `fail`).
+    fn html_with<'a>(&self, row_class: impl Fn(usize) -> Option<&'a str>) -> String {
         let mut s = format!(
             "<table><caption>{} (<a href=\"tables/{}.csv\">CSV</a>)</caption>\n<tr>",
             esc_html(&self.caption),
@@ -87,8 +88,13 @@ impl Table {
             let _ = write!(s, "<th>{}</th>", esc_html(h));
         }
         s.push_str("</tr>\n");
-        for r in &self.rows {
-            s.push_str("<tr>");
+        for (i, r) in self.rows.iter().enumerate() {
+            match row_class(i) {
+                Some(c) => {
+                    let _ = write!(s, "<tr class=\"{c}\">");
+                }
+                None => s.push_str("<tr>"),
+            }
             for c in r {
                 let _ = write!(s, "<td>{}</td>", esc_html(c));
             }
@@ -113,19 +119,30 @@ enum Block {
     Figure { stem: String, caption: String },
 }
 
-/// One row of the printed summary: metric | paper | ours | within tolerance?
+/// One row of the printed summary: what is compared, the truth it estimates, our number and the
+/// paper's beside it, and whether ours passes its check.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct SummaryRow {
     /// What is compared.
     pub metric: String,
-    /// The paper's value (as printed in the paper).
-    pub paper: String,
-    /// Our value.
+    /// The value our number estimates (the simulated truth), or what the check compares against.
+    pub truth: String,
+    /// Our value, with its deviation from the truth where there is one.
     pub ours: String,
-    /// Within the tolerance (None: no tolerance defined, shown for information).
+    /// The paper's value, with its deviation from the truth and from ours where there is one.
+    pub paper: String,
+    /// The check passed (`Some(true)`), failed (`Some(false)`) or there is none (`None`:
+    /// informational row).
     pub within_tolerance: Option<bool>,
-    /// The tolerance rule.
+    /// The check's rule: what ours is judged against.
     pub rule: String,
+}
+
+impl SummaryRow {
+    /// A row whose check failed: ours is outside the rule.
+    pub fn failed(&self) -> bool {
+        self.within_tolerance == Some(false)
+    }
 }
 
 /// A study being filled: its section blocks, its `results.json` subtree and summary rows.
@@ -210,12 +227,22 @@ impl Study {
         &self.summary
     }
 
-    /// Adds a summary row.
-    pub fn compare(&mut self, metric: &str, paper: &str, ours: &str, ok: Option<bool>, rule: &str) {
+    /// Adds a summary row: `metric`, the `truth` it estimates, `ours` and the `paper`'s value
+    /// (each with its deviations), the check's outcome (`None`: informational) and its `rule`.
+    pub fn compare(
+        &mut self,
+        metric: &str,
+        truth: &str,
+        ours: &str,
+        paper: &str,
+        ok: Option<bool>,
+        rule: &str,
+    ) {
         self.summary.push(SummaryRow {
             metric: metric.to_string(),
-            paper: paper.to_string(),
+            truth: truth.to_string(),
             ours: ours.to_string(),
+            paper: paper.to_string(),
             within_tolerance: ok,
             rule: rule.to_string(),
         });
@@ -297,17 +324,30 @@ impl Report {
         Ok(())
     }
 
+    /// The summary rows whose check failed.
+    pub fn failed_checks(&self) -> Vec<&SummaryRow> {
+        self.summary().into_iter().filter(|r| r.failed()).collect()
+    }
+
     fn summary_table(&self) -> Table {
         let mut t = Table::new(
             "summary",
-            "Summary: the paper's numbers beside ours",
-            &["metric", "paper", "ours", "within tolerance?", "rule"],
+            "Summary: each number judged against the truth it estimates, the paper's beside it",
+            &[
+                "check",
+                "truth",
+                "ours (vs truth)",
+                "paper (vs truth)",
+                "verdict",
+                "rule",
+            ],
         );
         for r in self.summary() {
             t.row(vec![
                 r.metric.clone(),
-                r.paper.clone(),
+                r.truth.clone(),
                 r.ours.clone(),
+                r.paper.clone(),
                 verdict(r.within_tolerance).to_string(),
                 r.rule.clone(),
             ]);
@@ -323,6 +363,43 @@ impl Report {
         Ok(())
     }
 
+    /// The verdict in a few sentences (Markdown): how many checks pass, and each failure with
+    /// its numbers and rule.
+    pub fn verdict_text(&self) -> String {
+        let rows = self.summary();
+        let checks = rows.iter().filter(|r| r.within_tolerance.is_some()).count();
+        let failed = self.failed_checks();
+        let studies = self.failures();
+        let mut s = String::new();
+        if failed.is_empty() && studies.is_empty() {
+            let _ = writeln!(
+                s,
+                "**All {checks} checks pass** (informational rows without a check: {}).",
+                rows.len() - checks
+            );
+            return s;
+        }
+        if !failed.is_empty() {
+            let _ = writeln!(
+                s,
+                "**{} of {checks} checks FAIL:**\n",
+                failed.len()
+            );
+            for r in &failed {
+                let _ = writeln!(
+                    s,
+                    "- {}: ours {}; truth {}; rule: {}",
+                    r.metric, r.ours, r.truth, r.rule
+                );
+            }
+            s.push('\n');
+        }
+        for (k, e) in &studies {
+            let _ = writeln!(s, "- **study {k} FAILED:** {e}");
+        }
+        s
+    }
+
     fn markdown(&self, total: f64, preamble: &str) -> String {
         let mut s = String::from("# T-F-S SINDy paper reproduction\n\n");
         s.push_str(preamble);
@@ -336,7 +413,9 @@ impl Report {
             },
             total
         );
-        s.push_str("## Contents\n\n");
+        s.push_str("## Verdict\n\n");
+        s.push_str(&self.verdict_text());
+        s.push_str("\n## Contents\n\n");
         for (st, err, secs) in &self.studies {
             let _ = writeln!(
                 s,
@@ -348,7 +427,13 @@ impl Report {
             );
         }
         s.push_str("\n## Summary\n\n");
-        s.push_str(&self.summary_table().markdown());
+        let mut table = self.summary_table();
+        for row in &mut table.rows {
+            if row[4] == verdict(Some(false)) {
+                row[4] = format!("**{}**", row[4]);
+            }
+        }
+        s.push_str(&table.markdown());
         for (st, err, _) in &self.studies {
             let _ = writeln!(s, "\n<a id=\"{}\"></a>\n## {}\n", st.key, st.title);
             if let Some(e) = err {
@@ -378,18 +463,31 @@ impl Report {
 
     fn html(&self, total: f64, preamble: &str) -> String {
         let mut s = String::from(
-            "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>T-F-S SINDy paper reproduction</title>\n<style>body{font-family:sans-serif;max-width:1000px;margin:auto;padding:1em}table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;text-align:left}caption{font-weight:bold;text-align:left}img{max-width:100%;border:1px solid #ddd}.fail{color:#b00}figure{margin:1em 0}</style></head><body>\n<h1>T-F-S SINDy paper reproduction</h1>\n",
+            "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>T-F-S SINDy paper reproduction</title>\n<style>body{font-family:sans-serif;max-width:1100px;margin:auto;padding:1em}table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;text-align:left}caption{font-weight:bold;text-align:left}img{max-width:100%;border:1px solid #ddd}.fail{color:#b00}tr.fail td{background:#fde2e2;color:#800}tr.pass td:nth-child(5){color:#060}.verdict{border:2px solid #888;padding:0.2em 1em;margin:1em 0}.verdict.bad{border-color:#b00;background:#fff4f4}.verdict.good{border-color:#393;background:#f4fff4}figure{margin:1em 0}code{background:#f4f4f4;padding:0 2px}</style></head><body>\n<h1>T-F-S SINDy paper reproduction</h1>\n",
         );
-        for para in preamble.split("\n\n") {
-            let _ = writeln!(s, "<p>{}</p>", esc_html(para));
-        }
+        s.push_str(&markdown_html(preamble));
         let _ = writeln!(
             s,
-            "<p>Mode: {}; total wall time {:.1} s.</p>\n<h2>Summary</h2>",
+            "<p>Mode: {}; total wall time {:.1} s.</p>",
             if self.quick { "quick" } else { "full" },
             total
         );
-        s.push_str(&self.summary_table().html());
+        let bad = !self.failed_checks().is_empty() || !self.failures().is_empty();
+        let _ = writeln!(
+            s,
+            "<div class=\"verdict {}\"><h2>Verdict</h2>\n{}</div>",
+            if bad { "bad" } else { "good" },
+            markdown_html(&self.verdict_text())
+        );
+        s.push_str("<h2>Summary</h2>\n");
+        let rows = self.summary();
+        s.push_str(&self.summary_table().html_with(|i| {
+            rows.get(i).map(|r| match r.within_tolerance {
+                Some(false) => "fail",
+                Some(true) => "pass",
+                None => "info",
+            })
+        }));
         s.push_str("<ul>\n");
         for (st, err, secs) in &self.studies {
             let _ = writeln!(
@@ -417,10 +515,8 @@ impl Report {
             }
             for b in &st.blocks {
                 match b {
-                    Block::Text(t) => {
-                        let _ = writeln!(s, "<p>{}</p>", esc_html(t).replace('\n', "<br>"));
-                    }
-                    Block::Table(t) => s.push_str(&t.html()),
+                    Block::Text(t) => s.push_str(&markdown_html(t)),
+                    Block::Table(t) => s.push_str(&t.html_with(|_| None)),
                     Block::Figure { stem, caption } => {
                         let _ = writeln!(
                             s,
@@ -436,11 +532,63 @@ impl Report {
     }
 }
 
-/// "yes" / "NO" / "n/a".
+/// Markdown (the report's paragraphs, lists, emphasis and code spans) as HTML. Raw HTML in the
+/// text is escaped, not passed through.
+fn markdown_html(text: &str) -> String {
+    use pulldown_cmark::{Event, Parser, html};
+    let events = Parser::new(text).map(|e| match e {
+        Event::Html(h) | Event::InlineHtml(h) => Event::Text(h),
+        other => other,
+    });
+    let mut out = String::new();
+    html::push_html(&mut out, events);
+    out
+}
+
+/// "pass" / "FAIL" / "info".
 pub fn verdict(ok: Option<bool>) -> &'static str {
     match ok {
-        Some(true) => "yes",
-        Some(false) => "NO",
-        None => "n/a",
+        Some(true) => "pass",
+        Some(false) => "FAIL",
+        None => "info",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn report_with(rows: &[(&str, Option<bool>)]) -> (tempfile::TempDir, Report) {
+        let dir = tempfile::tempdir().unwrap();
+        let mut st = Study::new("s1", "Study one", dir.path());
+        st.text("A **bold** claim with `code` and a list:\n\n- one\n- two <b>raw</b>");
+        for (m, ok) in rows {
+            st.compare(m, "1.000", "1.100 (+10.00%)", "1.050 (+5.00%)", *ok, "within 5%");
+        }
+        let mut r = Report::new(dir.path(), true);
+        r.push(st, None, 1.0);
+        (dir, r)
+    }
+
+    /// A failed check is named in the verdict of report.md and index.html, its row is marked,
+    /// and the Markdown of the text blocks is rendered in HTML (not shown literally).
+    #[test]
+    fn failed_checks_are_visible_everywhere() {
+        let (_d, r) = report_with(&[("coef a", Some(true)), ("coef b", Some(false)), ("info", None)]);
+        assert_eq!(r.failed_checks().len(), 1);
+        let md = r.markdown(1.0, "pre");
+        assert!(md.contains("**1 of 2 checks FAIL:**"), "{md}");
+        assert!(md.contains("- coef b: ours 1.100 (+10.00%); truth 1.000; rule: within 5%"));
+        assert!(md.contains("| **FAIL** |"));
+        let html = r.html(1.0, "pre");
+        assert!(html.contains("<tr class=\"fail\"><td>coef b</td>"), "{html}");
+        assert!(html.contains("verdict bad"));
+        assert!(html.contains("<strong>bold</strong>") && html.contains("<code>code</code>"));
+        assert!(html.contains("<li>one</li>"));
+        assert!(!html.contains("**bold**") && !html.contains("<b>raw</b>"));
+        let (_d, ok) = report_with(&[("coef a", Some(true))]);
+        assert!(ok.failed_checks().is_empty());
+        assert!(ok.markdown(1.0, "").contains("**All 1 checks pass**"));
+        assert!(ok.html(1.0, "").contains("verdict good"));
     }
 }

@@ -5,7 +5,7 @@ use plotters::coord::ranged1d::{SegmentValue, ValueFormatter};
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
-use crate::style::{FONT, color, pad_log_range, tick};
+use crate::style::{FONT, color, log_ticks, pad_log_range, tick, tick_on};
 use crate::{PlotError, Result};
 
 /// One bar per label. On a log axis, bars with non-positive or non-finite values are left out
@@ -69,8 +69,8 @@ impl BarChart {
         let vals = self.values.iter().copied().filter(|&v| self.usable(v));
         if self.log_y {
             let (lo, hi) = pad_log_range(vals).ok_or("no positive value")?;
-            let yr: LogCoord<f64> = (lo..hi).log_scale().into();
-            self.draw_with(root, yr, lo)
+            let yr = (lo..hi).log_scale().with_key_points(log_ticks(lo, hi));
+            self.draw_with(root, yr, lo, hi - lo)
         } else {
             let (lo, hi) = vals.fold((0.0_f64, 0.0_f64), |(a, b), v| (a.min(v), b.max(v)));
             let pad = 0.08 * (hi - lo).max(f64::MIN_POSITIVE);
@@ -78,7 +78,7 @@ impl BarChart {
             let hi = if hi > 0.0 { hi + pad } else { 0.0 };
             let (lo, hi) = if hi > lo { (lo, hi) } else { (-1.0, 1.0) };
             let yr: RangedCoordf64 = (lo..hi).into();
-            self.draw_with(root, yr, 0.0)
+            self.draw_with(root, yr, 0.0, hi - lo)
         }
     }
 
@@ -87,6 +87,7 @@ impl BarChart {
         root: &DrawingArea<DB, Shift>,
         yr: Y,
         base: f64,
+        span: f64,
     ) -> std::result::Result<(), String>
     where
         DB: DrawingBackend,
@@ -107,7 +108,7 @@ impl BarChart {
             }
             SegmentValue::Last => String::new(),
         };
-        let fy = |v: &f64| tick(*v);
+        let fy = |v: &f64| tick_on(*v, span);
         chart
             .configure_mesh()
             .disable_x_mesh()

@@ -3,7 +3,7 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::style::{FONT, color, tick};
+use crate::style::{FONT, color, tick_on};
 use crate::{PlotError, Result};
 
 /// A class map: each cell of an `nx × ny` grid over `x_range × y_range` gets a class label.
@@ -129,7 +129,8 @@ impl BasinMap {
             .y_label_area_size(80)
             .build_cartesian_2d(x.0..x.1, y.0..y.1)
             .map_err(e)?;
-        let fx = |v: &f64| tick(*v);
+        let fx = |v: &f64| tick_on(*v, x.1 - x.0);
+        let fy = |v: &f64| tick_on(*v, y.1 - y.0);
         chart
             .configure_mesh()
             .disable_mesh()
@@ -138,7 +139,7 @@ impl BasinMap {
             .label_style((FONT, 15))
             .axis_desc_style((FONT, 18))
             .x_label_formatter(&fx)
-            .y_label_formatter(&fx)
+            .y_label_formatter(&fy)
             .draw()
             .map_err(e)?;
         let (dx, dy) = ((x.1 - x.0) / self.nx as f64, (y.1 - y.0) / self.ny as f64);

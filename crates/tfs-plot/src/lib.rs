@@ -33,7 +33,7 @@ use plotters::prelude::*;
 pub use bar::BarChart;
 pub use heat::BasinMap;
 pub use line::{LineChart, Series, SeriesStyle};
-pub use style::{PALETTE, color};
+pub use style::{PALETTE, color, sequential};
 
 /// Errors raised while describing or saving a figure.
 #[derive(Debug, thiserror::Error)]

@@ -5,7 +5,10 @@ use plotters::coord::ranged1d::ValueFormatter;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
-use crate::style::{FONT, color, dash, pad_log_range, pad_range, quiet_corner, tick};
+use crate::style::{
+    FONT, color, corner_hits, dash, log_ticks, pad_log_range, pad_range, sequential,
+    tick_on,
+};
 use crate::{PlotError, Result};
 
 /// How a series is drawn.
@@ -32,6 +35,9 @@ pub struct Series {
     pub style: SeriesStyle,
     /// Palette index; `None` uses the series' position.
     pub color: Option<usize>,
+    /// Position on the sequential colour scale (0..1; overrides `color`): for series that stand
+    /// for ordered values, such as bins of a coordinate.
+    pub shade: Option<f64>,
 }
 
 impl Series {
@@ -42,6 +48,7 @@ impl Series {
             points,
             style: SeriesStyle::Line,
             color: None,
+            shade: None,
         }
     }
     /// A dashed line.
@@ -51,6 +58,7 @@ impl Series {
             points,
             style: SeriesStyle::Dashed,
             color: None,
+            shade: None,
         }
     }
     /// A point set.
@@ -60,6 +68,7 @@ impl Series {
             points,
             style: SeriesStyle::Points,
             color: None,
+            shade: None,
         }
     }
     /// Sets the palette index.
@@ -67,6 +76,48 @@ impl Series {
         self.color = Some(idx);
         self
     }
+    /// Colours the series by its position `t` (0..1) on the sequential scale.
+    pub fn shade(mut self, t: f64) -> Self {
+        self.shade = Some(t);
+        self
+    }
+    fn rgb(&self, i: usize) -> RGBColor {
+        match self.shade {
+            Some(t) => sequential(t),
+            None => color(self.color.unwrap_or(i)),
+        }
+    }
+}
+
+/// How a legend entry's sample is drawn.
+#[derive(Debug, Clone, Copy)]
+enum Sample {
+    Line,
+    Dashed(u32, u32),
+    Points,
+}
+
+/// One legend entry.
+#[derive(Debug, Clone)]
+struct Entry {
+    name: String,
+    color: RGBColor,
+    sample: Sample,
+}
+
+/// Legend geometry in pixels.
+const ROW: i32 = 22;
+const PAD: i32 = 9;
+const SAMPLE_W: i32 = 26;
+/// More entries than this go into a panel beside the plot instead of a box over it.
+const MAX_INSIDE: usize = 6;
+
+/// Where the legend goes.
+#[derive(Debug, Clone)]
+enum LegendPlace {
+    None,
+    Corner(usize),
+    Panel,
 }
 
 /// A line chart (force–displacement curves, spectra, trajectories, time histories, …).
@@ -90,6 +141,9 @@ pub struct LineChart {
     pub markers: Vec<(f64, f64, String)>,
     /// Vertical reference lines `(x, label)`, drawn dashed grey with the label at the top.
     pub vlines: Vec<(f64, String)>,
+    /// At most this many x tick labels (e.g. few steps of a count, so that the ticks fall on
+    /// whole numbers); `None` lets the axis choose.
+    pub x_labels: Option<usize>,
 }
 
 impl LineChart {
@@ -190,22 +244,164 @@ impl LineChart {
         (x, y)
     }
 
+    /// The legend entries, in series order (unnamed series are left out).
+    fn entries(&self) -> Vec<Entry> {
+        let mut dashed_k = 0;
+        let mut out = Vec::new();
+        for (i, s) in self.series.iter().enumerate() {
+            let sample = match s.style {
+                SeriesStyle::Line => Sample::Line,
+                SeriesStyle::Points => Sample::Points,
+                SeriesStyle::Dashed => {
+                    let (dl, dg) = dash(dashed_k);
+                    dashed_k += 1;
+                    Sample::Dashed(dl, dg)
+                }
+            };
+            if !s.name.is_empty() {
+                out.push(Entry {
+                    name: s.name.clone(),
+                    color: s.rgb(i),
+                    sample,
+                });
+            }
+        }
+        out
+    }
+
+    /// The drawn polylines (and markers as single points) in axis-normalised coordinates.
+    fn normalised(&self, x: (f64, f64), y: (f64, f64)) -> Vec<Vec<(f64, f64)>> {
+        let ymap = |v: f64| if self.log_y { v.ln() } else { v };
+        let (ly0, ly1) = (ymap(y.0), ymap(y.1));
+        let norm = |(px, py): (f64, f64)| {
+            (
+                (px - x.0) / (x.1 - x.0),
+                (ymap(py) - ly0) / (ly1 - ly0),
+            )
+        };
+        let mut lines = Vec::new();
+        for s in &self.series {
+            let mut cur: Vec<(f64, f64)> = Vec::new();
+            for &(px, py) in &s.points {
+                if px.is_finite() && self.usable(py) {
+                    cur.push(norm((px, py)));
+                    if s.style == SeriesStyle::Points {
+                        lines.push(std::mem::take(&mut cur));
+                    }
+                } else if !cur.is_empty() {
+                    lines.push(std::mem::take(&mut cur));
+                }
+            }
+            if !cur.is_empty() {
+                lines.push(cur);
+            }
+        }
+        for m in &self.markers {
+            if m.0.is_finite() && self.usable(m.1) {
+                lines.push(vec![norm((m.0, m.1))]);
+            }
+        }
+        lines
+    }
+
+    /// Places the legend: in a corner no data pass through; else, when the y range is free,
+    /// over headroom added on top of the data; else in the least crowded corner. Many entries
+    /// go into a panel beside the plot. Returns the place and the (possibly raised) y range.
+    fn place_legend(
+        &self,
+        entries: &[Entry],
+        box_px: (i32, i32),
+        plot_px: (i32, i32),
+        x: (f64, f64),
+        y: (f64, f64),
+    ) -> (LegendPlace, (f64, f64)) {
+        if entries.is_empty() {
+            return (LegendPlace::None, y);
+        }
+        let fu = f64::from(box_px.0 + 2 * PAD) / f64::from(plot_px.0.max(1));
+        let fv = f64::from(box_px.1 + 2 * PAD) / f64::from(plot_px.1.max(1));
+        if entries.len() > MAX_INSIDE || fv > 0.45 || fu > 0.6 {
+            return (LegendPlace::Panel, y);
+        }
+        let hits = corner_hits(&self.normalised(x, y), fu, fv);
+        if let Some(k) = (0..4).find(|&k| hits[k] == 0) {
+            return (LegendPlace::Corner(k), y);
+        }
+        if self.y_range.is_none() {
+            // raise the top so that every datum sits below the legend's band
+            let raised = if self.log_y {
+                (y.0, y.0 * (y.1 / y.0).powf(1.0 / (1.0 - fv)))
+            } else {
+                (y.0, y.0 + (y.1 - y.0) / (1.0 - fv))
+            };
+            return (LegendPlace::Corner(0), raised);
+        }
+        let k = (0..4).min_by_key(|&k| (hits[k], k)).unwrap_or(0);
+        (LegendPlace::Corner(k), y)
+    }
+
     pub(crate) fn draw<DB: DrawingBackend>(
         &self,
         root: &DrawingArea<DB, Shift>,
     ) -> std::result::Result<(), String> {
         let (x, y) = self.ranges();
         let y = y.ok_or("no positive values for the log axis")?;
+        let entries = self.entries();
+        let font = TextStyle::from((FONT, 15).into_font());
+        let text_w = entries
+            .iter()
+            .map(|e| root.estimate_text_size(&e.name, &font).map_or(0, |s| s.0 as i32))
+            .max()
+            .unwrap_or(0);
+        let box_px = (
+            PAD + SAMPLE_W + 8 + text_w + PAD,
+            2 * PAD + ROW * entries.len() as i32,
+        );
+        let (w, h) = root.dim_in_pixel();
+        // the plot area left by the caption, margins and label areas (see draw_with)
+        let plot_px = (w as i32 - 2 * 15 - 80, h as i32 - 2 * 15 - 34 - 55);
+        let (place, y) = self.place_legend(&entries, box_px, plot_px, x, y);
+        let (area, panel) = if matches!(place, LegendPlace::Panel) {
+            let pw = (box_px.0 + 16).clamp(150, w as i32 / 3);
+            let (a, b) = root.split_horizontally(w as i32 - pw);
+            (a, Some(b))
+        } else {
+            (root.clone(), None)
+        };
         let xr: RangedCoordf64 = (x.0..x.1).into();
-        if self.log_y {
-            let yr: LogCoord<f64> = (y.0..y.1).log_scale().into();
-            self.draw_with(root, xr, yr, x, y)
+        let plot_px = if self.log_y {
+            let yr = (y.0..y.1).log_scale().with_key_points(log_ticks(y.0, y.1));
+            self.draw_with(&area, xr, yr, x, y)?
         } else {
             let yr: RangedCoordf64 = (y.0..y.1).into();
-            self.draw_with(root, xr, yr, x, y)
+            self.draw_with(&area, xr, yr, x, y)?
+        };
+        let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+        match (place, panel) {
+            (LegendPlace::Panel, Some(p)) => {
+                draw_legend(&p, (4, plot_px.1.start), &entries, box_px).map_err(e)?
+            }
+            (LegendPlace::Corner(k), _) => {
+                let (right, up) = (k % 2 == 0, k < 2);
+                let lx = if right {
+                    plot_px.0.end - PAD - box_px.0
+                } else {
+                    plot_px.0.start + PAD
+                };
+                let ly = if up {
+                    plot_px.1.start + PAD
+                } else {
+                    plot_px.1.end - PAD - box_px.1
+                };
+                draw_legend(root, (lx, ly), &entries, box_px).map_err(e)?;
+            }
+            _ => {}
         }
+        Ok(())
     }
 
+    /// Draws axes, reference lines, series and markers; returns the plot area's pixel ranges
+    /// (x, y) in the coordinates of `root`'s backend.
     fn draw_with<DB, Y>(
         &self,
         root: &DrawingArea<DB, Shift>,
@@ -213,7 +409,7 @@ impl LineChart {
         yr: Y,
         x: (f64, f64),
         y: (f64, f64),
-    ) -> std::result::Result<(), String>
+    ) -> std::result::Result<(std::ops::Range<i32>, std::ops::Range<i32>), String>
     where
         DB: DrawingBackend,
         Y: Ranged<ValueType = f64> + ValueFormatter<f64>,
@@ -226,15 +422,17 @@ impl LineChart {
             .y_label_area_size(80)
             .build_cartesian_2d(xr, yr)
             .map_err(e)?;
-        let fx = |v: &f64| tick(*v);
+        let fx = |v: &f64| tick_on(*v, x.1 - x.0);
+        let fy = |v: &f64| tick_on(*v, y.1 - y.0);
         chart
             .configure_mesh()
+            .x_labels(self.x_labels.unwrap_or(10))
             .x_desc(&self.x_label)
             .y_desc(&self.y_label)
             .label_style((FONT, 15))
             .axis_desc_style((FONT, 18))
             .x_label_formatter(&fx)
-            .y_label_formatter(&fx)
+            .y_label_formatter(&fy)
             .light_line_style(RGBColor(235, 235, 235))
             .bold_line_style(RGBColor(205, 205, 205))
             .draw()
@@ -271,21 +469,15 @@ impl LineChart {
         }
 
         let mut dashed_k = 0;
-        let mut any_legend = false;
         for (i, s) in self.series.iter().enumerate() {
-            let c = color(s.color.unwrap_or(i));
+            let c = s.rgb(i);
             let keep = |&&(px, py): &&(f64, f64)| px.is_finite() && self.usable(py);
             match s.style {
                 SeriesStyle::Points => {
                     let st = c.filled();
-                    let ann = chart
+                    chart
                         .draw_series(s.points.iter().filter(keep).map(|&p| Circle::new(p, 3, st)))
                         .map_err(e)?;
-                    if !s.name.is_empty() {
-                        ann.label(&s.name)
-                            .legend(move |(lx, ly)| Circle::new((lx + 10, ly), 4, st));
-                        any_legend = true;
-                    }
                 }
                 SeriesStyle::Line | SeriesStyle::Dashed => {
                     let st = c.stroke_width(2);
@@ -305,35 +497,13 @@ impl LineChart {
                             segs.push(Vec::new());
                         }
                     }
-                    let mut labelled = false;
                     for seg in segs.into_iter().filter(|v| !v.is_empty()) {
-                        let ann = if dashed {
+                        if dashed {
                             chart
                                 .draw_series(DashedLineSeries::new(seg, dl, dg, st))
-                                .map_err(e)?
+                                .map_err(e)?;
                         } else {
-                            chart.draw_series(LineSeries::new(seg, st)).map_err(e)?
-                        };
-                        if !labelled && !s.name.is_empty() {
-                            labelled = true;
-                            any_legend = true;
-                            let (dl, dg) = (dl as i32, dg as i32);
-                            ann.label(&s.name).legend(move |(lx, ly)| {
-                                let pts = if dashed {
-                                    // a short dash–gap–dash sample
-                                    vec![(lx, ly), (lx + dl.min(8), ly)]
-                                } else {
-                                    vec![(lx, ly), (lx + 22, ly)]
-                                };
-                                let tail = if dashed {
-                                    vec![(lx + dl.min(8) + dg.min(5), ly), (lx + 22, ly)]
-                                } else {
-                                    vec![(lx + 22, ly), (lx + 22, ly)]
-                                };
-                                EmptyElement::at((0, 0))
-                                    + PathElement::new(pts, st)
-                                    + PathElement::new(tail, st)
-                            });
+                            chart.draw_series(LineSeries::new(seg, st)).map_err(e)?;
                         }
                     }
                 }
@@ -353,24 +523,50 @@ impl LineChart {
                 ))
                 .map_err(e)?;
         }
-
-        if any_legend {
-            let pos = quiet_corner(
-                self.all_points(),
-                x,
-                y,
-                |v| if self.log_y { v.ln() } else { v },
-            );
-            chart
-                .configure_series_labels()
-                .position(pos)
-                .margin(12)
-                .label_font((FONT, 15))
-                .background_style(WHITE.mix(0.92))
-                .border_style(RGBColor(120, 120, 120))
-                .draw()
-                .map_err(e)?;
-        }
-        Ok(())
+        Ok(chart.plotting_area().get_pixel_range())
     }
+}
+
+/// Draws a legend box with its top-left corner at `at` (pixels of `area`).
+fn draw_legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    at: (i32, i32),
+    entries: &[Entry],
+    size: (i32, i32),
+) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let (x0, y0) = at;
+    area.draw(&Rectangle::new(
+        [(x0, y0), (x0 + size.0, y0 + size.1)],
+        WHITE.mix(0.92).filled(),
+    ))?;
+    area.draw(&Rectangle::new(
+        [(x0, y0), (x0 + size.0, y0 + size.1)],
+        RGBColor(120, 120, 120).stroke_width(1),
+    ))?;
+    for (r, en) in entries.iter().enumerate() {
+        let cy = y0 + PAD + ROW * r as i32 + ROW / 2;
+        let (sx0, sx1) = (x0 + PAD, x0 + PAD + SAMPLE_W);
+        let st = en.color.stroke_width(2);
+        match en.sample {
+            Sample::Line => area.draw(&PathElement::new(vec![(sx0, cy), (sx1, cy)], st))?,
+            Sample::Dashed(dl, dg) => {
+                let (dl, dg) = (dl.min(9) as i32, dg.min(5) as i32);
+                let mut a = sx0;
+                while a < sx1 {
+                    let b = (a + dl).min(sx1);
+                    area.draw(&PathElement::new(vec![(a, cy), (b, cy)], st))?;
+                    a = b + dg;
+                }
+            }
+            Sample::Points => {
+                area.draw(&Circle::new((sx0 + SAMPLE_W / 2, cy), 4, en.color.filled()))?
+            }
+        }
+        area.draw(&Text::new(
+            en.name.clone(),
+            (sx1 + 8, cy - 8),
+            (FONT, 15).into_font(),
+        ))?;
+    }
+    Ok(())
 }
