@@ -19,9 +19,7 @@ use tfs::origami::{
 };
 use tfs::plot::{LineChart, Series};
 
-use crate::common::{
-    Opts, basin_figure, coef, curve, f4, fixed, model_json, num, pct, progress,
-};
+use crate::common::{Opts, basin_figure, coef, curve, f4, fixed, model_json, num, pct, progress};
 use crate::report::{Study, Table};
 
 /// A shared potential of the chain displacements.
@@ -706,7 +704,11 @@ pub fn study_chain(st: &mut Study, o: &Opts) -> Result<()> {
             "Fig. 6c: base acceleration driving the chain (first 30% of training sweep 1)",
             ex,
         )?;
-        st.figure("fig6c_signals", "Fig. 6c: simulated responses of the chain (first 30% of training sweep 1)", ch)?;
+        st.figure(
+            "fig6c_signals",
+            "Fig. 6c: simulated responses of the chain (first 30% of training sweep 1)",
+            ch,
+        )?;
     }
     let axes = (
         "Δx, shift of every displacement from S1 (length unit c0)",

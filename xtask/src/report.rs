@@ -380,11 +380,7 @@ impl Report {
             return s;
         }
         if !failed.is_empty() {
-            let _ = writeln!(
-                s,
-                "**{} of {checks} checks FAIL:**\n",
-                failed.len()
-            );
+            let _ = writeln!(s, "**{} of {checks} checks FAIL:**\n", failed.len());
             for r in &failed {
                 let _ = writeln!(
                     s,
@@ -563,7 +559,14 @@ mod tests {
         let mut st = Study::new("s1", "Study one", dir.path());
         st.text("A **bold** claim with `code` and a list:\n\n- one\n- two <b>raw</b>");
         for (m, ok) in rows {
-            st.compare(m, "1.000", "1.100 (+10.00%)", "1.050 (+5.00%)", *ok, "within 5%");
+            st.compare(
+                m,
+                "1.000",
+                "1.100 (+10.00%)",
+                "1.050 (+5.00%)",
+                *ok,
+                "within 5%",
+            );
         }
         let mut r = Report::new(dir.path(), true);
         r.push(st, None, 1.0);
@@ -574,14 +577,21 @@ mod tests {
     /// and the Markdown of the text blocks is rendered in HTML (not shown literally).
     #[test]
     fn failed_checks_are_visible_everywhere() {
-        let (_d, r) = report_with(&[("coef a", Some(true)), ("coef b", Some(false)), ("info", None)]);
+        let (_d, r) = report_with(&[
+            ("coef a", Some(true)),
+            ("coef b", Some(false)),
+            ("info", None),
+        ]);
         assert_eq!(r.failed_checks().len(), 1);
         let md = r.markdown(1.0, "pre");
         assert!(md.contains("**1 of 2 checks FAIL:**"), "{md}");
         assert!(md.contains("- coef b: ours 1.100 (+10.00%); truth 1.000; rule: within 5%"));
         assert!(md.contains("| **FAIL** |"));
         let html = r.html(1.0, "pre");
-        assert!(html.contains("<tr class=\"fail\"><td>coef b</td>"), "{html}");
+        assert!(
+            html.contains("<tr class=\"fail\"><td>coef b</td>"),
+            "{html}"
+        );
         assert!(html.contains("verdict bad"));
         assert!(html.contains("<strong>bold</strong>") && html.contains("<code>code</code>"));
         assert!(html.contains("<li>one</li>"));

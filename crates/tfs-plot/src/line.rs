@@ -6,8 +6,7 @@ use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 use crate::style::{
-    FONT, color, corner_hits, dash, log_ticks, pad_log_range, pad_range, sequential,
-    tick_on,
+    FONT, color, corner_hits, dash, log_ticks, pad_log_range, pad_range, sequential, tick_on,
 };
 use crate::{PlotError, Result};
 
@@ -273,12 +272,8 @@ impl LineChart {
     fn normalised(&self, x: (f64, f64), y: (f64, f64)) -> Vec<Vec<(f64, f64)>> {
         let ymap = |v: f64| if self.log_y { v.ln() } else { v };
         let (ly0, ly1) = (ymap(y.0), ymap(y.1));
-        let norm = |(px, py): (f64, f64)| {
-            (
-                (px - x.0) / (x.1 - x.0),
-                (ymap(py) - ly0) / (ly1 - ly0),
-            )
-        };
+        let norm =
+            |(px, py): (f64, f64)| ((px - x.0) / (x.1 - x.0), (ymap(py) - ly0) / (ly1 - ly0));
         let mut lines = Vec::new();
         for s in &self.series {
             let mut cur: Vec<(f64, f64)> = Vec::new();
@@ -350,7 +345,10 @@ impl LineChart {
         let font = TextStyle::from((FONT, 15).into_font());
         let text_w = entries
             .iter()
-            .map(|e| root.estimate_text_size(&e.name, &font).map_or(0, |s| s.0 as i32))
+            .map(|e| {
+                root.estimate_text_size(&e.name, &font)
+                    .map_or(0, |s| s.0 as i32)
+            })
             .max()
             .unwrap_or(0);
         let box_px = (

@@ -76,7 +76,11 @@ pub fn sequential(t: f64) -> RGBColor {
         (94, 201, 98),
         (253, 231, 37),
     ];
-    let t = if t.is_finite() { t.clamp(0.0, 1.0) } else { 0.0 };
+    let t = if t.is_finite() {
+        t.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     let x = t * (STOPS.len() - 1) as f64;
     let k = (x.floor() as usize).min(STOPS.len() - 2);
     let w = x - k as f64;
@@ -254,8 +258,11 @@ mod tests {
     fn sequential_colours_run_in_order() {
         assert_eq!(sequential(0.0), RGBColor(68, 1, 84));
         assert_eq!(sequential(1.0), RGBColor(253, 231, 37));
-        let lum = |c: RGBColor| 0.3 * f64::from(c.0) + 0.59 * f64::from(c.1) + 0.11 * f64::from(c.2);
-        let l: Vec<f64> = (0..=10).map(|i| lum(sequential(f64::from(i) / 10.0))).collect();
+        let lum =
+            |c: RGBColor| 0.3 * f64::from(c.0) + 0.59 * f64::from(c.1) + 0.11 * f64::from(c.2);
+        let l: Vec<f64> = (0..=10)
+            .map(|i| lum(sequential(f64::from(i) / 10.0)))
+            .collect();
         assert!(l.windows(2).all(|w| w[1] > w[0]), "{l:?}");
     }
 
