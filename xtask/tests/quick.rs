@@ -48,7 +48,18 @@ fn quick_reproduction_writes_every_output() {
     let r: Value = serde_json::from_str(&text).unwrap();
     let failed = get(&r, "failed_studies").as_array().unwrap();
     assert!(failed.is_empty(), "studies failed: {failed:?}");
-    assert!(status.success(), "xtask exited with {status}");
+    // The exit status says whether a check failed: 0 exactly when every check passed.
+    let failed_checks: Vec<&Value> = get(&r, "summary")
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|row| row["within_tolerance"] == Value::Bool(false))
+        .collect();
+    assert_eq!(
+        status.success(),
+        failed_checks.is_empty(),
+        "xtask exited with {status}; failed checks: {failed_checks:?}"
+    );
     assert_eq!(get(&r, "quick"), &Value::Bool(true));
 
     for key in [
@@ -150,7 +161,7 @@ fn quick_reproduction_writes_every_output() {
     let summary = get(&r, "summary").as_array().unwrap();
     assert!(summary.len() >= 15, "only {} summary rows", summary.len());
     for row in summary {
-        for k in ["metric", "paper", "ours", "within_tolerance", "rule"] {
+        for k in ["metric", "truth", "paper", "ours", "within_tolerance", "rule"] {
             assert!(row.get(k).is_some(), "summary row without '{k}': {row}");
         }
     }
@@ -195,6 +206,32 @@ fn quick_reproduction_writes_every_output() {
     ] {
         assert_nonempty(&out.join("figures").join(format!("{stem}.png")));
         assert_nonempty(&out.join("figures").join(format!("{stem}.svg")));
+    }
+    // Every figure: no tick label that is a rounding residue of zero (|v| < 1e-12; none of
+    // these axes spans so little), and an axis label with a unit in parentheses.
+    for e in std::fs::read_dir(out.join("figures")).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().and_then(|x| x.to_str()) != Some("svg") {
+            continue;
+        }
+        let svg = std::fs::read_to_string(&p).unwrap();
+        let texts: Vec<&str> = svg
+            .split("<text")
+            .skip(1)
+            .filter_map(|t| Some(&t[t.find('>')? + 1..t.find("</text>")?]))
+            .collect();
+        for v in texts.iter().filter_map(|t| t.trim().parse::<f64>().ok()) {
+            assert!(
+                v == 0.0 || v.abs() >= 1e-12,
+                "{}: tick label {v}",
+                p.display()
+            );
+        }
+        assert!(
+            texts.iter().any(|t| t.contains('(') && t.contains(')')),
+            "{}: no axis label with a unit: {texts:?}",
+            p.display()
+        );
     }
 }
 

@@ -568,3 +568,58 @@ fn draw_legend<DB: DrawingBackend>(
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn chart(series: usize, top_heavy: bool) -> LineChart {
+        let mut c = LineChart::new("t", "t (s)", "x (m)");
+        for k in 0..series {
+            // a line over the whole width near the top (or spread over the height)
+            let pts = (0..200)
+                .map(|i| {
+                    let t = f64::from(i) / 10.0;
+                    let y = if top_heavy {
+                        1.0 - 0.02 * (t * 3.0).sin().abs()
+                    } else {
+                        (t + k as f64).sin()
+                    };
+                    (t, y)
+                })
+                .collect();
+            c = c.with_series(Series::line(format!("series {k}"), pts));
+        }
+        c
+    }
+
+    fn place(c: &LineChart) -> (LegendPlace, (f64, f64), (f64, f64)) {
+        let (x, y) = c.ranges();
+        let y = y.unwrap();
+        let e = c.entries();
+        let (p, ny) = c.place_legend(&e, (150, 2 * PAD + ROW * e.len() as i32), (790, 480), x, y);
+        (p, y, ny)
+    }
+
+    /// A legend never covers data: a free corner is used, else headroom is added above the
+    /// data; with many entries the legend goes beside the plot.
+    #[test]
+    fn legend_goes_where_there_are_no_data() {
+        // data only near the top: a lower corner is free
+        let (p, y, ny) = place(&chart(2, true));
+        assert!(matches!(p, LegendPlace::Corner(2) | LegendPlace::Corner(3)), "{p:?}");
+        assert_eq!(y, ny);
+        // sines over the whole box: no corner is free, the top is raised
+        let c = chart(3, false);
+        let (p, y, ny) = place(&c);
+        assert!(matches!(p, LegendPlace::Corner(0)), "{p:?}");
+        assert!(ny.1 > y.1 && ny.0 == y.0);
+        let (x, _) = c.ranges();
+        let box_h = f64::from(2 * PAD + ROW * 3 + 2 * PAD) / 480.0;
+        let hits = corner_hits(&c.normalised(x, ny), 150.0 / 790.0, box_h);
+        assert_eq!(hits[0], 0, "data under the raised legend: {hits:?}");
+        // twelve entries: a panel
+        let (p, _, _) = place(&chart(12, false));
+        assert!(matches!(p, LegendPlace::Panel), "{p:?}");
+    }
+}

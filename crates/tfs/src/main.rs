@@ -9,7 +9,12 @@ use clap::{Parser, Subcommand};
 
 /// tfs — sparse equations of motion for multi-stable structures, from noisy vibration data.
 #[derive(Debug, Parser)]
-#[command(name = "tfs", version, about, long_about = None)]
+#[command(
+    name = "tfs",
+    version,
+    about = "tfs — sparse equations of motion for multi-stable structures, from noisy vibration data (T-F-S SINDy)",
+    long_about = None
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

@@ -9,7 +9,7 @@ use tfs::compare::{has_state_columns, score};
 use tfs::plot::{Figure, LineChart, Series};
 use tfs::records::{measured_columns, read_model};
 
-use super::{DataArgs, Offsets, offsets_for_model, print_json, read_records};
+use super::{DataArgs, ModelOffsets, offsets_for_model, print_json, read_records};
 
 /// Arguments of `tfs compare`.
 #[derive(Debug, clap::Args)]
@@ -29,8 +29,8 @@ pub struct Args {
     /// DC offsets of the DOF and input channels: `auto` (default) does what `tfs identify` did
     /// for this model (its trace says so), `remove` subtracts each record's mean, `keep` uses
     /// the records as they are.
-    #[arg(long, value_enum, default_value_t = Offsets::Auto)]
-    pub offsets: Offsets,
+    #[arg(long, value_enum, default_value_t = ModelOffsets::Auto)]
+    pub offsets: ModelOffsets,
     #[command(flatten)]
     pub data_args: DataArgs,
 }
@@ -43,7 +43,7 @@ pub fn run(args: Args) -> Result<()> {
     let state_dependent = has_state_columns(&model);
     let required = measured_columns(&model);
     let mut records = read_records(&args.data, &required, &args.data_args)?;
-    let offsets_report = offsets_for_model(&mut records, &model, &required, args.offsets)?;
+    let offsets_report = offsets_for_model(&mut records, &model, &required, args.offsets.into())?;
     if let Some(dir) = &args.plots {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("--plots {}: cannot create the directory", dir.display()))?;

@@ -10,7 +10,7 @@ use tfs::plot::{BarChart, Figure, LineChart, Series};
 
 use tfs::records::{measured_columns, read_model};
 
-use super::{DataArgs, Offsets, offsets_for_model, print_json, read_records};
+use super::{DataArgs, ModelOffsets, offsets_for_model, print_json, read_records};
 
 /// Arguments of `tfs diagnose`.
 #[derive(Debug, clap::Args)]
@@ -36,8 +36,8 @@ pub struct Args {
     /// DC offsets of the DOF and input channels: `auto` (default) does what `tfs identify` did
     /// for this model (its trace says so), `remove` subtracts each record's mean, `keep` uses
     /// the records as they are.
-    #[arg(long, value_enum, default_value_t = Offsets::Auto)]
-    pub offsets: Offsets,
+    #[arg(long, value_enum, default_value_t = ModelOffsets::Auto)]
+    pub offsets: ModelOffsets,
     #[command(flatten)]
     pub data_args: DataArgs,
 }
@@ -47,7 +47,7 @@ pub fn run(args: Args) -> Result<()> {
     let model = read_model(&args.model)?;
     let required = measured_columns(&model);
     let mut records = read_records(&args.data, &required, &args.data_args)?;
-    let offsets_report = offsets_for_model(&mut records, &model, &required, args.offsets)?;
+    let offsets_report = offsets_for_model(&mut records, &model, &required, args.offsets.into())?;
     let opts = DiagnoseOptions {
         alpha: args.alpha,
         min_share: args.min_share,
@@ -89,8 +89,8 @@ pub fn run(args: Args) -> Result<()> {
                 (Some(v), _) => println!(
                     "{}: R-MSE {} (on the variance; Appendix B, over the mean square: {})",
                     r.record,
-                    sci4(v),
-                    sci4(r.r_mse_mean_square.as_deref().unwrap_or(&[]))
+                    sci4(v, &model.dofs),
+                    sci4(r.r_mse_mean_square.as_deref().unwrap_or(&[]), &model.dofs)
                 ),
                 (_, Some(e)) => println!("{}: simulation failed: {e}", r.record),
                 _ => {}
@@ -99,13 +99,24 @@ pub fn run(args: Args) -> Result<()> {
                 println!("  missing drive harmonics (order) {m}");
             }
         }
+        // An effect whose terms the model already has cannot be added again: not offered.
+        let has = |r: &tfs::diagnose::RankedEffect| {
+            let own: Vec<String> = model
+                .equations
+                .iter()
+                .filter(|e| e.dof == r.dof)
+                .flat_map(|e| e.terms.iter().map(|t| t.term.to_string()))
+                .collect();
+            !r.terms.is_empty() && r.terms.iter().all(|t| own.contains(t))
+        };
+        let (already, offered): (Vec<_>, Vec<_>) = d.ranked.iter().partition(|r| has(r));
         println!(
-            "\n{:<22} {:>5} {:>10} {:>10} {:>8} {:>12} {:>12}",
+            "\n{:<22} {:>5} {:>10} {:>10} {:>8} {:>12} {:>12}  why",
             "effect", "sig", "delta", "p", "share", "coef", "R-MSE after"
         );
-        for r in &d.ranked {
+        for r in &offered {
             println!(
-                "{:<22} {:>5} {:>10.4} {:>10.2e} {:>8.4} {:>12.4e} {:>12}",
+                "{:<22} {:>5} {:>10.4} {:>10.2e} {:>8.4} {:>12.4e} {:>12}  {}",
                 r.name,
                 if r.significant { "yes" } else { "no" },
                 r.delta_heldout,
@@ -114,17 +125,28 @@ pub fn run(args: Args) -> Result<()> {
                 r.coef,
                 r.r_mse_after
                     .map(|v| format!("{v:.4e}"))
-                    .unwrap_or_else(|| "failed".into())
+                    .unwrap_or_else(|| "sim. failed".into()),
+                r.reason
             );
         }
-    }
+        if !already.is_empty() {
+            println!(
+                "not offered (the model already has their terms): {}",
+                already
+                    .iter()
+                    .map(|r| r.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
     Ok(())
 }
 
-/// Numbers with 4 significant digits, comma-separated.
-fn sci4(v: &[f64]) -> String {
+/// One number per DOF with 5 significant digits, each followed by its DOF's name.
+fn sci4(v: &[f64], dofs: &[String]) -> String {
     v.iter()
-        .map(|x| format!("{x:.4e}"))
+        .zip(dofs)
+        .map(|(e, dof)| format!("{e:.4e} ({dof})"))
         .collect::<Vec<_>>()
         .join(", ")
 }
@@ -137,40 +159,37 @@ fn write_plots(dir: &std::path::Path, d: &tfs::diagnose::Diagnosis) -> Result<()
         title: "Held-out equation-error drop of the six best-ranked effects (* = significant)"
             .into(),
         x_label: "effect".into(),
-        y_label: "relative drop".into(),
+        y_label: "relative drop of held-out error (1 = 100 %)".into(),
         labels: top
             .iter()
             .map(|r| format!("{}{}", r.name, if r.significant { " *" } else { "" }))
             .collect(),
-        values: top.iter().map(|r| r.delta_heldout.max(0.0)).collect(),
+        // a negative drop (the effect made the held-out error worse) is drawn below zero
+        values: top.iter().map(|r| r.delta_heldout).collect(),
         log_y: false,
         color: None,
     };
     Figure::from(bars).save(&dir.join("effects"))?;
     for (k, r) in d.records.iter().enumerate() {
         for s in &r.spectra {
+            // From the first bin above DC: the DC bin of a record with its offset removed is
+            // near zero and would stretch the log axis by ten decades.
+            let spectrum = |a: &[f64]| -> Vec<(f64, f64)> {
+                s.freqs
+                    .iter()
+                    .copied()
+                    .zip(a.iter().copied())
+                    .filter(|(f, _)| *f > 0.0)
+                    .collect()
+            };
             let mut chart = LineChart::new(
                 format!("{}: spectrum of {}", r.record, s.dof),
                 "f (Hz)",
-                "amplitude",
+                format!("amplitude of {} (record units)", s.dof),
             )
             .log_y(true)
-            .with_series(Series::line(
-                "measured",
-                s.freqs
-                    .iter()
-                    .copied()
-                    .zip(s.measured.iter().map(|a| a.max(1e-12)))
-                    .collect(),
-            ))
-            .with_series(Series::dashed(
-                "model",
-                s.freqs
-                    .iter()
-                    .copied()
-                    .zip(s.model.iter().map(|a| a.max(1e-12)))
-                    .collect(),
-            ));
+            .with_series(Series::line("measured", spectrum(&s.measured)))
+            .with_series(Series::dashed("model", spectrum(&s.model)));
             for h in s.harmonics.iter().filter(|h| h.missing) {
                 chart = chart.with_vline(h.band.0, format!("{}x drive (missing)", h.order));
             }
@@ -179,8 +198,8 @@ fn write_plots(dir: &std::path::Path, d: &tfs::diagnose::Diagnosis) -> Result<()
         for p in &r.phase {
             let chart = LineChart::new(
                 format!("{}: phase portrait of {}", r.record, p.dof),
-                p.dof.clone(),
-                format!("{}'", p.dof),
+                format!("{} (record units)", p.dof),
+                format!("{}' (record units/s)", p.dof),
             )
             .with_series(Series::line("measured", p.measured.clone()))
             .with_series(Series::dashed("model", p.model.clone()));
@@ -188,13 +207,15 @@ fn write_plots(dir: &std::path::Path, d: &tfs::diagnose::Diagnosis) -> Result<()
         }
     }
     for l in &d.localisation {
-        // Residual map as one line per x bin over x' (mean residual).
+        // Residual map as one line per x bin over x' (mean residual); the bins are ordered, so
+        // their lines are coloured along a sequential scale instead of a repeating palette.
         let mut chart = LineChart::new(
             format!("Residual of {}'' over {}' per {} bin", l.dof, l.dof, l.dof),
-            format!("{}'", l.dof),
-            "mean residual",
+            format!("{}' (record units/s)", l.dof),
+            format!("mean residual of {}'' (record units/s²)", l.dof),
         );
         let m = &l.map;
+        let bins = m.mean.len().max(2);
         for (i, row) in m.mean.iter().enumerate() {
             let pts: Vec<(f64, f64)> = row
                 .iter()
@@ -204,7 +225,10 @@ fn write_plots(dir: &std::path::Path, d: &tfs::diagnose::Diagnosis) -> Result<()
                 .collect();
             if pts.len() >= 2 {
                 let xc = 0.5 * (m.x_edges[i] + m.x_edges[i + 1]);
-                chart = chart.with_series(Series::line(format!("{} = {xc:.3}", l.dof), pts));
+                chart = chart.with_series(
+                    Series::line(format!("{} = {xc:.3}", l.dof), pts)
+                        .shade(i as f64 / (bins - 1) as f64),
+                );
             }
         }
         Figure::from(chart).save(&dir.join(format!("residual-map-{}", l.dof)))?;

@@ -111,7 +111,34 @@ pub fn run(args: Args) -> Result<()> {
             "--dofs {time_column}: '{time_column}' is the time column, not a displacement; name the displacement columns (e.g. --dofs x)"
         );
     }
-    let plan = plan(&opts, &columns, &args.data[0].display().to_string())?;
+    let file = args.data[0].display().to_string();
+    for d in &args.dofs {
+        if !columns.contains(d) {
+            bail!(
+                "--dofs {d}: {file} has no column '{d}' (its columns: {}); give the displacement columns by their names",
+                columns.join(", ")
+            );
+        }
+    }
+    let plan = plan(&opts, &columns, &file)?;
+    if let Some(spec) = &args.library {
+        for w in duplicate_terms(spec, &plan.dofs) {
+            eprintln!("note: {w}");
+        }
+    }
+    // A velocity written the way other tools spell it (`xdot`, `x_dot`, `x_vel`) is read as an
+    // input column of that name, which the file does not have: point to the grammar's `x'`.
+    for c in plan.required.iter().filter(|c| !columns.contains(c)) {
+        let stem = ["_dot", "dot", "_vel", "_v"]
+            .iter()
+            .find_map(|suffix| c.strip_suffix(suffix))
+            .filter(|s| plan.dofs.iter().any(|d| d == s));
+        if let Some(stem) = stem {
+            bail!(
+                "--library: '{c}' is not a column of {file}; the velocity of '{stem}' is written {stem}' (e.g. \"{stem}^1..7, {stem}', xb_acc\")"
+            );
+        }
+    }
     let records = records_from(tables, &plan.required, &args.data_args)?;
     let held_out = if args.validate.is_empty() {
         Vec::new()
@@ -139,16 +166,32 @@ pub fn run(args: Args) -> Result<()> {
             "warnings": identified.warnings,
         }))?;
     } else {
-        // The data cannot support the library: say so before anything else, on stderr too.
-        for w in &identified.warnings {
-            eprintln!("warning: {w}");
-            println!("WARNING {w}");
-        }
+        // The data cannot support the library: say so before anything else.
+        super::print_warnings(&identified.warnings);
         println!("{}", identified.model.equation_string());
+        if args.data.len() == 1 {
+            if let Some(d) = identified.trace.dofs.first() {
+                let parts: Vec<&str> = d
+                    .bins
+                    .iter()
+                    .map(|b| b.record.as_str())
+                    .filter(|r| r.contains('#'))
+                    .collect();
+                if parts.len() > 1 {
+                    println!(
+                        "one record given: it was split into {} halves ({}) so that the settings can be chosen on held-out data",
+                        parts.len(),
+                        parts.join(", ")
+                    );
+                }
+            }
+        }
         print_trace(&identified.trace);
         print_offsets(offsets_report);
         if !refine_report.is_null() {
-            println!("refinement by simulation error: {refine_report}");
+            for line in super::refine_lines(refine_report) {
+                println!("{line}");
+            }
         }
         if let Some(out) = &args.out {
             println!("model written to {}", out.display());
@@ -177,7 +220,7 @@ fn print_offsets(report: &serde_json::Value) {
             .as_object()
             .into_iter()
             .flatten()
-            .map(|(c, v)| format!("{c} = {:.6e}", v.as_f64().unwrap_or(f64::NAN)))
+            .map(|(c, v)| format!("{c} = {:.4e}", v.as_f64().unwrap_or(f64::NAN)))
             .collect();
         println!(
             "  {}: {label}: {}",
@@ -232,5 +275,56 @@ fn compact(v: &serde_json::Value) -> String {
         format!("{}…", s.chars().take(300).collect::<String>())
     } else {
         s
+    }
+}
+
+/// Terms a library spec names more than once (e.g. `x^3` beside `x^1..7`): the library keeps
+/// one copy; this says which, so that the spec can be cleaned up.
+fn duplicate_terms(spec: &str, dofs: &[String]) -> Vec<String> {
+    // top-level items: commas outside parentheses (poly(x, x'; 0..7), below(x, c))
+    let mut items = Vec::new();
+    let (mut depth, mut start) = (0i32, 0);
+    for (i, ch) in spec.char_indices() {
+        match ch {
+            '(' => depth += 1,
+            ')' => depth -= 1,
+            ',' if depth == 0 => {
+                items.push(&spec[start..i]);
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    items.push(&spec[start..]);
+    let mut seen: Vec<(String, String)> = Vec::new();
+    let mut out = Vec::new();
+    for item in items.iter().map(|s| s.trim()).filter(|s| !s.is_empty()) {
+        let Ok(lib) = tfs::library::Library::parse(item, dofs) else {
+            continue;
+        };
+        for t in lib.terms() {
+            let name = t.to_string();
+            match seen.iter().find(|(n, _)| *n == name) {
+                Some((_, first)) => out.push(format!(
+                    "--library: term '{name}' is named twice ('{first}' and '{item}'); it is used once"
+                )),
+                None => seen.push((name, item.to_string())),
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::duplicate_terms;
+
+    #[test]
+    fn duplicate_library_terms_are_named() {
+        let dofs = vec!["x".to_string()];
+        let w = duplicate_terms("x^1..7, x', x^3, poly(x, x'; 0..1), xb_acc", &dofs);
+        assert_eq!(w.len(), 3, "{w:?}"); // x^3 again, and poly's x and x'
+        assert!(w[0].contains("'x^3'") && w[0].contains("'x^1..7'"), "{w:?}");
+        assert!(duplicate_terms("x^1..7, x', xb_acc", &dofs).is_empty());
     }
 }

@@ -17,6 +17,85 @@ use tfs::data::Record;
 use tfs::library::Model;
 pub use tfs::records::{Clipped, Offsets};
 
+/// `--offsets` of the commands that use a model (`compare`, `diagnose`, `refit`): the modes
+/// of [`Offsets`] less `constant-term`, which changes the library and so belongs to `identify`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ModelOffsets {
+    /// Do what `tfs identify` did for this model (its trace says so), else keep.
+    Auto,
+    /// Use the records as they are.
+    Keep,
+    /// Subtract each record's mean from every DOF and input column.
+    Remove,
+}
+
+impl From<ModelOffsets> for Offsets {
+    fn from(m: ModelOffsets) -> Self {
+        match m {
+            ModelOffsets::Auto => Offsets::Auto,
+            ModelOffsets::Keep => Offsets::Keep,
+            ModelOffsets::Remove => Offsets::Remove,
+        }
+    }
+}
+
+/// Prints warnings once where a person sees them: on stderr, and as `WARNING …` lines on stdout
+/// too when stdout goes to a file or a pipe (so a saved report keeps them); on a terminal the
+/// two streams are the same screen and each warning is shown once.
+pub fn print_warnings(warnings: &[String]) {
+    use std::io::IsTerminal;
+    let both_on_screen = std::io::stdout().is_terminal() && std::io::stderr().is_terminal();
+    for w in warnings {
+        eprintln!("warning: {w}");
+        if !both_on_screen {
+            println!("WARNING {w}");
+        }
+    }
+}
+
+/// The simulation-error refinement report (`refine` of `identify`/`refit`) in a few sentences:
+/// cost before and after, iterations, convergence, and which fit validation kept.
+pub fn refine_lines(report: &serde_json::Value) -> Vec<String> {
+    let num = |v: &serde_json::Value| v.as_f64().map_or("—".to_string(), |x| format!("{x:.4e}"));
+    let mut out = vec![format!(
+        "refinement by simulation error: cost {} -> {} in {} iteration(s), {}{}",
+        num(&report["initial_cost"]),
+        num(&report["final_cost"]),
+        report["iterations"].as_u64().unwrap_or(0),
+        if report["converged"].as_bool() == Some(true) {
+            "converged"
+        } else {
+            "not converged"
+        },
+        report["message"]
+            .as_str()
+            .filter(|m| !m.is_empty())
+            .map_or(String::new(), |m| format!(" ({m})"))
+    )];
+    let skipped = report["noise_dominated"]
+        .as_array()
+        .map_or(0, |a| a.iter().filter(|v| v.as_bool() == Some(true)).count());
+    if skipped > 0 {
+        out.push(format!(
+            "  {skipped} record(s) left out: their error is about the measured input's own noise"
+        ));
+    }
+    let v = &report["validation"];
+    if !v.is_null() {
+        out.push(format!(
+            "  held-out records: equation-error fit {}, simulation-error fit {}; kept the {}",
+            num(&v["equation_error_fit"]),
+            num(&v["simulation_error_fit"]),
+            if v["chose_refined"].as_bool() == Some(true) {
+                "simulation-error fit"
+            } else {
+                "equation-error fit"
+            }
+        ));
+    }
+    out
+}
+
 /// Options shared by every command that reads measurement records.
 #[derive(Debug, Clone, clap::Args)]
 pub struct DataArgs {

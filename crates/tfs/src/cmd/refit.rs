@@ -9,7 +9,7 @@ use tfs::diagnose::ladder_table;
 
 use tfs::records::{measured_columns, read_model};
 
-use super::{DataArgs, Offsets, offsets_for_model, print_json, read_records};
+use super::{DataArgs, ModelOffsets, offsets_for_model, print_json, read_records};
 
 /// Arguments of `tfs refit`.
 #[derive(Debug, clap::Args)]
@@ -37,8 +37,8 @@ pub struct Args {
     /// DC offsets of the DOF and input channels: `auto` (default) does what `tfs identify` did
     /// for this model (its trace says so), `remove` subtracts each record's mean, `keep` uses
     /// the records as they are.
-    #[arg(long, value_enum, default_value_t = Offsets::Auto)]
-    pub offsets: Offsets,
+    #[arg(long, value_enum, default_value_t = ModelOffsets::Auto)]
+    pub offsets: ModelOffsets,
     /// After adding the effects, re-estimate the coefficients of the resulting structure by
     /// simulation error (Levenberg–Marquardt with multiple shooting) on the records.
     #[arg(long)]
@@ -63,11 +63,11 @@ pub fn run(args: Args) -> Result<()> {
     let model = read_model(&args.model)?;
     let required = measured_columns(&model);
     let mut records = read_records(&args.data, &required, &args.data_args)?;
-    let offsets_report = offsets_for_model(&mut records, &model, &required, args.offsets)?;
+    let offsets_report = offsets_for_model(&mut records, &model, &required, args.offsets.into())?;
     let mut held_out = Vec::new();
     if args.refine && !args.validate.is_empty() {
         held_out = read_records(&args.validate, &required, &args.data_args)?;
-        offsets_for_model(&mut held_out, &model, &required, args.offsets)?;
+        offsets_for_model(&mut held_out, &model, &required, args.offsets.into())?;
     }
     let refitted = super::with_spinner("adding the effects and refitting", || {
         tfs::refit::refit(
@@ -89,7 +89,7 @@ pub fn run(args: Args) -> Result<()> {
         let chart = tfs::plot::BarChart {
             title: "Error ladder: mean R-MSE of the records after each step".into(),
             x_label: "step".into(),
-            y_label: "R-MSE (log scale)".into(),
+            y_label: "R-MSE (dimensionless, log scale)".into(),
             labels: ladder.iter().map(|s| s.step.clone()).collect(),
             values: ladder.iter().map(|s| s.mean_r_mse).collect(),
             log_y: true,
@@ -112,7 +112,9 @@ pub fn run(args: Args) -> Result<()> {
         println!("{}", model.equation_string());
         print!("{}", ladder_table(&ladder));
         if !refine_report.is_null() {
-            println!("refinement by simulation error: {refine_report}");
+            for line in super::refine_lines(&refine_report) {
+                println!("{line}");
+            }
         }
         println!("wrote {}", args.out.display());
     }

@@ -33,8 +33,13 @@ pub enum Structure {
     },
     /// A serial chain of Kresling cells, base cell first (DOFs `x1..xN`).
     Chain {
-        /// γ0 of each cell (degrees), comma-separated, base cell first.
-        #[arg(long, value_delimiter = ',', default_values_t = [20.0, 28.5])]
+        /// γ0 of each cell (degrees), comma-separated, base cell first [default: 20,28.5].
+        #[arg(
+            long,
+            value_delimiter = ',',
+            default_values_t = [20.0, 28.5],
+            hide_default_value = true
+        )]
         gamma0: Vec<f64>,
         /// Common options.
         #[command(flatten)]
@@ -72,8 +77,9 @@ pub struct Common {
     /// Ramp-in/out time of the excitation (s).
     #[arg(long, default_value_t = 2.0)]
     pub ramp: f64,
-    /// SNR (dB) of the noise on every measured channel; omit for clean data.
-    #[arg(long)]
+    /// SNR (dB) of the noise on every measured channel; omit for clean data. Below 0 dB the
+    /// noise is stronger than the signal (`--snr-db -10`: ten times its power).
+    #[arg(long, allow_negative_numbers = true)]
     pub snr_db: Option<f64>,
     /// Pink (1/f) instead of white noise.
     #[arg(long)]
@@ -138,6 +144,12 @@ pub fn run(args: Args) -> Result<()> {
             &json!({"files": files, "meta": data.meta, "meta_file": meta_path.display().to_string()}),
         )?;
     } else {
+        if let Some(snr) = common.snr_db.filter(|v| *v < 0.0) {
+            println!(
+                "note: SNR {snr} dB: the noise has {:.3} times the power of each signal",
+                10f64.powf(-snr / 10.0)
+            );
+        }
         println!("truth: {}", data.meta.truth);
         for f in &files {
             println!("written: {f}");
