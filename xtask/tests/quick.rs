@@ -161,7 +161,14 @@ fn quick_reproduction_writes_every_output() {
     let summary = get(&r, "summary").as_array().unwrap();
     assert!(summary.len() >= 15, "only {} summary rows", summary.len());
     for row in summary {
-        for k in ["metric", "truth", "paper", "ours", "within_tolerance", "rule"] {
+        for k in [
+            "metric",
+            "truth",
+            "paper",
+            "ours",
+            "within_tolerance",
+            "rule",
+        ] {
             assert!(row.get(k).is_some(), "summary row without '{k}': {row}");
         }
     }

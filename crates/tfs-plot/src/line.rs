@@ -296,6 +296,14 @@ impl LineChart {
                 lines.push(vec![norm((m.0, m.1))]);
             }
         }
+        // a reference line's label runs to the right of it near the top
+        for (vx, label) in &self.vlines {
+            if vx.is_finite() && !label.is_empty() {
+                let u = (vx - x.0) / (x.1 - x.0);
+                let w = 0.012 * label.chars().count() as f64;
+                lines.push(vec![(u, 0.96), (u + w, 0.96)]);
+            }
+        }
         lines
     }
 
@@ -607,7 +615,10 @@ mod tests {
     fn legend_goes_where_there_are_no_data() {
         // data only near the top: a lower corner is free
         let (p, y, ny) = place(&chart(2, true));
-        assert!(matches!(p, LegendPlace::Corner(2) | LegendPlace::Corner(3)), "{p:?}");
+        assert!(
+            matches!(p, LegendPlace::Corner(2) | LegendPlace::Corner(3)),
+            "{p:?}"
+        );
         assert_eq!(y, ny);
         // sines over the whole box: no corner is free, the top is raised
         let c = chart(3, false);

@@ -55,9 +55,15 @@ fn assert_no_residue(t: &[String], what: &str) {
 fn every_figure_type_shows_its_axis_labels_and_clean_ticks() {
     let dir = tempfile::tempdir().unwrap();
     // Ranges whose tick arithmetic passes near zero (start + k·step), on both axes.
-    for (k, (lo, hi)) in [(-0.7, 0.3), (-0.3, 0.5), (-1.1, 1.3), (-2.2, 0.6), (-0.15, 0.05)]
-        .into_iter()
-        .enumerate()
+    for (k, (lo, hi)) in [
+        (-0.7, 0.3),
+        (-0.3, 0.5),
+        (-1.1, 1.3),
+        (-2.2, 0.6),
+        (-0.15, 0.05),
+    ]
+    .into_iter()
+    .enumerate()
     {
         let pts: Vec<(f64, f64)> = (0..=100)
             .map(|i| {
@@ -69,7 +75,10 @@ fn every_figure_type_shows_its_axis_labels_and_clean_ticks() {
             .with_series(Series::line("F(h)", pts));
         let t = save(chart, dir.path(), &format!("line{k}"));
         assert!(t.iter().any(|s| s == "h (c0)") && t.iter().any(|s| s == "F (k·c0)"));
-        assert!(numbers(&t).contains(&0.0), "no zero tick on ({lo}, {hi}): {t:?}");
+        assert!(
+            numbers(&t).contains(&0.0),
+            "no zero tick on ({lo}, {hi}): {t:?}"
+        );
         assert_no_residue(&t, &format!("line chart on ({lo}, {hi})"));
 
         let (nx, ny) = (20, 10);
@@ -90,13 +99,18 @@ fn every_figure_type_shows_its_axis_labels_and_clean_ticks() {
         assert_no_residue(&t, &format!("basin map on ({lo}, {hi})"));
     }
     // A tiny range is drawn with tiny ticks: they are the data, not residue.
-    let tiny: Vec<(f64, f64)> = (0..10).map(|i| (f64::from(i), 1e-14 * f64::from(i))).collect();
+    let tiny: Vec<(f64, f64)> = (0..10)
+        .map(|i| (f64::from(i), 1e-14 * f64::from(i)))
+        .collect();
     let t = save(
         LineChart::new("tiny", "t (s)", "x (m)").with_series(Series::line("x", tiny)),
         dir.path(),
         "tiny",
     );
-    assert!(numbers(&t).iter().any(|v| *v != 0.0 && v.abs() < 1e-12), "{t:?}");
+    assert!(
+        numbers(&t).iter().any(|v| *v != 0.0 && v.abs() < 1e-12),
+        "{t:?}"
+    );
 }
 
 #[test]

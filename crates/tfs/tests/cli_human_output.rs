@@ -52,11 +52,17 @@ fn help_opens_with_what_tfs_does_and_lists_only_accepted_values() {
     let o = tfs(&["--help"]);
     let h = text(&o);
     assert!(!h.starts_with("tfs: tfs"), "{h}");
-    assert!(h.lines().next().unwrap().contains("equations of motion"), "{h}");
+    assert!(
+        h.lines().next().unwrap().contains("equations of motion"),
+        "{h}"
+    );
     for cmd in ["compare", "diagnose", "refit"] {
         let h = text(&tfs(&[cmd, "--help"]));
         assert!(h.contains("--offsets"), "{cmd}: {h}");
-        assert!(!h.contains("constant-term"), "{cmd} lists constant-term: {h}");
+        assert!(
+            !h.contains("constant-term"),
+            "{cmd} lists constant-term: {h}"
+        );
     }
     assert!(text(&tfs(&["identify", "--help"])).contains("constant-term"));
     let h = text(&tfs(&["simulate", "chain", "--help"]));
@@ -79,7 +85,10 @@ fn a_negative_snr_is_a_value_not_a_flag() {
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let t = text(&o);
-    assert!(t.contains("SNR -10 dB") && t.contains("10.000 times"), "{t}");
+    assert!(
+        t.contains("SNR -10 dB") && t.contains("10.000 times"),
+        "{t}"
+    );
     assert!(out.exists());
 }
 

@@ -139,6 +139,7 @@ pub fn run(args: Args) -> Result<()> {
                     .join(", ")
             );
         }
+    }
     Ok(())
 }
 

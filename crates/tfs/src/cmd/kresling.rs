@@ -131,7 +131,8 @@ fn plot_cell(
     let h_hi = cell.h_max().min(1.12 * outer);
     let h_lo = -0.03 * outer;
     let curve = cell.curve(h_lo, h_hi, 600)?;
-    let pts = |y: &[f64]| -> Vec<(f64, f64)> { curve.h.iter().copied().zip(y.iter().copied()).collect() };
+    let pts =
+        |y: &[f64]| -> Vec<(f64, f64)> { curve.h.iter().copied().zip(y.iter().copied()).collect() };
     // the force range of the wells (h ≥ 0), padded
     let (lo, hi) = curve
         .h
@@ -144,7 +145,16 @@ fn plot_cell(
     // past the stop the contact force leaves the range: the line is broken there
     let f: Vec<(f64, f64)> = pts(&curve.f)
         .into_iter()
-        .map(|(h, v)| (h, if v >= f_range.0 && v <= f_range.1 { v } else { f64::NAN }))
+        .map(|(h, v)| {
+            (
+                h,
+                if v >= f_range.0 && v <= f_range.1 {
+                    v
+                } else {
+                    f64::NAN
+                },
+            )
+        })
         .collect();
     let title = format!(
         "Kresling cell a0 = {}, c0 = {}, γ0 = {}° ({})",

@@ -72,9 +72,9 @@ pub fn refine_lines(report: &serde_json::Value) -> Vec<String> {
             .filter(|m| !m.is_empty())
             .map_or(String::new(), |m| format!(" ({m})"))
     )];
-    let skipped = report["noise_dominated"]
-        .as_array()
-        .map_or(0, |a| a.iter().filter(|v| v.as_bool() == Some(true)).count());
+    let skipped = report["noise_dominated"].as_array().map_or(0, |a| {
+        a.iter().filter(|v| v.as_bool() == Some(true)).count()
+    });
     if skipped > 0 {
         out.push(format!(
             "  {skipped} record(s) left out: their error is about the measured input's own noise"
