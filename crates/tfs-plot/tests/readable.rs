@@ -37,7 +37,7 @@ fn numbers(texts: &[String]) -> Vec<f64> {
 
 fn save(fig: impl Into<Figure>, dir: &Path, name: &str) -> Vec<String> {
     let stem = dir.join(name);
-    Figure::from(fig.into()).save(&stem).unwrap();
+    fig.into().save(&stem).unwrap();
     texts(&stem.with_extension("svg"))
 }
 
