@@ -5,7 +5,8 @@
 use std::path::Path;
 use tfs_plot::{BarChart, BasinMap, Figure, LineChart, Series};
 
-/// The contents of every `<text>` element of an SVG file.
+/// The contents of every `<text>` element of an SVG file, without the line breaks the SVG
+/// writer puts around them.
 fn texts(svg: &Path) -> Vec<String> {
     let s = std::fs::read_to_string(svg).unwrap();
     let mut out = Vec::new();
@@ -20,7 +21,9 @@ fn texts(svg: &Path) -> Vec<String> {
             rest[open + 1..close]
                 .replace("&lt;", "<")
                 .replace("&gt;", ">")
-                .replace("&amp;", "&"),
+                .replace("&amp;", "&")
+                .trim()
+                .to_string(),
         );
         rest = &rest[close..];
     }
