@@ -15,6 +15,10 @@ impl SecondOrderSystem for CompiledModel {
     fn accel(&self, _t: f64, x: &[f64], v: &[f64], u: &[f64], a: &mut [f64]) {
         CompiledModel::accel(self, x, v, u, a)
     }
+    #[inline(always)]
+    fn accel_lanes(&self, _t: f64, x: &[f64], v: &[f64], u: &[f64], a: &mut [f64]) {
+        CompiledModel::accel_lanes(self, x, v, u, a)
+    }
 }
 
 /// Options of [`simulate_model_on_record`].

@@ -11,6 +11,40 @@ pub trait SecondOrderSystem: Sync {
     }
     /// Writes the accelerations for time `t`, displacements `x`, velocities `v`, inputs `u`.
     fn accel(&self, t: f64, x: &[f64], v: &[f64], u: &[f64], a: &mut [f64]);
+
+    /// Accelerations of many states at once (all at time `t`, sharing the inputs `u`), stored
+    /// component-major: with `m = x.len() / dofs()` states, `x[i * m + l]` is DOF `i` of state `l`
+    /// (likewise `v` and `a`). The default calls [`SecondOrderSystem::accel`] state by state; a
+    /// system may override it with loops across states that vectorise, and must then give each
+    /// state exactly what `accel` gives it (basin maps rely on that).
+    fn accel_lanes(&self, t: f64, x: &[f64], v: &[f64], u: &[f64], a: &mut [f64]) {
+        let n = self.dofs();
+        if n == 0 {
+            return;
+        }
+        let m = x.len() / n;
+        // Up to 8 DOFs on the stack (no allocation per call), more on the heap.
+        let (mut xs, mut vs, mut as_) = ([0.0; 8], [0.0; 8], [0.0; 8]);
+        let (mut xh, mut vh, mut ah) = (Vec::new(), Vec::new(), Vec::new());
+        let (xl, vl, al): (&mut [f64], &mut [f64], &mut [f64]) = if n <= 8 {
+            (&mut xs[..n], &mut vs[..n], &mut as_[..n])
+        } else {
+            xh.resize(n, 0.0);
+            vh.resize(n, 0.0);
+            ah.resize(n, 0.0);
+            (&mut xh, &mut vh, &mut ah)
+        };
+        for l in 0..m {
+            for i in 0..n {
+                xl[i] = x[i * m + l];
+                vl[i] = v[i * m + l];
+            }
+            self.accel(t, xl, vl, u, al);
+            for i in 0..n {
+                a[i * m + l] = al[i];
+            }
+        }
+    }
 }
 
 /// A [`SecondOrderSystem`] built from a closure `f(t, x, v, u, a)`.
