@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use tfs_dynamics::SecondOrderSystem;
 
 use crate::error::{Result, invalid};
-use crate::grid::{BasinConfig, BasinMap, Judge, Label, Progress, run_grid, run_row};
+use crate::grid::{BasinConfig, BasinMap, Judge, Label, Progress, classify_one, run_grid};
 
 /// A shared potential `V(x)` of a chain's displacements.
 pub type VectorFn = Arc<dyn Fn(&[f64]) -> f64 + Send + Sync>;
@@ -341,8 +341,11 @@ impl Judge for ChainJudge<'_> {
     fn early(&self) -> bool {
         self.wells.barrier.is_some()
     }
-    fn blown(&self, x: &[f64], v: &[f64]) -> bool {
-        !(x.iter().all(|c| c.abs() < self.limit) && v.iter().all(|c| c.is_finite()))
+    fn limit(&self) -> f64 {
+        self.limit
+    }
+    fn region(&self, x: &[f64]) -> u32 {
+        self.wells.nearest(x).0 as u32
     }
     fn at_cap(&self, x: &[f64], v: &[f64]) -> Label {
         let settled = if self.wells.barrier.is_some() {
@@ -355,7 +358,8 @@ impl Judge for ChainJudge<'_> {
 }
 
 /// Integrates the unforced chain from `(x, v)` and labels where it ends (see [`ChainWells`] for
-/// the trapping test). Gives exactly the label [`basin_chain`] gives the same start.
+/// the trapping test). Gives exactly the label [`basin_chain`] gives the same start when it
+/// integrates it.
 pub fn classify_chain<S: SecondOrderSystem + ?Sized>(
     sys: &S,
     wells: &ChainWells,
@@ -364,19 +368,10 @@ pub fn classify_chain<S: SecondOrderSystem + ?Sized>(
     cfg: &BasinConfig,
 ) -> Label {
     let judge = ChainJudge::new(wells);
-    let mut out = [Label::Unsettled];
-    run_row(
-        sys,
-        &judge,
-        cfg,
-        1,
-        |_, xs, vs| {
-            xs.copy_from_slice(x);
-            vs.copy_from_slice(v);
-        },
-        &mut out,
-    );
-    out[0]
+    classify_one(sys, &judge, cfg, &|xs, vs| {
+        xs.copy_from_slice(x);
+        vs.copy_from_slice(v);
+    })
 }
 
 pub(crate) fn check_chain<S: SecondOrderSystem + ?Sized>(
@@ -407,7 +402,9 @@ pub(crate) fn check_chain<S: SecondOrderSystem + ?Sized>(
 }
 
 /// Basin map of a chain over a 2-D [`Slice`]; the slice coordinates range over
-/// `cfg.x_range × cfg.v_range`. `progress` is called after every finished row.
+/// `cfg.x_range × cfg.v_range` (see [`crate::Method`] for which starts are integrated). A step
+/// too long for RK4 to be stable on the slice is refused. `progress` is called with the number
+/// of cells labelled so far.
 pub fn basin_chain<S: SecondOrderSystem + ?Sized>(
     sys: &S,
     wells: &ChainWells,
@@ -417,6 +414,7 @@ pub fn basin_chain<S: SecondOrderSystem + ?Sized>(
 ) -> Result<BasinMap> {
     cfg.validate()?;
     check_chain(sys, wells, slice)?;
+    crate::limits::step_limit_chain(sys, wells, slice, cfg)?.check(cfg.dt)?;
     let start = Instant::now();
     let judge = ChainJudge::new(wells);
     let labels = run_grid(sys, &judge, cfg, progress, |i, j, x, v| {

@@ -46,6 +46,25 @@ pub enum BasinError {
         /// Value in the second map.
         b: String,
     },
+    /// The RK4 step is too long to be stable on the states the map can reach.
+    #[error(
+        "dt = {dt} is too long for RK4 on this system: its fastest linearised rate on the states the grid reaches is \
+         {rate:.4} /s (at x = {at_x:?}, v = {at_v:?}), so RK4 is stable only for dt below {max_dt:.4}; \
+         use a dt well below that (about {suggest:.2e} keeps dt × rate near 0.05)",
+        suggest = 0.05 / rate
+    )]
+    StepTooLong {
+        /// The step asked for.
+        dt: f64,
+        /// The fastest rate `|λ|` found (1/s).
+        rate: f64,
+        /// The longest stable step.
+        max_dt: f64,
+        /// Displacements where the rate was found.
+        at_x: Vec<f64>,
+        /// Velocities where the rate was found.
+        at_v: Vec<f64>,
+    },
     /// An error from tfs-dynamics (e.g. the equilibrium search).
     #[error(transparent)]
     Dynamics(#[from] tfs_dynamics::DynError),

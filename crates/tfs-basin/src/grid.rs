@@ -5,9 +5,11 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use tfs_dynamics::{Rk4Scratch, SecondOrderSystem, rk4_step};
+use tfs_dynamics::SecondOrderSystem;
 
 use crate::error::{Result, invalid};
+use crate::lanes::{Outcome, Run};
+use crate::scalar::{LANES, run_row};
 use crate::wells::WellInfo;
 
 /// How often (in steps) the trapping test runs. Trapping is permanent, so testing every few
@@ -15,6 +17,11 @@ use crate::wells::WellInfo;
 pub(crate) const CHECK_EVERY: usize = 4;
 /// A trajectory whose displacement exceeds this multiple of the grid's extent is `Diverged`.
 const BLOWUP_FACTOR: f64 = 1e6;
+/// Most RK4 steps a map may ask for (every start run to `t_max`): about two minutes of one
+/// core's work in the SIMD blocks; more is refused by [`BasinConfig::validate`].
+pub const MAX_STEPS: f64 = 1e11;
+/// Most cells a map may have (5000 × 5000).
+pub const MAX_CELLS: usize = 25_000_000;
 
 /// Where one initial condition ends up.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -25,6 +32,24 @@ pub enum Label {
     Unsettled,
     /// The state became non-finite or huge.
     Diverged,
+}
+
+/// How the starts of a map are integrated. Every method integrates a start with the same
+/// fixed-step RK4 arithmetic and the same trapping test, so a start that is integrated gets the
+/// same label from all three; they differ in which starts are integrated and how fast.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum Method {
+    /// Coarse-to-fine (the default): a lattice every 8th node (fewer on small grids), then at
+    /// each finer level only the starts whose surroundings disagree (in end state or in the
+    /// number of well crossings on the way) are integrated; the rest take the shared label.
+    /// Starts run in SIMD blocks (see [`Method::EveryCell`]).
+    #[default]
+    Refined,
+    /// Every start integrated, sixteen side by side in SIMD lanes, in parallel tasks.
+    EveryCell,
+    /// Every start integrated, one scalar model call per start and stage, rows in parallel:
+    /// the original path, kept as the baseline of the benchmark.
+    Scalar,
 }
 
 /// Grid and integration settings shared by every basin computation.
@@ -44,8 +69,11 @@ pub struct BasinConfig {
     pub t_max: f64,
     /// Stop a trajectory as soon as it is provably trapped in a well.
     pub early_exit: bool,
-    /// Parallelise over grid rows with rayon (results do not depend on it).
+    /// Parallelise with rayon (results do not depend on it).
     pub parallel: bool,
+    /// Which starts are integrated and how (see [`Method`]).
+    #[serde(default)]
+    pub method: Method,
 }
 
 impl BasinConfig {
@@ -60,6 +88,7 @@ impl BasinConfig {
             t_max: 100.0,
             early_exit: true,
             parallel: true,
+            method: Method::Refined,
         }
     }
 
@@ -74,9 +103,15 @@ impl BasinConfig {
                 ),
             ));
         }
-        self.nx
-            .checked_mul(self.ny)
-            .ok_or_else(|| invalid("nx/ny", "grid size overflows; use a smaller grid"))?;
+        if self.nx.checked_mul(self.ny).is_none_or(|c| c > MAX_CELLS) {
+            return Err(invalid(
+                "nx/ny",
+                format!(
+                    "grid {}×{} has more than {MAX_CELLS} cells; use a smaller grid or a narrower range",
+                    self.nx, self.ny
+                ),
+            ));
+        }
         for (name, (a, b)) in [("x_range", self.x_range), ("v_range", self.v_range)] {
             if !(a.is_finite() && b.is_finite() && a < b) {
                 return Err(invalid(
@@ -100,7 +135,30 @@ impl BasinConfig {
                 ),
             ));
         }
+        let per_start = (self.t_max / self.dt).ceil();
+        let cells = (self.nx as f64) * (self.ny as f64);
+        if per_start * cells > MAX_STEPS {
+            return Err(invalid(
+                "dt",
+                format!(
+                    "dt = {} with t_max = {} asks up to {:.3e} RK4 steps per start, {:.3e} for the {}×{} grid, \
+                     above the limit of {MAX_STEPS:.0e}; use dt ≥ {:.3e}, a shorter t_max or a smaller grid",
+                    self.dt,
+                    self.t_max,
+                    per_start,
+                    per_start * cells,
+                    self.nx,
+                    self.ny,
+                    self.t_max * cells / MAX_STEPS
+                ),
+            ));
+        }
         Ok(())
+    }
+
+    /// Worst-case RK4 steps of the whole map (every start run to `t_max`).
+    pub fn max_total_steps(&self) -> f64 {
+        (self.t_max / self.dt).ceil() * (self.nx as f64) * (self.ny as f64)
     }
 
     /// Number of RK4 steps to reach `t_max`.
@@ -153,6 +211,10 @@ pub struct BasinMap {
     pub diverged_count: usize,
     /// Wall-clock seconds the computation took.
     pub seconds: f64,
+    /// Starts integrated (all of them unless [`Method::Refined`] filled some from agreeing
+    /// neighbours).
+    #[serde(default)]
+    pub integrated: usize,
 }
 
 impl BasinMap {
@@ -170,7 +232,7 @@ impl BasinMap {
     }
 
     pub(crate) fn assemble(
-        labels: Vec<Label>,
+        (labels, integrated): (Vec<Label>, usize),
         cfg: &BasinConfig,
         names: (&str, &str),
         states: Vec<Vec<f64>>,
@@ -199,16 +261,14 @@ impl BasinMap {
             diverged_count: diverged,
             labels,
             seconds,
+            integrated,
         }
     }
 }
 
-/// Optional per-row progress callback: called with the number of rows finished so far.
+/// Optional progress callback: called now and then with the number of grid cells labelled so
+/// far (out of `nx · ny`; integrated or, with [`Method::Refined`], filled).
 pub type Progress<'a> = Option<&'a (dyn Fn(usize) + Sync)>;
-
-/// Independent trajectories integrated side by side in one row (instruction-level parallelism;
-/// each lane's arithmetic is exactly that of a lone trajectory).
-const LANES: usize = 8;
 
 /// Decides the label of a trajectory from its current state.
 pub(crate) trait Judge: Sync {
@@ -216,171 +276,129 @@ pub(crate) trait Judge: Sync {
     fn trapped(&self, x: &[f64], v: &[f64]) -> Option<usize>;
     /// Whether the early-exit test may be used.
     fn early(&self) -> bool;
+    /// Blow-up bound: a displacement component at or beyond it (or a non-finite state) is
+    /// `Diverged`.
+    fn limit(&self) -> f64;
     /// Whether the state has blown up.
-    fn blown(&self, x: &[f64], v: &[f64]) -> bool;
+    fn blown(&self, x: &[f64], v: &[f64]) -> bool {
+        let lim = self.limit();
+        !(x.iter().all(|c| c.abs() < lim) && v.iter().all(|c| c.is_finite()))
+    }
     /// Label of a trajectory that reached `t_max`.
     fn at_cap(&self, x: &[f64], v: &[f64]) -> Label;
+    /// Which region of the state space `x` is in (a well, or the nearest stable state): the
+    /// number of changes along a trajectory tells routes to the same state apart.
+    fn region(&self, x: &[f64]) -> u32;
 }
 
-/// `LANES` copies of a `d`-DOF system side by side: lane `l` owns components `l·d .. (l+1)·d`.
-struct Lanes<'a, S: ?Sized> {
-    sys: &'a S,
-    d: usize,
-    k: usize,
-}
-
-impl<S: SecondOrderSystem + ?Sized> SecondOrderSystem for Lanes<'_, S> {
-    fn dofs(&self) -> usize {
-        self.d * self.k
-    }
-    fn inputs(&self) -> usize {
-        self.sys.inputs()
-    }
-    #[inline]
-    fn accel(&self, t: f64, x: &[f64], v: &[f64], u: &[f64], a: &mut [f64]) {
-        let d = self.d;
-        for ((xl, vl), al) in x
-            .chunks_exact(d)
-            .zip(v.chunks_exact(d))
-            .zip(a.chunks_exact_mut(d))
-        {
-            self.sys.accel(t, xl, vl, u, al);
-        }
-    }
-}
-
-/// Labels the `out.len()` starts written by `start(i, x, v)`, integrating up to `lanes` of them
-/// at once with [`rk4_step`] (zero input; the unforced dynamics are treated as autonomous and
-/// `t = 0` is passed). Each start's label depends only on that start.
-pub(crate) fn run_row<S, J, F>(
-    sys: &S,
-    judge: &J,
-    cfg: &BasinConfig,
-    lanes: usize,
-    start: F,
-    out: &mut [Label],
-) where
-    S: SecondOrderSystem + ?Sized,
-    J: Judge + ?Sized,
-    F: Fn(usize, &mut [f64], &mut [f64]),
-{
-    let d = sys.dofs();
-    if out.is_empty() {
-        return;
-    }
-    let k = lanes.clamp(1, out.len());
-    let multi = Lanes { sys, d, k };
-    let mut scratch = Rk4Scratch::new(d * k);
-    let u = vec![0.0; sys.inputs()];
-    let (mut x, mut v) = (vec![0.0; d * k], vec![0.0; d * k]);
-    let mut cell: Vec<Option<usize>> = vec![None; k];
-    let mut steps = vec![0usize; k];
-    let mut next = 0usize;
-    let max_steps = cfg.steps();
-    let early = cfg.early_exit && judge.early();
-    let h = cfg.dt;
-    // Fill every lane (k ≤ out.len(), so every lane gets a start).
-    for (l, c) in cell.iter_mut().enumerate() {
-        let r = l * d..(l + 1) * d;
-        start(next, &mut x[r.clone()], &mut v[r]);
-        *c = Some(next);
-        next += 1;
-    }
-    loop {
-        let mut active = false;
-        for l in 0..k {
-            let r = l * d..(l + 1) * d;
-            while let Some(c) = cell[l] {
-                let label = if early && steps[l] % CHECK_EVERY == 0 {
-                    judge
-                        .trapped(&x[r.clone()], &v[r.clone()])
-                        .map(Label::State)
-                } else {
-                    None
-                };
-                let label = match label {
-                    Some(lab) => Some(lab),
-                    None if steps[l] >= max_steps => {
-                        Some(judge.at_cap(&x[r.clone()], &v[r.clone()]))
-                    }
-                    None => None,
-                };
-                let Some(label) = label else {
-                    active = true;
-                    break;
-                };
-                out[c] = label;
-                cell[l] = None;
-                if next < out.len() {
-                    start(next, &mut x[r.clone()], &mut v[r.clone()]);
-                    cell[l] = Some(next);
-                    steps[l] = 0;
-                    next += 1;
-                }
-            }
-        }
-        if !active {
-            break;
-        }
-        rk4_step(&multi, 0.0, h, &mut x, &mut v, &u, &u, &u, &mut scratch);
-        for l in 0..k {
-            if let Some(c) = cell[l] {
-                steps[l] += 1;
-                let r = l * d..(l + 1) * d;
-                if judge.blown(&x[r.clone()], &v[r.clone()]) {
-                    out[c] = Label::Diverged;
-                    // Restart the lane from a finite state: the next cell, or lane-idle.
-                    cell[l] = None;
-                    if next < out.len() {
-                        start(next, &mut x[r.clone()], &mut v[r]);
-                        cell[l] = Some(next);
-                        steps[l] = 0;
-                        next += 1;
-                    } else {
-                        x[r.clone()].fill(0.0);
-                        v[r].fill(0.0);
-                    }
-                }
-            }
-        }
-    }
-}
-
-/// Runs every grid row through [`run_row`], rows in parallel when asked, collected in order.
-/// Each cell's result depends only on its start, so the map is independent of the thread count.
+/// Labels every grid node by `cfg.method` and counts the starts integrated;
+/// `start(i, j, x, v)` writes the start of node `(i, j)`. Each integrated start's label depends only on that start, and what is integrated
+/// depends only on labels, so the map is independent of the thread count.
 pub(crate) fn run_grid<S, J, F>(
     sys: &S,
     judge: &J,
     cfg: &BasinConfig,
     progress: Progress<'_>,
     start: F,
-) -> Vec<Label>
+) -> (Vec<Label>, usize)
 where
     S: SecondOrderSystem + ?Sized,
     J: Judge + ?Sized,
     F: Fn(usize, usize, &mut [f64], &mut [f64]) + Sync,
 {
-    let mut labels = vec![Label::Unsettled; cfg.nx * cfg.ny];
+    let (nx, ny) = (cfg.nx, cfg.ny);
+    let all = nx * ny;
     let done = AtomicUsize::new(0);
-    let row = |(j, out): (usize, &mut [Label])| {
-        run_row(sys, judge, cfg, LANES, |i, x, v| start(i, j, x, v), out);
-        let finished = done.fetch_add(1, Ordering::Relaxed) + 1;
+    let report = |n: usize| {
         if let Some(cb) = progress {
-            cb(finished);
+            cb(n);
         }
     };
-    if cfg.parallel {
-        labels.par_chunks_mut(cfg.nx).enumerate().for_each(row);
-    } else {
-        labels.chunks_mut(cfg.nx).enumerate().for_each(row);
+    if cfg.method == Method::Scalar {
+        let mut labels = vec![Label::Unsettled; nx * ny];
+        let row = |(j, out): (usize, &mut [Label])| {
+            run_row(sys, judge, cfg, LANES, |i, x, v| start(i, j, x, v), out);
+            report((done.fetch_add(1, Ordering::Relaxed) + 1) * nx);
+        };
+        if cfg.parallel {
+            labels.par_chunks_mut(nx).enumerate().for_each(row);
+        } else {
+            labels.chunks_mut(nx).enumerate().for_each(row);
+        }
+        return (labels, all);
     }
-    labels
+    let run = lanes_run(sys, judge, cfg);
+    let at = |c: usize, x: &mut [f64], v: &mut [f64]| start(c % nx, c / nx, x, v);
+    // Cells finished before this batch, plus those of this batch as its tasks finish.
+    let base = AtomicUsize::new(0);
+    let tick =
+        |n: usize| report(base.load(Ordering::Relaxed) + done.fetch_add(n, Ordering::Relaxed) + n);
+    let mut compute = |cells: &[usize]| {
+        done.store(0, Ordering::Relaxed);
+        run.cells(cells, cfg.parallel, &at, &tick)
+    };
+    if cfg.method == Method::EveryCell {
+        let cells: Vec<usize> = (0..all).collect();
+        return (compute(&cells).into_iter().map(|o| o.label).collect(), all);
+    }
+    let step = crate::refine::coarse_step(nx, ny);
+    let resolved = |n: usize| {
+        base.store(n, Ordering::Relaxed);
+        report(n);
+    };
+    let (labels, work) = crate::refine::coarse_to_fine(nx, ny, step, &mut compute, &resolved);
+    (labels, work.integrated)
 }
 
-/// The S-DOF judge: wells and a blow-up limit.
+/// The SIMD-block run of `cfg`'s step, horizon and early exit.
+pub(crate) fn lanes_run<'a, S, J>(sys: &'a S, judge: &'a J, cfg: &BasinConfig) -> Run<'a, S, J>
+where
+    S: SecondOrderSystem + ?Sized,
+    J: Judge + ?Sized,
+{
+    Run {
+        sys,
+        judge,
+        h: cfg.dt,
+        max_steps: cfg.steps(),
+        early: cfg.early_exit && judge.early(),
+    }
+}
+
+/// Labels one start: [`Method::Scalar`]'s lone trajectory, or one lane of a SIMD block (the
+/// same label either way; the block is what the other methods integrate).
+pub(crate) fn classify_one<S, J>(
+    sys: &S,
+    judge: &J,
+    cfg: &BasinConfig,
+    start: &dyn Fn(&mut [f64], &mut [f64]),
+) -> Label
+where
+    S: SecondOrderSystem + ?Sized,
+    J: Judge + ?Sized,
+{
+    if cfg.method == Method::Scalar {
+        let mut out = [Label::Unsettled];
+        run_row(sys, judge, cfg, 1, |_, x, v| start(x, v), &mut out);
+        return out[0];
+    }
+    let mut out = [Outcome {
+        label: Label::Unsettled,
+        turns: 0,
+    }];
+    lanes_run(sys, judge, cfg).block(&|_, x, v| start(x, v), &mut out);
+    out[0].label
+}
+
+/// The S-DOF judge: wells, a blow-up limit, and for each well the kinetic energy above which a
+/// state in it cannot be trapped (a cheap test that spares most potential evaluations).
 pub(crate) struct SdofJudge<'a> {
     pub(crate) wells: &'a WellInfo,
     pub(crate) limit: f64,
+    /// Per well: 1.5 × (barrier − V(bottom)). The potential is at least V(bottom) in the well,
+    /// so a kinetic energy above the depth already puts the energy over the barrier; the factor
+    /// 1.5 keeps the shortcut clear of rounding, so it never changes a label.
+    kinetic_cut: Vec<f64>,
 }
 
 impl<'a> SdofJudge<'a> {
@@ -390,26 +408,41 @@ impl<'a> SdofJudge<'a> {
             * [slo, shi, cfg.x_range.0, cfg.x_range.1]
                 .iter()
                 .fold(1.0f64, |m, a| m.max(a.abs()));
-        Self { wells, limit }
+        let kinetic_cut = wells
+            .wells()
+            .iter()
+            .map(|w| 1.5 * (w.barrier - wells.potential(w.bottom)).max(0.0))
+            .collect();
+        Self {
+            wells,
+            limit,
+            kinetic_cut,
+        }
     }
 }
 
 impl Judge for SdofJudge<'_> {
     #[inline]
     fn trapped(&self, x: &[f64], v: &[f64]) -> Option<usize> {
+        let k = self.wells.well_of(x[0])?;
+        if 0.5 * self.wells.mass() * v[0] * v[0] > self.kinetic_cut[k] {
+            return None;
+        }
         self.wells.trapped(x[0], v[0])
     }
     fn early(&self) -> bool {
         true
     }
-    #[inline]
-    fn blown(&self, x: &[f64], v: &[f64]) -> bool {
-        !(x[0].abs() < self.limit && v[0].is_finite())
+    fn limit(&self) -> f64 {
+        self.limit
     }
     fn at_cap(&self, x: &[f64], v: &[f64]) -> Label {
         self.wells
             .trapped(x[0], v[0])
             .map_or(Label::Unsettled, Label::State)
+    }
+    fn region(&self, x: &[f64]) -> u32 {
+        self.wells.unstable().iter().filter(|&&u| u < x[0]).count() as u32
     }
 }
 
@@ -419,7 +452,8 @@ impl Judge for SdofJudge<'_> {
 /// well's barrier (final, since damping only removes energy; tested every 4 steps). Otherwise it
 /// runs to `t_max` and applies the same test to the final state. Either way a start never
 /// proven trapped is `Unsettled`; a state beyond 10⁶ × the grid/search extent or non-finite is
-/// `Diverged`. Gives exactly the label [`basin_sdof`] gives the same start.
+/// `Diverged`. Gives exactly the label [`basin_sdof`] gives the same start when it integrates it
+/// (every start with [`Method::EveryCell`] or [`Method::Scalar`]).
 pub fn classify_sdof<S: SecondOrderSystem + ?Sized>(
     sys: &S,
     wells: &WellInfo,
@@ -428,25 +462,19 @@ pub fn classify_sdof<S: SecondOrderSystem + ?Sized>(
     cfg: &BasinConfig,
 ) -> Label {
     let judge = SdofJudge::new(wells, cfg);
-    let mut out = [Label::Unsettled];
-    run_row(
-        sys,
-        &judge,
-        cfg,
-        1,
-        |_, x, v| {
-            x[0] = x0;
-            v[0] = v0;
-        },
-        &mut out,
-    );
-    out[0]
+    classify_one(sys, &judge, cfg, &|x, v| {
+        x[0] = x0;
+        v[0] = v0;
+    })
 }
 
-/// Basin map of a 1-DOF system over `(x0, v0)` (see [`classify_sdof`] for each cell).
+/// Basin map of a 1-DOF system over `(x0, v0)` (see [`classify_sdof`] for each start and
+/// [`Method`] for which starts are integrated).
 ///
 /// With `early_exit` the system is first checked to be dissipative for the wells' potential on
-/// a coarse grid (error otherwise). `progress` is called after every finished row.
+/// a coarse grid (error otherwise). A step `dt` too long for RK4 to be stable on the states the
+/// grid can reach is refused (see [`crate::step_limit_sdof`]). `progress` is called with the
+/// number of cells labelled so far.
 pub fn basin_sdof<S: SecondOrderSystem + ?Sized>(
     sys: &S,
     wells: &WellInfo,
@@ -466,6 +494,7 @@ pub fn basin_sdof<S: SecondOrderSystem + ?Sized>(
     if cfg.early_exit {
         wells.check_dissipative(sys, cfg.x_range, cfg.v_range, 41)?;
     }
+    crate::limits::step_limit_sdof(sys, wells, cfg)?.check(cfg.dt)?;
     let start = Instant::now();
     let judge = SdofJudge::new(wells, cfg);
     let labels = run_grid(sys, &judge, cfg, progress, |i, j, x, v| {

@@ -5,7 +5,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 use tfs_basin::{
-    BasinConfig, BasinError, BasinMap, ChainWells, Label, Polynomial1Dof, Slice, WellInfo,
+    BasinConfig, BasinError, BasinMap, ChainWells, Label, Method, Polynomial1Dof, Slice, WellInfo,
     basin_chain, basin_sdof, boa_error, classify_chain, classify_sdof, compare, dt_convergence,
     med_chain, med_sdof,
 };
@@ -393,18 +393,21 @@ fn chain_threads_and_early_exit_do_not_change_the_map() {
 }
 
 #[test]
-fn progress_is_reported_once_per_row() {
+fn progress_counts_cells_up_to_the_whole_grid() {
     let (m, w) = table1();
-    let calls = AtomicUsize::new(0);
-    let last = AtomicUsize::new(0);
-    let cb = |done: usize| {
-        calls.fetch_add(1, Ordering::Relaxed);
-        last.fetch_max(done, Ordering::Relaxed);
-    };
-    let cfg = BasinConfig::new(10, 23, (-1.0, 2.0), (-1.0, 1.0));
-    basin_sdof(&m, &w, &cfg, Some(&cb)).unwrap();
-    assert_eq!(calls.load(Ordering::Relaxed), 23);
-    assert_eq!(last.load(Ordering::Relaxed), 23);
+    for method in [Method::Refined, Method::EveryCell, Method::Scalar] {
+        let calls = AtomicUsize::new(0);
+        let last = AtomicUsize::new(0);
+        let cb = |done: usize| {
+            calls.fetch_add(1, Ordering::Relaxed);
+            last.fetch_max(done, Ordering::Relaxed);
+        };
+        let mut cfg = BasinConfig::new(40, 53, (-1.0, 2.0), (-1.0, 1.0));
+        cfg.method = method;
+        basin_sdof(&m, &w, &cfg, Some(&cb)).unwrap();
+        assert!(calls.load(Ordering::Relaxed) >= 2, "{method:?}");
+        assert_eq!(last.load(Ordering::Relaxed), 40 * 53, "{method:?}");
+    }
 }
 
 #[test]
@@ -439,4 +442,71 @@ fn bad_inputs_are_reported_not_panicked() {
     let map = basin_sdof(&m, &w, &grid(20), None).unwrap();
     assert!(med_sdof(&m, &w, &map, &grid(20), 0, 5).is_err());
     assert!(Polynomial1Dof::new(1.0, vec![f64::NAN]).is_err());
+}
+
+/// A step beyond RK4's stability on the states the grid reaches is refused by name (it used to
+/// label most starts diverged), on the model's own fastest rate: the double well reaches
+/// |x| ≈ 2.3 from (2, 3), where the stiffness 3x² − 1 ≈ 15 gives a rate near 3.9 /s.
+#[test]
+fn unstable_step_is_refused_with_the_rate() {
+    let sys = duffing(0.4);
+    let w = WellInfo::from_polynomial(&sys, (-3.0, 3.0)).unwrap();
+    let mut cfg = BasinConfig::new(20, 20, (0.0, 2.0), (-3.0, 3.0));
+    let limit = tfs_basin::step_limit_sdof(&sys, &w, &cfg).unwrap();
+    // Energy at (2, 3) is 6.5 = x⁴/4 − x²/2 at x ≈ 2.28: stiffness 3x² − 1 ≈ 14.6.
+    let x_top = (1.0f64 + (1.0 + 4.0 * 6.5f64).sqrt()).sqrt();
+    let expect = (3.0 * x_top * x_top - 1.0).sqrt();
+    assert!(
+        (limit.rate - expect).abs() < 0.05 * expect,
+        "{limit:?} vs {expect}"
+    );
+    cfg.dt = 100.0;
+    let e = basin_sdof(&sys, &w, &cfg, None).unwrap_err();
+    assert!(matches!(e, BasinError::StepTooLong { .. }), "{e}");
+    let text = e.to_string();
+    assert!(
+        text.contains("dt = 100") && text.contains("stable only for dt below"),
+        "{text}"
+    );
+    // Just inside the limit the map runs; the default step is far inside it.
+    cfg.dt = 0.9 * limit.max_dt();
+    assert!(basin_sdof(&sys, &w, &cfg, None).is_ok());
+    assert!(limit.max_dt() > 20.0 * 0.01);
+}
+
+/// Work a user cannot wait for is refused before it starts, naming the setting.
+#[test]
+fn absurd_step_counts_and_grids_are_refused() {
+    let (m, w) = table1();
+    let mut cfg = grid(200);
+    cfg.dt = 1e-9;
+    let e = basin_sdof(&m, &w, &cfg, None).unwrap_err().to_string();
+    assert!(e.contains("`dt`") && e.contains("steps"), "{e}");
+    let mut cfg = grid(10);
+    cfg.nx = 100_000;
+    cfg.ny = 100_000;
+    let e = basin_sdof(&m, &w, &cfg, None).unwrap_err().to_string();
+    assert!(e.contains("nx/ny"), "{e}");
+}
+
+/// An equilibrium exactly at an end of the search range is classified (the double well's
+/// −1 on [−1, 3], the CLI's default range for `--x 0:2`), so starts going there settle.
+#[test]
+fn equilibrium_at_the_search_end_is_a_well() {
+    let sys = duffing(0.4);
+    let w = WellInfo::from_polynomial(&sys, (-1.0, 3.0)).unwrap();
+    assert_eq!(w.stable(), &[-1.0, 1.0]);
+    let map = basin_sdof(
+        &sys,
+        &w,
+        &BasinConfig::new(30, 30, (0.0, 2.0), (-3.0, 3.0)),
+        None,
+    )
+    .unwrap();
+    assert_eq!(map.unsettled_count, 0);
+    assert!(
+        map.shares[0] > 0.3 && map.shares[1] > 0.3,
+        "{:?}",
+        map.shares
+    );
 }
