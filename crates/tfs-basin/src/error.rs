@@ -49,9 +49,9 @@ pub enum BasinError {
     /// The RK4 step is too long to be stable on the states the map can reach.
     #[error(
         "dt = {dt} is too long for RK4 on this system: its fastest linearised rate on the states the grid reaches is \
-         {rate:.4} /s (at x = {at_x:?}, v = {at_v:?}), so RK4 is stable only for dt below {max_dt:.4}; \
+         {rate:.4} /s (at x = {x}, v = {v}), so RK4 is stable only for dt below {max_dt:.4}; \
          use a dt well below that (about {suggest:.2e} keeps dt × rate near 0.05)",
-        suggest = 0.05 / rate
+        suggest = 0.05 / rate, x = short(at_x), v = short(at_v)
     )]
     StepTooLong {
         /// The step asked for.
@@ -90,6 +90,15 @@ pub(crate) fn invalid(name: &'static str, reason: impl Into<String>) -> BasinErr
     BasinError::InvalidParameter {
         name,
         reason: reason.into(),
+    }
+}
+
+/// A state vector for messages: one number alone, several in parentheses, 4 significant digits.
+fn short(v: &[f64]) -> String {
+    let each: Vec<String> = v.iter().map(|x| format!("{x:.4}")).collect();
+    match each.len() {
+        1 => each[0].clone(),
+        _ => format!("({})", each.join(", ")),
     }
 }
 
