@@ -1,13 +1,17 @@
 //! `tfs basin`: basin-of-attraction map of a 1-DOF model, optionally against a truth.
 
 use std::path::PathBuf;
+use std::time::{Duration, Instant};
 
-use anyhow::{Context, Result};
+use anyhow::{Result, anyhow};
 use serde_json::json;
-use tfs::basin::{BasinConfig, BasinMap, Label, basin_sdof, compare};
+use tfs::basin::{
+    BasinConfig, BasinError, BasinMap, Label, WellInfo, basin_sdof, compare, step_limit_sdof,
+};
+use tfs::dynamics::SecondOrderSystem;
 
 use tfs::records::read_model;
-use tfs::sdof::{Sdof, default_search, model_sdof, truth_sdof};
+use tfs::sdof::{default_search, model_sdof, truth_sdof};
 
 use super::{parse_grid, parse_range, print_json, progress};
 
@@ -20,19 +24,19 @@ pub struct Args {
     /// Grid size NxM (x0 nodes × v0 nodes).
     #[arg(long, default_value = "200x200")]
     pub grid: String,
-    /// Initial-displacement range A:B.
+    /// Initial-displacement range A:B (the model's displacement unit).
     #[arg(long, default_value = "0:2", allow_hyphen_values = true)]
     pub x: String,
-    /// Initial-velocity range A:B.
+    /// Initial-velocity range A:B (the model's displacement unit per second).
     #[arg(long, default_value = "-3:3", allow_hyphen_values = true)]
     pub v: String,
     /// Truth to compare with: kresling, kresling:surrogate or kresling:truss.
     #[arg(long)]
     pub truth: Option<String>,
-    /// Fixed RK4 step of the unforced runs.
+    /// Fixed RK4 step of the unforced runs (s); a step too long for the model is refused.
     #[arg(long, default_value_t = 0.01)]
     pub dt: f64,
-    /// Time cap; starts not settled by then are labelled unsettled.
+    /// Time cap (s); starts not settled by then are labelled unsettled.
     #[arg(long, default_value_t = 100.0)]
     pub t_max: f64,
     /// Range searched for equilibria A:B (default: the --x range widened by half its width).
@@ -60,11 +64,13 @@ pub fn run(args: Args) -> Result<()> {
     };
     let model = read_model(&args.model)?;
     let sdof = model_sdof(&args.model.display().to_string(), &model, search)?;
+    // The concrete compiled model (not the boxed system): its batched evaluation is then
+    // inlined into the SIMD blocks that integrate the starts.
+    let compiled = model.compile()?;
     let mut cfg = BasinConfig::new(nx, ny, x_range, v_range);
     cfg.dt = args.dt;
     cfg.t_max = args.t_max;
-    cfg.validate().context("basin settings")?;
-    let map = run_map(&sdof, &cfg, "model")?;
+    let map = run_map(&compiled, &sdof.wells, &cfg, "model")?;
     let mut out = json!({
         "model": args.model.display().to_string(),
         "grid": [nx, ny],
@@ -75,12 +81,13 @@ pub fn run(args: Args) -> Result<()> {
         "shares": map.shares,
         "unsettled": map.unsettled_count,
         "diverged": map.diverged_count,
+        "integrated": map.integrated,
         "seconds": map.seconds,
     });
     let mut disagree = None;
     if let Some(spec) = &args.truth {
         let truth = truth_sdof(spec, search)?;
-        let tmap = run_map(&truth, &cfg, "truth")?;
+        let tmap = run_map(&*truth.system, &truth.wells, &cfg, "truth")?;
         let cmp = compare(&map, &tmap)?;
         out["boa_error"] = json!(cmp.error);
         out["truth"] = json!({"spec": spec, "label": truth.label, "stable": truth.wells.stable(),
@@ -88,8 +95,9 @@ pub fn run(args: Args) -> Result<()> {
         out["seconds"] = json!(map.seconds + tmap.seconds);
         disagree = Some(cmp.disagree);
     }
+    let mut files = Vec::new();
     if let Some(path) = &args.out {
-        let files = super::plots::basin_figure(
+        files = super::plots::basin_figure(
             &map,
             &format!("Basins of attraction: {}", args.model.display()),
             disagree.as_deref(),
@@ -98,45 +106,103 @@ pub fn run(args: Args) -> Result<()> {
         out["files"] = json!(files);
     }
     if args.json {
-        print_json(&out)?;
-    } else {
+        return print_json(&out);
+    }
+    let xs = |v: &[f64]| {
+        v.iter()
+            .map(|x| format!("{x:.4}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    println!(
+        "stable states x = {}; unstable x = {}",
+        xs(sdof.wells.stable()),
+        xs(sdof.wells.unstable())
+    );
+    for (k, s) in map.shares.iter().enumerate() {
         println!(
-            "stable states: {:?}; unstable: {:?}",
-            sdof.wells.stable(),
-            sdof.wells.unstable()
+            "basin of S{} (x = {:.4}): {:.2} %",
+            k + 1,
+            sdof.wells.stable()[k],
+            100.0 * s
         );
-        for (k, s) in map.shares.iter().enumerate() {
-            println!(
-                "basin of S{} (x = {:.4}): {:.2}%",
-                k + 1,
-                sdof.wells.stable()[k],
-                100.0 * s
-            );
-        }
+    }
+    println!(
+        "{} × {} starts, {} integrated ({:.1} %), the rest labelled from agreeing neighbours; {:.2} s",
+        nx,
+        ny,
+        map.integrated,
+        100.0 * map.integrated as f64 / (nx * ny) as f64,
+        map.seconds
+    );
+    if map.unsettled_count + map.diverged_count > 0 {
         println!(
-            "unsettled: {}, diverged: {}, time: {:.2} s",
-            map.unsettled_count, map.diverged_count, map.seconds
+            "unsettled: {}, diverged: {} (a start is unsettled when it is not trapped in a well of the \
+             search range {:.4}:{:.4} by --t-max {}: a longer --t-max or a wider --search may settle it)",
+            map.unsettled_count, map.diverged_count, search.0, search.1, args.t_max
         );
-        if let Some(e) = out.get("boa_error") {
-            println!(
-                "BOA error vs {}: {:.3}%",
-                args.truth.as_deref().unwrap_or(""),
-                100.0 * e.as_f64().unwrap_or(f64::NAN)
-            );
-        }
-        if let Some(f) = out.get("files") {
-            println!("written: {f}");
-        }
+    }
+    if let Some(e) = out.get("boa_error").and_then(|e| e.as_f64()) {
+        println!(
+            "BOA error vs {}: {:.3} %",
+            args.truth.as_deref().unwrap_or(""),
+            100.0 * e
+        );
+    }
+    if !files.is_empty() {
+        println!("written: {}", files.join(", "));
     }
     Ok(())
 }
 
-/// Computes a basin map with a progress bar on a terminal.
-pub fn run_map(sdof: &Sdof, cfg: &BasinConfig, what: &str) -> Result<BasinMap> {
-    let pb = progress(cfg.ny as u64, what);
-    let tick = |_row: usize| pb.inc(1);
-    let map = basin_sdof(&*sdof.system, &sdof.wells, cfg, Some(&tick))
-        .with_context(|| format!("basin map of the {what}"))?;
+/// The flag a basin setting comes from, for messages.
+fn flag(name: &str) -> &str {
+    match name {
+        "dt" => "--dt",
+        "t_max" => "--t-max",
+        "nx/ny" => "--grid",
+        "x_range" => "--x",
+        "v_range" => "--v",
+        other => other,
+    }
+}
+
+/// A basin error with the library's parameter names replaced by the CLI's flags.
+fn with_flags(e: BasinError, what: &str) -> anyhow::Error {
+    match e {
+        BasinError::InvalidParameter { name, reason } => {
+            anyhow!("{} ({what} basin map): {reason}", flag(name))
+        }
+        BasinError::StepTooLong { .. } => anyhow!("--dt ({what} basin map): {e}"),
+        other => anyhow!("basin map of the {what}: {other}"),
+    }
+}
+
+/// Computes a basin map, after checking the step and the work it asks for; a progress bar
+/// appears on a terminal when the map is still running after two seconds.
+pub fn run_map<S: SecondOrderSystem + ?Sized>(
+    sys: &S,
+    wells: &WellInfo,
+    cfg: &BasinConfig,
+    what: &str,
+) -> Result<BasinMap> {
+    cfg.validate().map_err(|e| with_flags(e, what))?;
+    step_limit_sdof(sys, wells, cfg)
+        .and_then(|l| l.check(cfg.dt))
+        .map_err(|e| with_flags(e, what))?;
+    let cells = cfg.nx * cfg.ny;
+    let pb = progress(cells as u64, what);
+    let visible = !pb.is_hidden();
+    pb.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    let start = Instant::now();
+    let revealed = std::sync::OnceLock::new();
+    let tick = |done: usize| {
+        if visible && start.elapsed() > Duration::from_secs(2) {
+            revealed.get_or_init(|| pb.set_draw_target(indicatif::ProgressDrawTarget::stderr()));
+        }
+        pb.set_position(done as u64);
+    };
+    let map = basin_sdof(sys, wells, cfg, Some(&tick)).map_err(|e| with_flags(e, what))?;
     pb.finish_and_clear();
     Ok(map)
 }

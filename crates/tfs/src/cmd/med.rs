@@ -2,9 +2,10 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Result, bail};
+use anyhow::{Result, anyhow, bail};
 use serde_json::json;
-use tfs::basin::{BasinConfig, med_sdof};
+use tfs::basin::{BasinConfig, BasinError, Med, WellInfo, med_sdof};
+use tfs::dynamics::SecondOrderSystem;
 
 use super::basin::run_map;
 use tfs::records::read_model;
@@ -48,33 +49,45 @@ pub fn run(args: Args) -> Result<()> {
     let x_range = parse_range(&args.x, "--x")?;
     let v_range = parse_range(&args.v, "--v")?;
     let search = default_search(x_range);
-    let (sdof, what) = match (&args.model, &args.truth) {
+    let (sdof, compiled, what) = match (&args.model, &args.truth) {
         (Some(path), _) => {
             let model = read_model(path)?;
             (
                 model_sdof(&path.display().to_string(), &model, search)?,
+                Some(model.compile()?),
                 path.display().to_string(),
             )
         }
-        (None, Some(spec)) => (truth_sdof(spec, search)?, spec.clone()),
+        (None, Some(spec)) => (truth_sdof(spec, search)?, None, spec.clone()),
         (None, None) => bail!("give --model FILE or --truth SPEC"),
     };
     check_med_states(&sdof, &what, search, args.from, args.to)?;
     let cfg = BasinConfig::new(nx, ny, x_range, v_range);
-    let map = run_map(&sdof, &cfg, "basin")?;
-    let med = med_sdof(
-        &*sdof.system,
-        &sdof.wells,
-        &map,
-        &cfg,
-        args.from - 1,
-        args.to - 1,
-    )?;
+    let (from, to) = (args.from - 1, args.to - 1);
+    // A model runs as its concrete compiled form (its batched evaluation inlined into the SIMD
+    // blocks), a truth as the boxed system; the search is the same.
+    let med = match &compiled {
+        Some(c) => med_of(c, &sdof.wells, &cfg, from, to),
+        None => med_of(&*sdof.system, &sdof.wells, &cfg, from, to),
+    }
+    .map_err(|e| match e.downcast_ref::<BasinError>() {
+        // The library numbers states from 0; the flags and the output from 1.
+        Some(BasinError::NoBoundary { .. }) => anyhow!(
+            "{what}: no basin boundary between S{} and S{} on --x {} --v {} (--grid {}); widen \
+             the ranges so the boundary lies inside them, or refine the grid",
+            args.from,
+            args.to,
+            args.x,
+            args.v,
+            args.grid
+        ),
+        _ => e,
+    })?;
     if args.json {
         print_json(&json!({
             "system": what,
-            "from": sdof.wells.stable()[args.from - 1],
-            "to": sdof.wells.stable()[args.to - 1],
+            "from": sdof.wells.stable()[from],
+            "to": sdof.wells.stable()[to],
             "x0": med.x0, "v0": med.v0, "energy": med.energy,
             "kinetic": med.kinetic, "potential": med.potential,
             "quasi_static_barrier": med.quasi_static_barrier,
@@ -83,9 +96,9 @@ pub fn run(args: Args) -> Result<()> {
         println!(
             "MED from S{} (x = {:.4}) to S{} (x = {:.4}): E_in = {:.5} at x0 = {:.4}, v0 = {:.4}",
             args.from,
-            sdof.wells.stable()[args.from - 1],
+            sdof.wells.stable()[from],
             args.to,
-            sdof.wells.stable()[args.to - 1],
+            sdof.wells.stable()[to],
             med.energy,
             med.x0,
             med.v0
@@ -96,4 +109,16 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The basin map and the MED search on it.
+fn med_of<S: SecondOrderSystem + ?Sized>(
+    sys: &S,
+    wells: &WellInfo,
+    cfg: &BasinConfig,
+    from: usize,
+    to: usize,
+) -> Result<Med> {
+    let map = run_map(sys, wells, cfg, "basin")?;
+    Ok(med_sdof(sys, wells, &map, cfg, from, to)?)
 }

@@ -42,8 +42,10 @@ pub fn basin_figure(
         .collect();
     let fig = BasinFigure {
         title: title.to_string(),
-        x_label: "initial displacement x0".into(),
-        y_label: "initial velocity v0".into(),
+        // A model carries the units of the record it was fitted on: displacement as recorded,
+        // velocity in that unit per second.
+        x_label: "initial displacement x0 (record's length unit)".into(),
+        y_label: "initial velocity v0 (record's length unit / s)".into(),
         x_range: map.x_range,
         y_range: map.y_range,
         nx: map.nx,
