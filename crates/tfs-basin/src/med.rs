@@ -7,6 +7,7 @@
 //! S2-ending start, and minimise the boundary energy over the ray angle by golden-section
 //! search around the cell's angle. The best boundary point evaluated is returned (its S2 side).
 
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use tfs_dynamics::SecondOrderSystem;
 
@@ -58,9 +59,9 @@ pub struct ChainMed {
 
 /// A 2-D plane of starts with a classifier and an energy.
 struct Plane<'a> {
-    classify: &'a dyn Fn(f64, f64) -> Label,
-    energy: &'a dyn Fn(f64, f64) -> f64,
-    admissible: &'a dyn Fn(f64, f64) -> bool,
+    classify: &'a (dyn Fn(f64, f64) -> Label + Sync),
+    energy: &'a (dyn Fn(f64, f64) -> f64 + Sync),
+    admissible: &'a (dyn Fn(f64, f64) -> bool + Sync),
     origin: (f64, f64),
     scale: (f64, f64),
     bounds: ((f64, f64), (f64, f64)),
@@ -74,6 +75,16 @@ struct Plane<'a> {
 struct Hit {
     p: (f64, f64),
     energy: f64,
+}
+
+/// Keeps `h` if it is finite and strictly lower than the best so far (so the first of equal
+/// hits stays).
+fn keep(h: Option<Hit>, best: &mut Option<Hit>) {
+    if let Some(h) = h {
+        if h.energy.is_finite() && best.is_none_or(|b| h.energy < b.energy) {
+            *best = Some(h);
+        }
+    }
 }
 
 impl Plane<'_> {
@@ -134,6 +145,51 @@ impl Plane<'_> {
         })
     }
 
+    /// The lowest boundary hit of one candidate cell at `p`: golden-section search over the
+    /// ray angle around the cell's, each angle's boundary found by bisection.
+    fn refine_candidate(&self, p: (f64, f64)) -> Option<Hit> {
+        let mut best: Option<Hit> = None;
+        let (sx, sy) = (
+            (p.0 - self.origin.0) / self.scale.0,
+            (p.1 - self.origin.1) / self.scale.1,
+        );
+        let r0 = sx.hypot(sy);
+        if r0 == 0.0 {
+            return None;
+        }
+        let theta0 = sy.atan2(sx);
+        let half = (3.0 * self.step / r0).min(0.5);
+        let eval = |theta: f64, best: &mut Option<Hit>| -> f64 {
+            let h = self.boundary(theta, r0);
+            keep(h, best);
+            h.map_or(f64::INFINITY, |h| h.energy)
+        };
+        let _ = eval(theta0, &mut best);
+        // Golden-section search on [theta0 - half, theta0 + half].
+        let g = 0.5 * (5f64.sqrt() - 1.0);
+        let (mut a, mut b) = (theta0 - half, theta0 + half);
+        let mut c = b - g * (b - a);
+        let mut d = a + g * (b - a);
+        let mut fc = eval(c, &mut best);
+        let mut fd = eval(d, &mut best);
+        for _ in 0..GOLDEN_ITERS {
+            if fc <= fd {
+                b = d;
+                d = c;
+                fd = fc;
+                c = b - g * (b - a);
+                fc = eval(c, &mut best);
+            } else {
+                a = c;
+                c = d;
+                fc = fd;
+                d = a + g * (b - a);
+                fd = eval(d, &mut best);
+            }
+        }
+        best
+    }
+
     fn search(&self, map: &BasinMap) -> Result<Hit> {
         // Boundary cells: `to` cells (admissible) with a `from` 4-neighbour.
         let (nx, ny) = (map.nx, map.ny);
@@ -169,53 +225,18 @@ impl Plane<'_> {
             });
         }
         cells.sort_by(|a, b| a.0.total_cmp(&b.0));
+        // The candidates are independent searches: run them in parallel and keep, in candidate
+        // order, the first lowest hit (what one search after the other would keep).
+        let per_candidate: Vec<Option<Hit>> = cells
+            .iter()
+            .take(CANDIDATES)
+            .collect::<Vec<_>>()
+            .par_iter()
+            .map(|&&(_, p)| self.refine_candidate(p))
+            .collect();
         let mut best: Option<Hit> = None;
-        let keep = |h: Option<Hit>, best: &mut Option<Hit>| {
-            if let Some(h) = h {
-                if h.energy.is_finite() && best.is_none_or(|b| h.energy < b.energy) {
-                    *best = Some(h);
-                }
-            }
-        };
-        for &(_, p) in cells.iter().take(CANDIDATES) {
-            let (sx, sy) = (
-                (p.0 - self.origin.0) / self.scale.0,
-                (p.1 - self.origin.1) / self.scale.1,
-            );
-            let r0 = sx.hypot(sy);
-            if r0 == 0.0 {
-                continue;
-            }
-            let theta0 = sy.atan2(sx);
-            let half = (3.0 * self.step / r0).min(0.5);
-            let eval = |theta: f64, best: &mut Option<Hit>| -> f64 {
-                let h = self.boundary(theta, r0);
-                keep(h, best);
-                h.map_or(f64::INFINITY, |h| h.energy)
-            };
-            let _ = eval(theta0, &mut best);
-            // Golden-section search on [theta0 - half, theta0 + half].
-            let g = 0.5 * (5f64.sqrt() - 1.0);
-            let (mut a, mut b) = (theta0 - half, theta0 + half);
-            let mut c = b - g * (b - a);
-            let mut d = a + g * (b - a);
-            let mut fc = eval(c, &mut best);
-            let mut fd = eval(d, &mut best);
-            for _ in 0..GOLDEN_ITERS {
-                if fc <= fd {
-                    b = d;
-                    d = c;
-                    fd = fc;
-                    c = b - g * (b - a);
-                    fc = eval(c, &mut best);
-                } else {
-                    a = c;
-                    c = d;
-                    fc = fd;
-                    d = a + g * (b - a);
-                    fd = eval(d, &mut best);
-                }
-            }
+        for h in per_candidate {
+            keep(h, &mut best);
         }
         best.ok_or(BasinError::NoBoundary {
             from: self.from,
