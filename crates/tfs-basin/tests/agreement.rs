@@ -223,7 +223,9 @@ fn chain_with_a_stop_compiled_from_a_model() {
     let pot = |x: &[f64]| {
         let r = x[1] - x[0];
         let pen = (-0.6 - x[0]).max(0.0);
-        0.5 * x[0] * x[0] + 0.125 * x[0].powi(4) - 0.5 * r * r + 0.25 * r.powi(4) + 100.0 * pen * pen
+        0.5 * x[0] * x[0] + 0.125 * x[0].powi(4) - 0.5 * r * r
+            + 0.25 * r.powi(4)
+            + 100.0 * pen * pen
     };
     let barrier = ChainWells::barrier_from_saddles(pot, &[vec![0.0, 0.0]]).unwrap();
     let wells = ChainWells::new(
