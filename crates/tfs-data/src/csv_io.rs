@@ -41,6 +41,10 @@ pub fn from_reader<R: Read>(source: &str, reader: R, opts: &CsvOptions) -> Resul
 pub fn check_record(record: Record, opts: &CsvOptions) -> Result<(Record, Vec<DataError>)> {
     let file = record.source().to_string();
     let names = record.names().to_vec();
+    // The columns as a file's header lists them: time first.
+    let header: Vec<String> = std::iter::once(opts.time_column.clone())
+        .chain(names.iter().cloned())
+        .collect();
     for req in &opts.required {
         if *req != opts.time_column && !names.contains(req) {
             return Err(missing_column(
@@ -48,7 +52,7 @@ pub fn check_record(record: Record, opts: &CsvOptions) -> Result<(Record, Vec<Da
                 1,
                 req,
                 "required column",
-                &names,
+                &header,
                 "; add the column or choose another with the matching option",
             ));
         }
