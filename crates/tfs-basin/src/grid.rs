@@ -454,11 +454,29 @@ pub fn classify_sdof<S: SecondOrderSystem + ?Sized>(
     v0: f64,
     cfg: &BasinConfig,
 ) -> Label {
+    let cfg = &memory_config(sys, cfg);
     let judge = SdofJudge::new(wells, cfg);
-    classify_one(sys, &judge, cfg, &|x, v| {
-        x[0] = x0;
-        v[0] = v0;
-    })
+    classify_one(sys, &judge, cfg, &|x, v| sdof_start(x, v, x0, v0))
+}
+
+/// The start of an S-DOF run: `(x0, v0)`, and every internal state of the system (the
+/// coordinates after the first, [`SecondOrderSystem::internal_states`]) at rest.
+fn sdof_start(x: &mut [f64], v: &mut [f64], x0: f64, v0: f64) {
+    x.fill(0.0);
+    v.fill(0.0);
+    x[0] = x0;
+    v[0] = v0;
+}
+
+/// `cfg`, without the early exit for a system with internal states: its energy is not that of
+/// the wells' potential (a hysteretic element stores and returns energy), so being below a
+/// barrier proves nothing; such runs go to `t_max`.
+fn memory_config<S: SecondOrderSystem + ?Sized>(sys: &S, cfg: &BasinConfig) -> BasinConfig {
+    let mut c = cfg.clone();
+    if sys.internal_states() > 0 {
+        c.early_exit = false;
+    }
+    c
 }
 
 /// Basin map of a 1-DOF system over `(x0, v0)` (see [`classify_sdof`] for each start and
@@ -475,15 +493,16 @@ pub fn basin_sdof<S: SecondOrderSystem + ?Sized>(
     progress: Progress<'_>,
 ) -> Result<BasinMap> {
     cfg.validate()?;
-    if sys.dofs() != 1 {
+    if sys.dofs() - sys.internal_states() != 1 {
         return Err(invalid(
             "sys",
             format!(
                 "basin_sdof needs a 1-DOF system, got {} DOFs; use basin_chain",
-                sys.dofs()
+                sys.dofs() - sys.internal_states()
             ),
         ));
     }
+    let cfg = &memory_config(sys, cfg);
     if cfg.early_exit {
         wells.check_dissipative(sys, cfg.x_range, cfg.v_range, 41)?;
     }
@@ -491,8 +510,7 @@ pub fn basin_sdof<S: SecondOrderSystem + ?Sized>(
     let start = Instant::now();
     let judge = SdofJudge::new(wells, cfg);
     let labels = run_grid(sys, &judge, cfg, progress, |i, j, x, v| {
-        x[0] = cfg.x_at(i);
-        v[0] = cfg.v_at(j);
+        sdof_start(x, v, cfg.x_at(i), cfg.v_at(j))
     });
     let states = wells.stable().iter().map(|&s| vec![s]).collect();
     Ok(BasinMap::assemble(

@@ -66,9 +66,14 @@ fn derivative(f: &mut dyn FnMut(f64) -> f64, at: f64) -> f64 {
     }
 }
 
-/// The largest `|λ|` of the first-order Jacobian `[[0, I], [∂a/∂x, ∂a/∂v]]` at `(x, v)`.
+/// The largest `|λ|` of the first-order Jacobian `[[0, I], [∂a/∂x, ∂a/∂v]]` at `(x, v)`; the
+/// system's internal states (coordinates beyond those given) at rest.
 fn rate_at<S: SecondOrderSystem + ?Sized>(sys: &S, x: &[f64], v: &[f64]) -> f64 {
     let n = sys.dofs();
+    let (mut x, mut v) = (x.to_vec(), v.to_vec());
+    x.resize(n, 0.0);
+    v.resize(n, 0.0);
+    let (x, v) = (x.as_slice(), v.as_slice());
     let u = vec![0.0; sys.inputs()];
     let mut jac = DMatrix::<f64>::zeros(2 * n, 2 * n);
     for i in 0..n {

@@ -13,7 +13,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let dir = std::path::PathBuf::from(std::env::args().nth(1).unwrap_or_else(|| "demo".into()));
     std::fs::create_dir_all(&dir)?;
     let truth = Truth {
-        restoring: duffing_restoring,
+        restoring: duffing_restoring(),
         damping: 0.63,
         hidden: vec![Hidden::DryFriction {
             force: 2.0,

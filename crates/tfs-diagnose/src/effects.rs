@@ -1,15 +1,18 @@
 //! The open catalogue of physical effects: the [`Effect`] trait, the built-in effects, the
-//! [`Catalogue`] registry, and [`ComputedColumn`]s for effects that the term grammar cannot
-//! express.
+//! [`Catalogue`] registry, and [`ComputedColumn`]s for input effects that the term grammar
+//! cannot express.
 //!
 //! An effect offers, for one DOF's equation, a list of [`Variant`]s: one per value of its scanned
 //! nonlinear parameter (or a single variant). A variant adds columns to the equation and may
 //! replace existing terms (an input delay replaces the input by its delayed copy).
 //!
+//! Memory effects (a hidden Maxwell element, Bouc–Wen hysteresis, Dahl friction) are internal
+//! states of the term grammar (`maxwell(x', τ)`, `bouc_wen(x', a, b)`, `dahl(x', κ)`): the law
+//! and its parameters are part of the term, so a refitted model carries them, and every command
+//! simulates them with the motion, started at rest ([`memory`]).
+//!
 //! Computed columns are model inputs with a documented name, so a refitted model stays a plain
 //! `tfs-model/1` file:
-//! * `maxwell_<dof>_tau_<τ>`: the velocity of `<dof>` low-pass filtered with time constant τ
-//!   seconds, `τ y' + y = x'` (a hidden Maxwell element: spring in series with a dashpot);
 //! * `<input>_delay_<δ>`: the input column delayed by δ seconds;
 //! * `<input>_lowpass_<τ>`: the input column low-pass filtered with time constant τ seconds.
 //!
@@ -21,194 +24,18 @@
 //! powers in the model ([`EffectColumn::centred`]), so a DC offset does not change the effect.
 //!
 //! Numbers are written with `p` for the decimal point (`0.35` → `0p35`). Simulating a model with
-//! such columns needs [`crate::simulate`] (delays are computed from the record; the Maxwell
-//! filter is integrated as an extra state driven by the simulated velocity).
+//! such columns needs [`crate::simulate`] (delays and filters are computed from the record).
 
-use tfs_data::Columns;
+mod computed;
+pub mod memory;
+
+pub(crate) use computed::round3;
+pub use computed::{ComputedColumn, computed_columns, delayed, lowpass, upgrade_legacy};
+pub use memory::{DahlFriction, Hysteresis, Maxwell};
+
 use tfs_library::{Factor, Model, Term, Var};
 
 use crate::{DiagnoseError, Result};
-
-/// A column computed from a record rather than read from it.
-#[derive(Debug, Clone, PartialEq)]
-pub enum ComputedColumn {
-    /// Velocity of `dof` low-pass filtered with time constant `tau` (s).
-    Maxwell {
-        /// The DOF whose velocity is filtered.
-        dof: String,
-        /// Time constant in seconds.
-        tau: f64,
-    },
-    /// Input column `input` delayed by `delay` seconds (the first value is held before the start).
-    Delayed {
-        /// The input column.
-        input: String,
-        /// Delay in seconds.
-        delay: f64,
-    },
-    /// Input column `input` low-pass filtered with time constant `tau` seconds (`τ y' + y = u`,
-    /// starting from `y = u₀`): the first-order dynamics of an exciter or amplifier.
-    Lowpass {
-        /// The input column.
-        input: String,
-        /// Time constant in seconds.
-        tau: f64,
-    },
-}
-
-/// Rounds to 3 significant digits.
-pub(crate) fn round3(v: f64) -> f64 {
-    if v == 0.0 || !v.is_finite() {
-        return v;
-    }
-    format!("{v:.2e}").parse().unwrap_or(v)
-}
-
-fn encode(v: f64) -> String {
-    let s = format!("{}", round3(v));
-    let s = if s.contains('e') {
-        format!("{:.6}", round3(v))
-            .trim_end_matches('0')
-            .to_string()
-    } else {
-        s
-    };
-    s.replace('.', "p").replace('-', "m")
-}
-
-fn decode(s: &str) -> Option<f64> {
-    let v: f64 = s.replace('p', ".").replace('m', "-").parse().ok()?;
-    (v.is_finite() && v > 0.0).then_some(v)
-}
-
-impl ComputedColumn {
-    /// The column name (see the module docs).
-    pub fn name(&self) -> String {
-        match self {
-            ComputedColumn::Maxwell { dof, tau } => format!("maxwell_{dof}_tau_{}", encode(*tau)),
-            ComputedColumn::Delayed { input, delay } => {
-                format!("{input}_delay_{}", encode(*delay))
-            }
-            ComputedColumn::Lowpass { input, tau } => {
-                format!("{input}_lowpass_{}", encode(*tau))
-            }
-        }
-    }
-
-    /// Recognises a computed column name; `dofs` are the model's DOFs.
-    pub fn parse(name: &str, dofs: &[String]) -> Option<Self> {
-        if let Some(rest) = name.strip_prefix("maxwell_")
-            && let Some((dof, tau)) = rest.rsplit_once("_tau_")
-            && dofs.iter().any(|d| d == dof)
-        {
-            return Some(ComputedColumn::Maxwell {
-                dof: dof.to_string(),
-                tau: decode(tau)?,
-            });
-        }
-        if let Some((input, delay)) = name.rsplit_once("_delay_")
-            && !input.is_empty()
-        {
-            return Some(ComputedColumn::Delayed {
-                input: input.to_string(),
-                delay: decode(delay)?,
-            });
-        }
-        if let Some((input, tau)) = name.rsplit_once("_lowpass_")
-            && !input.is_empty()
-        {
-            return Some(ComputedColumn::Lowpass {
-                input: input.to_string(),
-                tau: decode(tau)?,
-            });
-        }
-        None
-    }
-
-    /// The column this one is computed from (`"x'"` or the input name).
-    pub fn source(&self) -> String {
-        match self {
-            ComputedColumn::Maxwell { dof, .. } => format!("{dof}'"),
-            ComputedColumn::Delayed { input, .. } | ComputedColumn::Lowpass { input, .. } => {
-                input.clone()
-            }
-        }
-    }
-
-    /// True for columns computed from a record's input (delay, low-pass), which simulate as
-    /// ordinary inputs; false for the Maxwell column, which depends on the simulated state.
-    pub fn from_input(&self) -> bool {
-        !matches!(self, ComputedColumn::Maxwell { .. })
-    }
-
-    /// Computes the column from `cols` (which must hold [`ComputedColumn::source`]) sampled
-    /// every `dt` seconds.
-    pub fn compute(&self, cols: &dyn Columns, dt: f64) -> Result<Vec<f64>> {
-        let src = self.source();
-        let s = cols
-            .column(&src)
-            .ok_or_else(|| DiagnoseError::InvalidParameter {
-                name: "record",
-                reason: format!(
-                    "column '{src}' is needed to compute '{}' but is missing",
-                    self.name()
-                ),
-            })?;
-        Ok(match self {
-            ComputedColumn::Maxwell { tau, .. } => lowpass(s, dt, *tau),
-            ComputedColumn::Delayed { delay, .. } => delayed(s, dt, *delay),
-            ComputedColumn::Lowpass { tau, .. } => lowpass(s, dt, *tau),
-        })
-    }
-}
-
-/// First-order low-pass `τ y' + y = v`, exact for a piecewise-linear `v`, starting from `y = v₀`.
-pub fn lowpass(v: &[f64], dt: f64, tau: f64) -> Vec<f64> {
-    let mut out = Vec::with_capacity(v.len());
-    let Some(&first) = v.first() else {
-        return out;
-    };
-    let a = (-dt / tau).exp();
-    let b = tau / dt * (1.0 - a);
-    let mut y = first;
-    out.push(y);
-    for w in v.windows(2) {
-        let (v0, v1) = (w[0], w[1]);
-        // Exact solution for v(t) = v0 + (v1 − v0) t/dt over one step.
-        y = a * y + (1.0 - a) * v0 + (v1 - v0) * (1.0 - b);
-        out.push(y);
-    }
-    out
-}
-
-/// `v(t − δ)` by linear interpolation between samples, holding the first value before the start.
-pub fn delayed(v: &[f64], dt: f64, delay: f64) -> Vec<f64> {
-    let shift = delay / dt;
-    (0..v.len())
-        .map(|k| {
-            let s = k as f64 - shift;
-            if s <= 0.0 {
-                return v[0];
-            }
-            let i = s.floor() as usize;
-            let f = s - i as f64;
-            if i + 1 >= v.len() {
-                v[v.len() - 1]
-            } else {
-                v[i] * (1.0 - f) + v[i + 1] * f
-            }
-        })
-        .collect()
-}
-
-/// The computed columns a model uses (recognised among its inputs).
-pub fn computed_columns(model: &Model) -> Vec<ComputedColumn> {
-    model
-        .inputs
-        .iter()
-        .filter_map(|n| ComputedColumn::parse(n, &model.dofs))
-        .collect()
-}
 
 /// One column an effect adds: a term of the grammar, and how to compute it when it names a
 /// computed input column.
@@ -379,6 +206,9 @@ pub struct EffectContext<'a> {
     /// Smallest and largest value over the data of each displacement coordinate of the equation
     /// (see [`EffectContext::displacement_vars`]): where a stop can be.
     pub displacement_ranges: Vec<(Var, f64, f64)>,
+    /// RMS about its mean of each displacement coordinate of the equation: the scale of a
+    /// hysteresis or friction state driven by its velocity.
+    pub displacement_rms: Vec<(Var, f64)>,
 }
 
 /// The coordinates of an equation with terms `terms` that `keep` selects: `own` first, then
@@ -415,7 +245,18 @@ impl<'a> EffectContext<'a> {
             max_power,
             displacement_mean: scales.mean,
             displacement_ranges: scales.ranges.clone(),
+            displacement_rms: scales.rms.clone(),
         }
+    }
+
+    /// The RMS about its mean of the displacement coordinate `v` over the data, if the equation
+    /// uses it and it moves.
+    pub fn displacement_rms(&self, v: &Var) -> Option<f64> {
+        self.displacement_rms
+            .iter()
+            .find(|(w, _)| w == v)
+            .map(|(_, r)| *r)
+            .filter(|r| *r > 0.0 && r.is_finite())
     }
 
     /// True if the equation already has `term`.
@@ -674,37 +515,6 @@ impl Effect for Offset {
     }
 }
 
-/// Viscoelastic relaxation: a hidden Maxwell element, the velocity low-pass filtered with time
-/// constant τ, τ scanned relative to the dominant period.
-#[derive(Debug, Clone, Copy)]
-pub struct Maxwell;
-impl Effect for Maxwell {
-    fn name(&self) -> String {
-        "maxwell".into()
-    }
-    fn description(&self) -> String {
-        "viscoelastic relaxation: hidden Maxwell element, x' low-pass filtered with time constant tau (scanned 0.02..2 dominant periods)".into()
-    }
-    fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
-        if !(ctx.period.is_finite() && ctx.period > 0.0) {
-            return Vec::new();
-        }
-        [0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0]
-            .iter()
-            .map(|r| round3(r * ctx.period))
-            .filter(|&tau| tau > ctx.dt)
-            .map(|tau| {
-                let c = ComputedColumn::Maxwell {
-                    dof: ctx.dof.to_string(),
-                    tau,
-                };
-                Variant::adding(Some(("tau".into(), tau)), vec![EffectColumn::computed(c)])
-            })
-            .filter(|v| !ctx.has(&v.add[0].term))
-            .collect()
-    }
-}
-
 /// Input delay and gain (shaker dynamics): every input term `u` is replaced by `u(t − δ)`, δ
 /// scanned over whole samples up to a tenth of the dominant period; the gain is the refitted
 /// input coefficient.
@@ -755,9 +565,7 @@ fn linear_inputs(ctx: &EffectContext<'_>) -> Vec<String> {
     ctx.terms
         .iter()
         .filter_map(|t| match t.factors() {
-            [Factor::Pow(Var::Input(n), 1)]
-                if ComputedColumn::parse(n, &ctx.model.dofs).is_none() =>
-            {
+            [Factor::Pow(Var::Input(n), 1)] if ComputedColumn::parse(n).is_none() => {
                 Some(n.clone())
             }
             _ => None,
@@ -872,7 +680,10 @@ impl Catalogue {
         }
     }
 
-    /// The built-in effects, with stiffness powers `x^1 … x^max_power`.
+    /// The built-in effects, with stiffness powers `x^1 … x^max_power`. Dahl friction
+    /// ([`DahlFriction`]) is the `b = 0` member of the hysteresis family and is not a separate
+    /// candidate here (it would tie with hysteresis whenever the best loop is symmetric); register
+    /// it to test it on its own.
     pub fn standard(max_power: u32) -> Self {
         let mut c = Self::empty();
         let mut add = |e: Box<dyn Effect>| c.effects.push(e);
@@ -885,6 +696,7 @@ impl Catalogue {
         }
         add(Box::new(Offset));
         add(Box::new(Maxwell));
+        add(Box::new(Hysteresis));
         add(Box::new(InputDelay));
         add(Box::new(InputFilter));
         add(Box::new(Stop));

@@ -21,8 +21,6 @@
 //! lower), the rest by held-out equation-error improvement.
 
 use faer::Mat;
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::Serialize;
 use tfs_data::Record;
@@ -30,7 +28,9 @@ use tfs_library::{ColumnSet, Equation, Model, ModelTerm, Term, evaluate_term};
 use tfs_regress::{Compressed, LeastSquares, Regressor};
 
 use crate::effects::{Catalogue, EffectColumn, EffectContext, Variant};
+use crate::judge::Judge;
 use crate::prepare::{DiagnoseOptions, Layout, RecordStates, rms};
+use crate::stats::{block_wald_p_value, bootstrap_interval, paired_p_value};
 use crate::{DiagnoseError, Result};
 
 /// The evidence for one effect on one DOF (its best variant).
@@ -60,9 +60,12 @@ pub struct RankedEffect {
     pub interval: [f64; 2],
     /// RMS change of the fitted force over the RMS of `x''`.
     pub share: f64,
-    /// Held-out simulation R-MSE of the refitted structure without the effect.
+    /// What ranked the held-out predictions (`None` when candidates were not simulated).
+    pub judge: Option<Judge>,
+    /// Held-out prediction R-MSE of the refitted structure without the effect, by `judge`.
     pub r_mse_before: Option<f64>,
-    /// Held-out simulation R-MSE after adding the effect (None if a simulation failed).
+    /// Held-out prediction R-MSE after adding the effect, by `judge` (None if a simulation
+    /// failed).
     pub r_mse_after: Option<f64>,
     /// Why it is (not) significant, in words.
     pub reason: String,
@@ -78,6 +81,8 @@ pub struct Explanation {
     pub verdict: String,
     /// Number of variants tested (the Bonferroni factor).
     pub tests: usize,
+    /// Per DOF: the judge of the held-out predictions and why it was chosen.
+    pub judges: Vec<(String, Judge, String)>,
     /// Cut-off (Hz) used for the smoothed states, per record.
     pub cutoff_hz: Vec<f64>,
     /// Folds are records (true) or time segments (false).
@@ -182,102 +187,6 @@ pub(crate) fn full_fit(blocks: &[Compressed]) -> Result<Vec<f64>> {
         .coef)
 }
 
-/// One-sided p-value of `mean(d) > 0` with a t statistic over `d.len()` blocks
-/// (t → z by the Cornish–Fisher-type approximation `z = t(1 − 1/4ν)/√(1 + t²/2ν)`).
-pub fn paired_p_value(d: &[f64]) -> f64 {
-    let b = d.len();
-    if b < 2 {
-        return 1.0;
-    }
-    let mean = d.iter().sum::<f64>() / b as f64;
-    let var = d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (b - 1) as f64;
-    if var <= 0.0 {
-        return if mean > 0.0 { 0.0 } else { 1.0 };
-    }
-    let t = mean / (var / b as f64).sqrt();
-    t_upper_tail(t, (b - 1) as f64)
-}
-
-/// Upper-tail probability of a t statistic with `nu` degrees of freedom
-/// (t → z by `z = t(1 − 1/4ν)/√(1 + t²/2ν)`).
-fn t_upper_tail(t: f64, nu: f64) -> f64 {
-    let z = t * (1.0 - 1.0 / (4.0 * nu)) / (1.0 + t * t / (2.0 * nu)).sqrt();
-    0.5 * libm::erfc(z / std::f64::consts::SQRT_2)
-}
-
-/// Two-sided p-value that coefficient `j` of the least-squares fit `coef` of `d` is zero, with a
-/// block-robust (cluster sandwich) variance: blocks are treated as independent, rows inside a
-/// block may be correlated (smoothed states are). `Var β = B (Σ_b g_b g_bᵀ) B · n_b/(n_b − 1)`
-/// with `B = (AᵀA)⁻¹` and `g_b = A_bᵀ r_b` the block's score; the statistic is referred to a t
-/// distribution with `n_b − 1` degrees of freedom. Columns are scaled to unit RMS first (the
-/// statistic is scale-invariant; raw-unit columns can span many decades). Returns 1 when the
-/// normal matrix is singular.
-pub(crate) fn block_wald_p_value(d: &Design, layout: &Layout, coef: &[f64], j: usize) -> f64 {
-    let p = coef.len();
-    let nb = layout.blocks.len();
-    if nb < 3 || j >= p {
-        return 1.0;
-    }
-    let mut scale = vec![0.0f64; p];
-    let mut rows = 0usize;
-    for bl in &layout.blocks {
-        let a = &d.a[bl.record];
-        for i in bl.start..bl.start + bl.len {
-            for (k, s) in scale.iter_mut().enumerate() {
-                *s += a[(i, k)] * a[(i, k)];
-            }
-        }
-        rows += bl.len;
-    }
-    for s in &mut scale {
-        *s = (*s / rows.max(1) as f64).sqrt();
-        if !(*s > 0.0 && s.is_finite()) {
-            *s = 1.0;
-        }
-    }
-    let mut ata = Mat::<f64>::zeros(p, p);
-    let mut scores = Vec::with_capacity(nb);
-    for bl in &layout.blocks {
-        let a = &d.a[bl.record];
-        let b = &d.b[bl.record];
-        let mut g = vec![0.0; p];
-        for i in bl.start..bl.start + bl.len {
-            let fitted: f64 = (0..p).map(|k| a[(i, k)] * coef[k]).sum();
-            let r = b[i] - fitted;
-            for k in 0..p {
-                let ak = a[(i, k)] / scale[k];
-                g[k] += ak * r;
-                for l in 0..=k {
-                    ata[(k, l)] += ak * a[(i, l)] / scale[l];
-                }
-            }
-        }
-        scores.push(g);
-    }
-    for k in 0..p {
-        for l in 0..k {
-            ata[(l, k)] = ata[(k, l)];
-        }
-    }
-    let Ok(llt) = ata.llt(faer::Side::Lower) else {
-        return 1.0;
-    };
-    let mut e = Mat::<f64>::zeros(p, 1);
-    e[(j, 0)] = 1.0;
-    let w = faer::linalg::solvers::Solve::solve(&llt, &e);
-    let var: f64 = scores
-        .iter()
-        .map(|g| (0..p).map(|k| w[(k, 0)] * g[k]).sum::<f64>().powi(2))
-        .sum::<f64>()
-        * nb as f64
-        / (nb - 1) as f64;
-    let beta = coef[j] * scale[j];
-    if !(var > 0.0 && var.is_finite()) {
-        return if beta != 0.0 { 0.0 } else { 1.0 };
-    }
-    (2.0 * t_upper_tail(beta.abs() / var.sqrt(), (nb - 1) as f64)).min(1.0)
-}
-
 /// The columns of the equation of `dof` after applying a variant (replacements in place, additions
 /// appended); the main column's index is returned too.
 pub(crate) fn variant_columns(base: &[Term], v: &Variant) -> (Vec<EffectColumn>, Option<usize>) {
@@ -328,44 +237,6 @@ pub(crate) fn with_equation(
     m.trace = model.trace.clone();
     m.history = model.history.clone();
     Ok(m)
-}
-
-/// Held-out simulation R-MSE of the per-fold models (mean over held-out units; None on failure).
-pub(crate) fn heldout_r_mse(
-    model: &Model,
-    dof_idx: usize,
-    cols: &[EffectColumn],
-    cv: &Cv,
-    states: &[RecordStates],
-    layout: &Layout,
-    opts: &DiagnoseOptions,
-) -> Option<f64> {
-    let mut sum = 0.0;
-    let mut count = 0usize;
-    for f in 0..layout.folds {
-        let m = with_equation(model, dof_idx, cols, &cv.coefs[f]).ok()?;
-        let units: Vec<Record> = if layout.by_record {
-            states
-                .iter()
-                .enumerate()
-                .filter(|(r, _)| layout.blocks.iter().any(|b| b.record == *r && b.fold == f))
-                .map(|(_, s)| crate::simulate::augment_record(&m, &s.record, opts))
-                .collect::<Result<_>>()
-                .ok()?
-        } else {
-            let bl: Vec<_> = layout.blocks.iter().filter(|b| b.fold == f).collect();
-            let s = &states[bl.first()?.record];
-            let start = s.margin + bl.first()?.start;
-            let end = s.margin + bl.last()?.start + bl.last()?.len;
-            let full = crate::simulate::augment_record(&m, &s.record, opts).ok()?;
-            vec![full.slice(start..end).ok()?]
-        };
-        for u in units {
-            sum += crate::simulate::r_mse(&m, &u).ok()?;
-            count += 1;
-        }
-    }
-    (count > 0).then(|| sum / count as f64)
 }
 
 struct DofSetup {
@@ -431,24 +302,28 @@ fn context<'a>(
     )
 }
 
-struct Scored {
-    variant: Variant,
-    cols: Vec<EffectColumn>,
-    main: Option<usize>,
-    blocks: Vec<Compressed>,
-    design: Design,
-    cv: Cv,
-    cv_rss: f64,
+/// One variant scored: its columns, design, compressed blocks and cross-validation.
+pub(crate) struct Scored {
+    pub variant: Variant,
+    pub cols: Vec<EffectColumn>,
+    pub main: Option<usize>,
+    pub blocks: Vec<Compressed>,
+    pub design: Design,
+    pub cv: Cv,
+    /// Held-out residual sum of squares over all blocks.
+    pub cv_rss: f64,
 }
 
-fn score_variant(
+/// Scores variant `v` on the equation of DOF `idx` with the terms `base`.
+pub(crate) fn score_variant(
     states: &[RecordStates],
     layout: &Layout,
-    d: &DofSetup,
+    idx: usize,
+    base: &[Term],
     v: &Variant,
 ) -> Result<Scored> {
-    let (cols, main) = variant_columns(&d.base_terms, v);
-    let design = design(states, d.idx, &cols)?;
+    let (cols, main) = variant_columns(base, v);
+    let design = design(states, idx, &cols)?;
     let blocks = compress_blocks(&design, layout)?;
     let cv = cross_validate(&blocks, layout)?;
     let cv_rss = cv.heldout.iter().sum();
@@ -463,47 +338,29 @@ fn score_variant(
     })
 }
 
-/// Scores every variant of one effect on one DOF and returns the best (lowest held-out RSS).
-fn best_variant(
+/// Scores every variant of one effect on the equation of DOF `idx` (terms `base`) and returns
+/// the best (lowest held-out RSS), an internal state's parameters then refined locally by the
+/// same criterion ([`crate::polish`]).
+pub(crate) fn best_variant(
     states: &[RecordStates],
     layout: &Layout,
-    d: &DofSetup,
+    idx: usize,
+    base: &[Term],
     variants: &[Variant],
 ) -> Result<Option<Scored>> {
     let mut best: Option<Scored> = None;
     for v in variants {
-        let s = score_variant(states, layout, d, v)?;
+        let s = score_variant(states, layout, idx, base, v)?;
         if best.as_ref().is_none_or(|b| s.cv_rss < b.cv_rss) {
             best = Some(s);
         }
     }
-    Ok(best)
-}
-
-fn bootstrap_interval(
-    blocks: &[Compressed],
-    main: usize,
-    reps: usize,
-    seed: u64,
-) -> Result<[f64; 2]> {
-    if reps < 10 {
-        return Ok([f64::NAN, f64::NAN]);
+    match best {
+        Some(b) => Ok(Some(crate::polish::polish(b, &|v| {
+            score_variant(states, layout, idx, base, v)
+        })?)),
+        None => Ok(None),
     }
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let nb = blocks.len();
-    let mut vals = Vec::with_capacity(reps);
-    for _ in 0..reps {
-        let mut counts = vec![0usize; nb];
-        for _ in 0..nb {
-            counts[rng.random_range(0..nb)] += 1;
-        }
-        let pairs: Vec<(&Compressed, usize)> = blocks.iter().zip(counts).collect();
-        let fit = LeastSquares.fit_compressed(&Compressed::merge_counted(&pairs)?)?;
-        vals.push(fit.coef[main]);
-    }
-    vals.sort_by(f64::total_cmp);
-    let q = |p: f64| vals[((p * (reps - 1) as f64).round() as usize).min(reps - 1)];
-    Ok([q(0.025), q(0.975)])
 }
 
 /// The held-out analysis of one (effect, DOF) pair before the multiple-comparison correction.
@@ -516,7 +373,215 @@ struct Raw {
     coef: f64,
     interval: [f64; 2],
     share: f64,
-    r_mse_after: Option<f64>,
+}
+
+/// Scores the variants of effect `name` on the equation of `d` and analyses the best one: the
+/// held-out drop, the combined one-sided test, the size and the coefficient's interval.
+fn analyse(
+    states: &[RecordStates],
+    layout: &Layout,
+    d: &DofSetup,
+    name: &str,
+    vars: &[Variant],
+    opts: &DiagnoseOptions,
+) -> Result<Option<Raw>> {
+    let Some(s) = best_variant(states, layout, d.idx, &d.base_terms, vars)? else {
+        return Ok(None);
+    };
+    let pairs = d.base_cv.heldout.iter().zip(&s.cv.heldout);
+    let logs: Vec<f64> = pairs
+        .clone()
+        .map(|(a, b)| (a.max(f64::MIN_POSITIVE) / b.max(f64::MIN_POSITIVE)).ln())
+        .collect();
+    let diffs: Vec<f64> = pairs.map(|(a, b)| a - b).collect();
+    let base_rss: f64 = d.base_cv.heldout.iter().sum();
+    let delta = if base_rss > 0.0 {
+        (base_rss - s.cv_rss) / base_rss
+    } else {
+        0.0
+    };
+    let coef_c = full_fit(&s.blocks)?;
+    // Three one-sided looks at the same question, Bonferroni-combined: the held-out RSS
+    // drop, its log-ratio, and (for an effect that adds a column) the block-robust Wald
+    // test of the added coefficient. The Wald test is the direct test of a small effect
+    // whose held-out RSS drop is buried in noise-dominated blocks (a constant offset
+    // confounded with a high-power restoring polynomial); the held-out drop guards
+    // against in-sample overfitting below.
+    let wald = match s.main {
+        Some(m) if !s.variant.add.is_empty() => block_wald_p_value(&s.design, layout, &coef_c, m),
+        _ => 1.0,
+    };
+    let p_raw = (3.0 * paired_p_value(&diffs).min(paired_p_value(&logs)).min(wald)).min(1.0);
+    let coef_0 = full_fit(&d.base_blocks)?;
+    let mut diff2 = 0.0;
+    let mut rows = 0usize;
+    for r in 0..states.len() {
+        let fc = &s.design.a[r] * faer::col::ColRef::from_slice(&coef_c);
+        let f0 = &d.base_design.a[r] * faer::col::ColRef::from_slice(&coef_0);
+        for i in 0..fc.nrows() {
+            diff2 += (fc[i] - f0[i]).powi(2);
+        }
+        rows += fc.nrows();
+    }
+    let share = (diff2 / rows.max(1) as f64).sqrt() / d.acc_rms.max(f64::MIN_POSITIVE);
+    let (coef, interval) = match s.main {
+        Some(m) => (
+            coef_c[m],
+            bootstrap_interval(&s.blocks, m, opts.bootstrap, opts.seed)?,
+        ),
+        None => (f64::NAN, [f64::NAN, f64::NAN]),
+    };
+    Ok(Some(Raw {
+        effect: name.to_string(),
+        dof_idx: d.idx,
+        p_raw,
+        delta,
+        coef,
+        interval,
+        share,
+        scored: s,
+    }))
+}
+
+/// The ranked entry of one analysed effect: the Bonferroni correction over `tests`, the
+/// significance decision by equation error, and the words.
+fn entry(model: &Model, raw: &Raw, tests: usize, opts: &DiagnoseOptions) -> RankedEffect {
+    let p = (raw.p_raw * tests as f64).min(1.0);
+    let passes_p = p < opts.alpha;
+    let passes_size = raw.share >= opts.min_share;
+    let falls = raw.delta > 0.0;
+    let significant = passes_p && passes_size && falls;
+    let reason = if significant {
+        format!(
+            "held-out equation error falls {:.1} %, p = {p:.2e} (corrected over {tests} tests), size {:.1} % of the force RMS",
+            100.0 * raw.delta,
+            100.0 * raw.share
+        )
+    } else if !falls {
+        "held-out equation error does not fall".to_string()
+    } else if !passes_p {
+        format!(
+            "not significant: corrected p = {p:.2e} >= alpha = {}",
+            opts.alpha
+        )
+    } else {
+        format!(
+            "significant but too small: {:.2} % of the force RMS < {:.1} %",
+            100.0 * raw.share,
+            100.0 * opts.min_share
+        )
+    };
+    let dof = model.dofs[raw.dof_idx].clone();
+    let name = if model.dofs.len() > 1 {
+        format!("{}@{dof}", raw.effect)
+    } else {
+        raw.effect.clone()
+    };
+    let v = &raw.scored.variant;
+    let terms = v
+        .add
+        .iter()
+        .map(|c| c.label())
+        .chain(
+            v.replace
+                .iter()
+                .map(|(o, n)| format!("{o} -> {}", n.label())),
+        )
+        .collect();
+    RankedEffect {
+        name,
+        effect: raw.effect.clone(),
+        dof,
+        parameter: v.parameter.clone(),
+        terms,
+        significant,
+        p_value_raw: raw.p_raw,
+        p_value: p,
+        delta_heldout: raw.delta,
+        coef: raw.coef,
+        interval: raw.interval,
+        share: raw.share,
+        judge: None,
+        r_mse_before: None,
+        r_mse_after: None,
+        reason,
+    }
+}
+
+/// Judges every candidate's refitted per-fold models on held-out data ([`crate::judge`]) and
+/// takes significance away from one that predicts worse than the model without it. Returns the
+/// judge of each DOF with its reason.
+fn judge_candidates(
+    model: &Model,
+    setups: &[DofSetup],
+    states: &[RecordStates],
+    layout: &Layout,
+    opts: &DiagnoseOptions,
+    ranked: &mut [(RankedEffect, Raw)],
+) -> Vec<(String, Judge, String)> {
+    let (judge, why) = crate::judge::choose(model, states, opts);
+    let dt = states[0].record.dt();
+    let horizon = |d: &DofSetup| ((2.0 * d.scales.period / dt).round() as usize).max(16);
+    let before: Vec<Option<f64>> = setups
+        .iter()
+        .map(|d| {
+            let cols: Vec<EffectColumn> = d
+                .base_terms
+                .iter()
+                .cloned()
+                .map(EffectColumn::term)
+                .collect();
+            let h = horizon(d);
+            crate::judge::heldout_error(
+                judge, model, d.idx, &cols, &d.base_cv, states, layout, opts, h,
+            )
+        })
+        .collect();
+    ranked.par_iter_mut().for_each(|(r, raw)| {
+        let d = &setups[raw.dof_idx];
+        r.judge = Some(judge);
+        r.r_mse_before = before[raw.dof_idx];
+        r.r_mse_after = crate::judge::heldout_error(
+            judge,
+            model,
+            raw.dof_idx,
+            &raw.scored.cols,
+            &raw.scored.cv,
+            states,
+            layout,
+            opts,
+            horizon(d),
+        );
+        // An effect whose refitted model predicts the held-out data worse than the model
+        // without it is not a discovered effect, however well it fits the equation error
+        // (a flexible term can soak up the residual of a slightly mis-sized true effect).
+        if r.significant
+            && let Some(before) = r.r_mse_before
+        {
+            let worse = match r.r_mse_after {
+                Some(after) => after >= before,
+                None => true,
+            };
+            if worse {
+                r.significant = false;
+                r.reason = match r.r_mse_after {
+                    Some(after) => format!(
+                        "held-out equation error falls {:.1} %, but the refitted model predicts the held-out data worse ({} R-MSE {after:.3e} vs {before:.3e})",
+                        100.0 * r.delta_heldout,
+                        judge.describe()
+                    ),
+                    None => format!(
+                        "held-out equation error falls {:.1} %, but the refitted model cannot be simulated on the held-out data",
+                        100.0 * r.delta_heldout
+                    ),
+                };
+            }
+        }
+    });
+    setups
+        .iter()
+        .map(|d| (model.dofs[d.idx].clone(), judge, why.clone()))
+        .collect()
 }
 
 /// Ranks every catalogue effect for `model` on `records`.
@@ -551,193 +616,30 @@ pub fn explain(
     let tests: usize = jobs.iter().map(|j| j.2.len()).sum::<usize>().max(1);
     let raws: Vec<Raw> = jobs
         .par_iter()
-        .map(|(name, idx, vars)| -> Result<Option<Raw>> {
-            let d = &setups[*idx];
-            let Some(s) = best_variant(&states, &layout, d, vars)? else {
-                return Ok(None);
-            };
-            let pairs = d.base_cv.heldout.iter().zip(&s.cv.heldout);
-            let logs: Vec<f64> = pairs
-                .clone()
-                .map(|(a, b)| (a.max(f64::MIN_POSITIVE) / b.max(f64::MIN_POSITIVE)).ln())
-                .collect();
-            let diffs: Vec<f64> = pairs.map(|(a, b)| a - b).collect();
-            let base_rss: f64 = d.base_cv.heldout.iter().sum();
-            let delta = if base_rss > 0.0 {
-                (base_rss - s.cv_rss) / base_rss
-            } else {
-                0.0
-            };
-            let coef_c = full_fit(&s.blocks)?;
-            // Three one-sided looks at the same question, Bonferroni-combined: the held-out RSS
-            // drop, its log-ratio, and (for an effect that adds a column) the block-robust Wald
-            // test of the added coefficient. The Wald test is the direct test of a small effect
-            // whose held-out RSS drop is buried in noise-dominated blocks (a constant offset
-            // confounded with a high-power restoring polynomial); the held-out drop guards
-            // against in-sample overfitting below.
-            let wald = match s.main {
-                Some(m) if !s.variant.add.is_empty() => {
-                    block_wald_p_value(&s.design, &layout, &coef_c, m)
-                }
-                _ => 1.0,
-            };
-            let p_raw =
-                (3.0 * paired_p_value(&diffs).min(paired_p_value(&logs)).min(wald)).min(1.0);
-            let coef_0 = full_fit(&d.base_blocks)?;
-            let mut diff2 = 0.0;
-            let mut rows = 0usize;
-            for r in 0..states.len() {
-                let fc = &s.design.a[r] * faer::col::ColRef::from_slice(&coef_c);
-                let f0 = &d.base_design.a[r] * faer::col::ColRef::from_slice(&coef_0);
-                for i in 0..fc.nrows() {
-                    diff2 += (fc[i] - f0[i]).powi(2);
-                }
-                rows += fc.nrows();
-            }
-            let share = (diff2 / rows.max(1) as f64).sqrt() / d.acc_rms.max(f64::MIN_POSITIVE);
-            let (coef, interval) = match s.main {
-                Some(m) => (
-                    coef_c[m],
-                    bootstrap_interval(&s.blocks, m, opts.bootstrap, opts.seed)?,
-                ),
-                None => (f64::NAN, [f64::NAN, f64::NAN]),
-            };
-            Ok(Some(Raw {
-                effect: name.clone(),
-                dof_idx: *idx,
-                p_raw,
-                delta,
-                coef,
-                interval,
-                share,
-                r_mse_after: None,
-                scored: s,
-            }))
-        })
+        .map(|(name, idx, vars)| analyse(&states, &layout, &setups[*idx], name, vars, opts))
         .collect::<Result<Vec<_>>>()?
         .into_iter()
         .flatten()
         .collect();
-    let multi = model.dofs.len() > 1;
     let mut ranked: Vec<(RankedEffect, Raw)> = raws
         .into_iter()
-        .map(|raw| {
-            let p = (raw.p_raw * tests as f64).min(1.0);
-            let passes_p = p < opts.alpha;
-            let passes_size = raw.share >= opts.min_share;
-            let falls = raw.delta > 0.0;
-            let significant = passes_p && passes_size && falls;
-            let reason = if significant {
-                format!(
-                    "held-out equation error falls {:.1} %, p = {p:.2e} (corrected over {tests} tests), size {:.1} % of the force RMS",
-                    100.0 * raw.delta,
-                    100.0 * raw.share
-                )
-            } else if !falls {
-                "held-out equation error does not fall".to_string()
-            } else if !passes_p {
-                format!("not significant: corrected p = {p:.2e} >= alpha = {}", opts.alpha)
-            } else {
-                format!(
-                    "significant but too small: {:.2} % of the force RMS < {:.1} %",
-                    100.0 * raw.share,
-                    100.0 * opts.min_share
-                )
-            };
-            let dof = model.dofs[raw.dof_idx].clone();
-            let name = if multi {
-                format!("{}@{dof}", raw.effect)
-            } else {
-                raw.effect.clone()
-            };
-            let terms = raw
-                .scored
-                .variant
-                .add
-                .iter()
-                .map(|c| c.label())
-                .chain(
-                    raw.scored
-                        .variant
-                        .replace
-                        .iter()
-                        .map(|(o, n)| format!("{o} -> {}", n.label())),
-                )
-                .collect();
-            (
-                RankedEffect {
-                    name,
-                    effect: raw.effect.clone(),
-                    dof,
-                    parameter: raw.scored.variant.parameter.clone(),
-                    terms,
-                    significant,
-                    p_value_raw: raw.p_raw,
-                    p_value: p,
-                    delta_heldout: raw.delta,
-                    coef: raw.coef,
-                    interval: raw.interval,
-                    share: raw.share,
-                    r_mse_before: None,
-                    r_mse_after: None,
-                    reason,
-                },
-                raw,
-            )
-        })
+        .map(|raw| (entry(model, &raw, tests, opts), raw))
         .collect();
-    if opts.simulate {
-        let before: Vec<Option<f64>> = setups
+    let judges = if opts.simulate {
+        judge_candidates(model, &setups, &states, &layout, opts, &mut ranked)
+    } else {
+        setups
             .iter()
             .map(|d| {
-                let cols: Vec<EffectColumn> = d
-                    .base_terms
-                    .iter()
-                    .cloned()
-                    .map(EffectColumn::term)
-                    .collect();
-                heldout_r_mse(model, d.idx, &cols, &d.base_cv, &states, &layout, opts)
+                (
+                    model.dofs[d.idx].clone(),
+                    Judge::EquationError,
+                    "simulation of the candidates is switched off".to_string(),
+                )
             })
-            .collect();
-        ranked.par_iter_mut().for_each(|(r, raw)| {
-            r.r_mse_before = before[raw.dof_idx];
-            r.r_mse_after = heldout_r_mse(
-                model,
-                raw.dof_idx,
-                &raw.scored.cols,
-                &raw.scored.cv,
-                &states,
-                &layout,
-                opts,
-            );
-            raw.r_mse_after = r.r_mse_after;
-            // An effect whose refitted model predicts the held-out data worse than the model
-            // without it is not a discovered effect, however well it fits the equation error
-            // (a flexible term can soak up the residual of a slightly mis-sized true effect).
-            if r.significant
-                && let Some(before) = r.r_mse_before
-            {
-                let worse = match r.r_mse_after {
-                    Some(after) => after >= before,
-                    None => true,
-                };
-                if worse {
-                    r.significant = false;
-                    r.reason = match r.r_mse_after {
-                        Some(after) => format!(
-                            "held-out equation error falls {:.1} %, but the refitted model predicts the held-out data worse (R-MSE {after:.3e} vs {before:.3e})",
-                            100.0 * r.delta_heldout
-                        ),
-                        None => format!(
-                            "held-out equation error falls {:.1} %, but the refitted model cannot be simulated on the held-out data",
-                            100.0 * r.delta_heldout
-                        ),
-                    };
-                }
-            }
-        });
-    }
-    // Significant first; among equals, the lower held-out simulation R-MSE (failed simulations
+            .collect()
+    };
+    // Significant first; among equals, the lower held-out prediction error (failed simulations
     // last), then the larger held-out equation-error drop.
     let sim_key = |r: &RankedEffect| r.r_mse_after.unwrap_or(f64::INFINITY);
     ranked.sort_by(|a, b| {
@@ -754,88 +656,41 @@ pub fn explain(
                 .then(b.delta_heldout.total_cmp(&a.delta_heldout))
         });
     }
-    let verdict = match ranked.iter().find(|r| r.significant) {
-        Some(top) => format!(
-            "missing effect: {} ({}); add it with --add {}",
-            top.name, top.reason, top.name
-        ),
-        None => format!(
-            "no significant missing effect among {} candidates (corrected alpha {}, minimum size {:.1} % of the force RMS)",
-            ranked.len(),
-            opts.alpha,
-            100.0 * opts.min_share
-        ),
-    };
+    let verdict = verdict(&ranked, &judges, opts);
     Ok(Explanation {
         ranked,
         verdict,
         tests,
+        judges,
         cutoff_hz: states.iter().map(|s| s.cutoff_hz).collect(),
         folds_by_record: layout.by_record,
         blocks: layout.blocks.len(),
     })
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::prepare::Block;
-    use rand_distr::{Distribution, StandardNormal};
-
-    /// A design `b = β·z + c·w + e` over 32 blocks of 50 rows with block-correlated noise (each
-    /// block's noise is a random walk, so rows inside a block are strongly correlated).
-    fn problem(beta: f64, seed: u64) -> (Design, Layout, Vec<f64>) {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let (nb, len) = (32, 50);
-        let n = nb * len;
-        let z: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).sin()).collect();
-        let w: Vec<f64> = (0..n).map(|i| (i as f64 * 0.11).cos()).collect();
-        let mut e = vec![0.0; n];
-        for b in 0..nb {
-            let mut acc = 0.0;
-            for i in 0..len {
-                let g: f64 = StandardNormal.sample(&mut rng);
-                acc = 0.9 * acc + g;
-                e[b * len + i] = 0.3 * acc;
-            }
+/// One sentence: the top significant effect and the judge that ranked it, or that none is.
+fn verdict(
+    ranked: &[RankedEffect],
+    judges: &[(String, Judge, String)],
+    opts: &DiagnoseOptions,
+) -> String {
+    match ranked.iter().find(|r| r.significant) {
+        Some(top) => {
+            let judged = judges
+                .iter()
+                .find(|(d, j, _)| *d == top.dof && *j != Judge::FreeRun)
+                .map(|(_, j, why)| format!("; ranked by {} ({why})", j.describe()))
+                .unwrap_or_default();
+            format!(
+                "missing effect: {} ({}){judged}; add it with --add {}",
+                top.name, top.reason, top.name
+            )
         }
-        let rhs: Vec<f64> = (0..n).map(|i| beta * z[i] + 2.0 * w[i] + e[i]).collect();
-        let a = Mat::from_fn(n, 2, |i, j| if j == 0 { z[i] } else { 1e5 * w[i] });
-        let layout = Layout {
-            blocks: (0..nb)
-                .map(|b| Block {
-                    record: 0,
-                    start: b * len,
-                    len,
-                    fold: b % 4,
-                })
-                .collect(),
-            folds: 4,
-            by_record: false,
-        };
-        let d = Design {
-            a: vec![a],
-            b: vec![rhs],
-        };
-        let blocks = compress_blocks(&d, &layout).unwrap();
-        let coef = full_fit(&blocks).unwrap();
-        (d, layout, coef)
-    }
-
-    #[test]
-    fn block_wald_detects_a_real_coefficient_and_is_calibrated_under_the_null() {
-        let (d, l, c) = problem(0.5, 1);
-        assert!(block_wald_p_value(&d, &l, &c, 0) < 1e-6);
-        // The other column (raw scale 1e5) is certainly non-zero too.
-        assert!(block_wald_p_value(&d, &l, &c, 1) < 1e-6);
-        // Under β = 0, p < 0.05 should happen about 5 % of the time (binomial: at most 7 of 40
-        // is far beyond the 99.9 % range for a calibrated test with 2 expected).
-        let small = (0..40)
-            .filter(|s| {
-                let (d, l, c) = problem(0.0, 100 + s);
-                block_wald_p_value(&d, &l, &c, 0) < 0.05
-            })
-            .count();
-        assert!(small <= 7, "{small} of 40 null p-values below 0.05");
+        None => format!(
+            "no significant missing effect among {} candidates (corrected alpha {}, minimum size {:.1} % of the force RMS)",
+            ranked.len(),
+            opts.alpha,
+            100.0 * opts.min_share
+        ),
     }
 }

@@ -7,8 +7,9 @@
 //! * [`localise()`](residual::localise) — the equation residual `x''_meas − model(x, x', u)`
 //!   mapped over (x, x') bins, frequency and time, with a plain-words summary.
 //! * [`explain()`](explain::explain) — the open [`Catalogue`] of [`Effect`]s (dry friction,
-//!   quadratic/cubic/amplitude damping, missing stiffness powers, offset, Maxwell relaxation,
-//!   input delay, input filter), each on the DOF's own and relative (chain) coordinates, in raw
+//!   quadratic/cubic/amplitude damping, missing stiffness powers, offset, memory effects as
+//!   internal states — Maxwell relaxation, Bouc–Wen hysteresis, Dahl friction —, input delay,
+//!   input filter, one-sided stops), each on the DOF's own and relative (chain) coordinates, in raw
 //!   units about the mean position when the model has a constant; refitted with the model's
 //!   terms, scored on held-out data, tested, sized and ranked; "no significant missing effect"
 //!   when none passes.
@@ -23,11 +24,11 @@
 //! let cat = Catalogue::standard(7);
 //! assert!(cat.names().contains(&"dry-friction".to_string()));
 //! let err = cat.get("friction").err().unwrap().to_string();
-//! assert!(err.contains("known effects") && err.contains("maxwell"));
-//! // Computed columns round-trip through their documented names.
-//! let c = ComputedColumn::Maxwell { dof: "x".into(), tau: 0.35 };
-//! assert_eq!(c.name(), "maxwell_x_tau_0p35");
-//! assert_eq!(ComputedColumn::parse(&c.name(), &["x".to_string()]), Some(c));
+//! assert!(err.contains("known effects") && err.contains("hysteresis"));
+//! // Computed input columns round-trip through their documented names.
+//! let c = ComputedColumn::Delayed { input: "u".into(), delay: 0.35 };
+//! assert_eq!(c.name(), "u_delay_0p35");
+//! assert_eq!(ComputedColumn::parse(&c.name()), Some(c));
 //! // In raw units a power is offered about the mean position: (x − 0.5)² = x² − x + 0.25.
 //! let x2 = tfs_library::Term::parse("x^2", &["x"]).unwrap();
 //! let weights: Vec<f64> = tfs_diagnose::EffectColumn::centred(x2, "x", 0.5)
@@ -47,21 +48,27 @@ pub mod compare;
 pub mod effects;
 mod error;
 pub mod explain;
+pub mod judge;
+pub mod noise;
+mod polish;
 pub mod prepare;
 pub mod refit;
 pub mod residual;
 pub mod simulate;
+mod stats;
 
 pub use compare::{RecordComparison, compare};
 pub use effects::{Catalogue, ComputedColumn, Effect, EffectColumn, EffectContext, Variant};
 pub use error::{DiagnoseError, Result};
-pub use explain::{Explanation, RankedEffect, explain, paired_p_value};
+pub use explain::{Explanation, RankedEffect, explain};
+pub use judge::Judge;
 pub use prepare::DiagnoseOptions;
 pub use refit::{
     LadderStep, add_effect, add_effect_with, error_ladder, ladder_table, refit, score_records,
 };
 pub use residual::{Localisation, localise};
 pub use simulate::{augment_record, r_mse, simulate};
+pub use stats::paired_p_value;
 
 use serde::Serialize;
 use tfs_data::Record;

@@ -223,13 +223,10 @@ impl RecordStates {
         }
         for c in &computed {
             let src = c.source();
-            if let crate::effects::ComputedColumn::Delayed { input, .. }
-            | crate::effects::ComputedColumn::Lowpass { input, .. } = c
-                && !cols.iter().any(|(n, _)| *n == src)
-            {
+            if !cols.iter().any(|(n, _)| *n == src) {
                 let u = record
-                    .column(input)
-                    .ok_or_else(|| missing(model, record, input))?;
+                    .column(&src)
+                    .ok_or_else(|| missing(model, record, &src))?;
                 cols.push((src, spectral_derivative(u, dt, 0, Some(fc))?));
             }
         }
@@ -389,6 +386,8 @@ pub(crate) struct DataScales {
     /// Smallest and largest value of each displacement coordinate of the equation (its own, then
     /// the relative ones its terms use).
     pub ranges: Vec<(tfs_library::Var, f64, f64)>,
+    /// RMS about its mean of each of those coordinates.
+    pub rms: Vec<(tfs_library::Var, f64)>,
 }
 
 impl DataScales {
@@ -414,6 +413,8 @@ impl DataScales {
             .iter()
             .map(|v| (v.clone(), f64::INFINITY, f64::NEG_INFINITY))
             .collect();
+        // Per coordinate: count, sum and sum of squares over the usable rows.
+        let mut moments = vec![(0usize, 0.0f64, 0.0f64); vars.len()];
         for s in states {
             let used = s.margin..s.margin + s.usable();
             let v = s.column(&vname).unwrap_or(&[]);
@@ -423,11 +424,14 @@ impl DataScales {
             let xu = &x[used.start.min(x.len())..used.end.min(x.len())];
             xsum += xu.iter().sum::<f64>();
             xn += xu.len();
-            for (var, lo, hi) in &mut ranges {
+            for ((var, lo, hi), m) in ranges.iter_mut().zip(&mut moments) {
                 let q = tfs_library::evaluate_term(&tfs_library::Term::var(var.clone()), s)?;
                 for &val in &q[used.start.min(q.len())..used.end.min(q.len())] {
                     *lo = lo.min(val);
                     *hi = hi.max(val);
+                    m.0 += 1;
+                    m.1 += val;
+                    m.2 += val * val;
                 }
             }
         }
@@ -436,6 +440,15 @@ impl DataScales {
             velocity: rms(&vel),
             period: periods.get(periods.len() / 2).copied().unwrap_or(f64::NAN),
             mean: if xn > 0 { xsum / xn as f64 } else { 0.0 },
+            rms: vars
+                .iter()
+                .zip(&moments)
+                .filter(|(_, m)| m.0 > 0)
+                .map(|(v, &(n, s, s2))| {
+                    let mean = s / n as f64;
+                    (v.clone(), (s2 / n as f64 - mean * mean).max(0.0).sqrt())
+                })
+                .collect(),
             ranges: ranges.into_iter().filter(|(_, lo, hi)| hi > lo).collect(),
         })
     }

@@ -8,7 +8,7 @@ use tfs_library::{HistoryEntry, Model, RecordScore};
 
 use crate::effects::{Catalogue, EffectColumn};
 use crate::explain::{
-    compress_blocks, cross_validate, design, full_fit, variant_columns, with_equation,
+    best_variant, compress_blocks, design, full_fit, variant_columns, with_equation,
 };
 use crate::prepare::{DiagnoseOptions, Layout, RecordStates, check_records};
 use crate::{DiagnoseError, Result};
@@ -133,19 +133,11 @@ pub fn add_effect_with(
                 ),
             });
         }
-        let mut best: Option<(f64, Vec<EffectColumn>, crate::effects::Variant)> = None;
-        for v in &variants {
-            let (cols, _) = variant_columns(&base, v);
-            let d = design(&states, idx, &cols)?;
-            let cv = cross_validate(&compress_blocks(&d, &layout)?, &layout)?;
-            let rss: f64 = cv.heldout.iter().sum();
-            if best.as_ref().is_none_or(|b| rss < b.0) {
-                best = Some((rss, cols, v.clone()));
-            }
-        }
-        let Some((_, cols, v)) = best else { continue };
-        let d = design(&states, idx, &cols)?;
-        let coef = full_fit(&compress_blocks(&d, &layout)?)?;
+        let Some(best) = best_variant(&states, &layout, idx, &base, &variants)? else {
+            continue;
+        };
+        let (cols, v) = (best.cols, best.variant);
+        let coef = full_fit(&best.blocks)?;
         out = with_equation(&out, idx, &cols, &coef)?;
         for c in v.add.iter().chain(v.replace.iter().map(|(_, c)| c)) {
             added.push(c.label());

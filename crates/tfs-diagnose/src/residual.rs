@@ -1,14 +1,18 @@
 //! Localise: the equation residual `r = x''_meas − model(x, x', u)` on smoothed states, mapped over
-//! (x, x') bins, over frequency and over time, with a plain-words summary derived by general rules
-//! (correlation with probe functions, odd/even symmetry in x and x').
+//! (x, x') bins, over frequency and over time, with a plain-words summary derived by general rules:
+//! correlation with probe functions of the present state, partial correlation with probes of the
+//! motion's history beyond what the present state explains (memory), odd/even symmetry in x and
+//! x', and the size of the residual against what measurement noise can explain
+//! ([`crate::noise`]): the residual is called noise only when that estimate says so.
 
 use serde::Serialize;
 use tfs_data::{Columns, Record};
-use tfs_library::{ColumnSet, Model, evaluate_term};
+use tfs_library::{ColumnSet, Model, StateLaw, evaluate_term};
 use tfs_signal::amplitude_spectrum;
 
 use crate::Result;
-use crate::prepare::{DiagnoseOptions, RecordStates, check_records, rms};
+use crate::noise::NoiseEstimate;
+use crate::prepare::{DiagnoseOptions, RecordStates, check_records, dominant_period, rms};
 
 /// Residual statistics on a regular (x, x') grid; `mean[i][j]` for x bin `i`, x' bin `j`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -34,8 +38,14 @@ pub struct Localisation {
     pub relative_rms: f64,
     /// Mean of the residual over RMS of x''.
     pub relative_mean: f64,
-    /// Correlation of the residual with each probe function.
+    /// Correlation of the residual with each probe function of the present state.
     pub correlations: Vec<(String, f64)>,
+    /// Partial correlation of the residual with each probe of the motion's history (the
+    /// velocity low-pass filtered, friction-like states of the displacement), both with what
+    /// the present-state probes explain removed.
+    pub history: Vec<(String, f64)>,
+    /// What measurement noise can explain of the residual.
+    pub noise: NoiseEstimate,
     /// Share of the binned residual power that is odd in x' (about 0).
     pub odd_in_velocity: f64,
     /// Share of the binned residual power that is odd in x (about its mean).
@@ -97,6 +107,8 @@ fn localise_dof(
 ) -> Result<Localisation> {
     let dof = &model.dofs[idx];
     let (mut xs, mut vs, mut rs, mut accs, mut us) = (vec![], vec![], vec![], vec![], vec![]);
+    let laws = history_laws(dof, states)?;
+    let mut hist: Vec<Vec<f64>> = vec![Vec::new(); laws.len()];
     let mut spectrum = Vec::new();
     let mut windows = Vec::new();
     for s in states {
@@ -124,6 +136,9 @@ fn localise_dof(
             .unwrap_or_else(|| vec![0.0; hi - lo]);
         us.extend(u);
         let dt = s.record.dt();
+        for ((_, law), h) in laws.iter().zip(&mut hist) {
+            h.extend_from_slice(&law.integrate(v, dt)[lo..hi]);
+        }
         spectrum.push(amplitude_spectrum(&r, dt)?);
         let w = opts.windows.min(r.len() / 2).max(1);
         for k in 0..w {
@@ -163,6 +178,16 @@ fn localise_dof(
         "offset".into(),
         relative_mean / relative_rms.max(f64::MIN_POSITIVE),
     ));
+    let present: Vec<Vec<f64>> = probes
+        .iter()
+        .map(|(_, f)| (0..rs.len()).map(|k| f(xs[k], vs[k], us[k])).collect())
+        .collect();
+    let history = partial_correlations(&rs, &present, &hist)
+        .into_iter()
+        .zip(&laws)
+        .map(|(c, (name, _))| (name.clone(), c))
+        .collect::<Vec<_>>();
+    let noise = crate::noise::estimate(model, idx, states);
     // Symmetric bins.
     let nb = opts.bins;
     let xr = xs
@@ -250,7 +275,10 @@ fn localise_dof(
     let summary = summarise(
         dof,
         relative_rms,
+        noise.residual_rms / acc_rms,
+        &noise,
         &correlations,
+        &history,
         odd_in_velocity,
         odd_in_displacement,
         (
@@ -267,6 +295,8 @@ fn localise_dof(
         relative_rms,
         relative_mean,
         correlations,
+        history,
+        noise,
         odd_in_velocity,
         odd_in_displacement,
         map: ResidualMap {
@@ -282,51 +312,170 @@ fn localise_dof(
     })
 }
 
-/// Plain words from the probe correlations and symmetry shares (general rules, no case tables).
+/// The probes of the motion's history: the velocity low-pass filtered over 0.05, 0.2 and 1
+/// dominant periods (relaxation) and friction-like states of the displacement saturating after
+/// 1/3 and 1/30 of its RMS (hysteresis, presliding friction), as internal-state laws
+/// integrated along the smoothed velocity from rest.
+fn history_laws(dof: &str, states: &[RecordStates]) -> Result<Vec<(String, StateLaw)>> {
+    let mut periods = Vec::new();
+    let (mut n, mut s1, mut s2) = (0usize, 0.0, 0.0);
+    for s in states {
+        let x = s.column(dof).unwrap_or(&[]);
+        periods.push(dominant_period(x, s.record.dt())?);
+        for &v in &x[s.margin.min(x.len())..(s.margin + s.usable()).min(x.len())] {
+            n += 1;
+            s1 += v;
+            s2 += v * v;
+        }
+    }
+    periods.sort_by(f64::total_cmp);
+    let period = periods.get(periods.len() / 2).copied().unwrap_or(f64::NAN);
+    let mean = s1 / n.max(1) as f64;
+    let x_rms = (s2 / n.max(1) as f64 - mean * mean).max(0.0).sqrt();
+    let mut out = Vec::new();
+    if period.is_finite() && period > 0.0 {
+        for r in [0.05, 0.2, 1.0] {
+            out.push((
+                format!("{dof}' low-passed over {:.3} s", r * period),
+                StateLaw::Maxwell { tau: r * period },
+            ));
+        }
+    }
+    if x_rms > 0.0 && x_rms.is_finite() {
+        for k in [3.0, 30.0] {
+            out.push((
+                format!(
+                    "a friction-like state of {dof} saturating after {:.3e}",
+                    x_rms / k
+                ),
+                StateLaw::Dahl { kappa: k / x_rms },
+            ));
+        }
+    }
+    Ok(out)
+}
+
+/// Partial correlations of `r` with each column of `hist`, both residualised on the columns
+/// of `present` and a constant by least squares (0 where a column has nothing left).
+fn partial_correlations(r: &[f64], present: &[Vec<f64>], hist: &[Vec<f64>]) -> Vec<f64> {
+    let n = r.len();
+    if n == 0 || hist.is_empty() {
+        return vec![0.0; hist.len()];
+    }
+    // Columns scaled to unit RMS so the factorisation sees comparable magnitudes.
+    let cols: Vec<Vec<f64>> = std::iter::once(vec![1.0; n])
+        .chain(present.iter().map(|c| {
+            let s = rms(c);
+            if s > 0.0 && s.is_finite() {
+                c.iter().map(|v| v / s).collect()
+            } else {
+                vec![0.0; n]
+            }
+        }))
+        .collect();
+    let a = faer::Mat::<f64>::from_fn(n, cols.len(), |i, j| cols[j][i]);
+    let qr = a.col_piv_qr();
+    let resid = |y: &[f64]| -> Vec<f64> {
+        let b = faer::Mat::<f64>::from_fn(n, 1, |i, _| y[i]);
+        let coef = faer::linalg::solvers::SolveLstsq::solve_lstsq(&qr, &b);
+        let fit = &a * &coef;
+        (0..n).map(|i| y[i] - fit[(i, 0)]).collect()
+    };
+    let rr = resid(r);
+    hist.iter().map(|h| corr(&rr, &resid(h))).collect()
+}
+
+/// Plain words from the probe correlations, the history probes, the symmetry shares and the
+/// noise estimate (general rules, no case tables).
+#[allow(clippy::too_many_arguments)]
 fn summarise(
     dof: &str,
     rel: f64,
+    noise_rel: f64,
+    noise: &NoiseEstimate,
     corr: &[(String, f64)],
+    history: &[(String, f64)],
     odd_v: f64,
     odd_x: f64,
     worst: (f64, f64),
     worst_window: Option<(String, f64, f64)>,
 ) -> String {
-    let best = corr
-        .iter()
-        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
-        .cloned()
-        .unwrap_or(("none".into(), 0.0));
+    let pick = |list: &[(String, f64)]| {
+        list.iter()
+            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+            .cloned()
+            .unwrap_or(("none".into(), 0.0))
+    };
+    let best = pick(corr);
+    let past = pick(history);
     let mut s = format!(
         "{dof}: equation residual is {:.1} % of the RMS of {dof}''",
         100.0 * rel
     );
-    if best.1.abs() < 0.2 {
-        s.push_str("; no systematic dependence on x, x' or the input (largest correlation ");
+    // Noise only when the noise estimate says the residual is its size: at most 1.5 times the
+    // residual noise alone would leave (at least ~45 % of the residual power is noise).
+    let is_noise = rel <= NOISE_FACTOR * noise_rel;
+    let systematic = best.1.abs() >= 0.2 || past.1.abs() >= 0.2;
+    if is_noise {
         s.push_str(&format!(
-            "{:.2} with {}) — consistent with noise",
+            "; measurement noise alone would leave {:.1} % (noise estimate from the records' spectra)",
+            100.0 * noise_rel
+        ));
+        if !systematic {
+            s.push_str(&format!(
+                "; no systematic dependence on x, x', the input or their history (largest correlation {:.2} with {}) — consistent with noise",
+                best.1, best.0
+            ));
+            return s;
+        }
+    } else if noise.clean() {
+        s.push_str(&format!(
+            "; the records are clean (estimated noise {:.0} dB below the signal), so all of it is model error, not noise",
+            noise.snr_db.min(999.0)
+        ));
+    } else {
+        s.push_str(&format!(
+            "; measurement noise {} {:.1} % (noise estimate from the records' spectra), so it is mostly model error, not noise",
+            if noise.noise_only {
+                "would leave"
+            } else {
+                "would leave at most"
+            },
+            100.0 * noise_rel
+        ));
+    }
+    if past.1.abs() >= 0.2 && past.1.abs() >= best.1.abs() * 0.5 {
+        s.push_str(&format!(
+            "; it depends on the motion's history, not only on the present state: partial correlation {:.2} with {} beyond what {dof}, {dof}' and the input explain (a memory effect: hysteresis, relaxation or friction)",
+            past.1, past.0
+        ));
+    } else if best.1.abs() >= 0.2 {
+        let shape = match best.0.as_str() {
+            "sign(x')" => format!(
+                "changes sign with {dof}' and has nearly constant magnitude (dry-friction-like)"
+            ),
+            "x'*abs(x')" | "x'^3" => format!("grows with |{dof}'| and changes sign with {dof}'"),
+            "x'" => format!("is proportional to {dof}' (linear damping is off)"),
+            "x^2*x'" => format!("changes sign with {dof}' and grows with the amplitude of {dof}"),
+            "x" | "x^3" => {
+                format!("changes sign with {dof} and grows with |{dof}| (stiffness is off)")
+            }
+            "x^2" => format!(
+                "has the same sign on both sides of the mean of {dof} and grows with |{dof}| (even in {dof})"
+            ),
+            "offset" => "is a constant offset".to_string(),
+            _ => "follows the input (input gain or delay)".to_string(),
+        };
+        s.push_str(&format!(
+            "; it {shape} (correlation {:.2} with {})",
             best.1, best.0
         ));
-        return s;
+    } else {
+        s.push_str(&format!(
+            "; no simple dependence on x, x', the input or their recent history (largest correlation {:.2} with {}, {:.2} with {})",
+            best.1, best.0, past.1, past.0
+        ));
     }
-    let shape = match best.0.as_str() {
-        "sign(x')" => format!(
-            "changes sign with {dof}' and has nearly constant magnitude (dry-friction-like)"
-        ),
-        "x'*abs(x')" | "x'^3" => format!("grows with |{dof}'| and changes sign with {dof}'"),
-        "x'" => format!("is proportional to {dof}' (linear damping is off)"),
-        "x^2*x'" => format!("changes sign with {dof}' and grows with the amplitude of {dof}"),
-        "x" | "x^3" => format!("changes sign with {dof} and grows with |{dof}| (stiffness is off)"),
-        "x^2" => format!(
-            "has the same sign on both sides of the mean of {dof} and grows with |{dof}| (even in {dof})"
-        ),
-        "offset" => "is a constant offset".to_string(),
-        _ => "follows the input (input gain or delay)".to_string(),
-    };
-    s.push_str(&format!(
-        "; it {shape} (correlation {:.2} with {})",
-        best.1, best.0
-    ));
     if odd_v.is_finite() && odd_x.is_finite() {
         s.push_str(&format!(
             "; {:.0} % of its binned power is odd in {dof}', {:.0} % odd in {dof}",
@@ -343,3 +492,7 @@ fn summarise(
     }
     s
 }
+
+/// A residual at most this many times what measurement noise alone would leave is called the
+/// size of the noise.
+pub const NOISE_FACTOR: f64 = 1.5;

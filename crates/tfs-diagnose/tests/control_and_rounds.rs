@@ -30,7 +30,7 @@ fn records(truth: &Truth, n: usize) -> Vec<Record> {
 #[test]
 fn control_truth_has_no_significant_effect() {
     let truth = Truth {
-        restoring: duffing_restoring,
+        restoring: duffing_restoring(),
         damping: 0.63,
         hidden: vec![],
         x0: 0.0,
@@ -67,7 +67,7 @@ fn control_truth_has_no_significant_effect() {
 #[test]
 fn two_hidden_effects_are_found_one_per_round() {
     let truth = Truth {
-        restoring: duffing_restoring,
+        restoring: duffing_restoring(),
         damping: 0.63,
         hidden: vec![
             Hidden::DryFriction {
@@ -111,7 +111,7 @@ fn two_hidden_effects_are_found_one_per_round() {
 #[test]
 fn bad_input_gives_clear_errors() {
     let truth = Truth {
-        restoring: duffing_restoring,
+        restoring: duffing_restoring(),
         damping: 0.63,
         hidden: vec![],
         x0: 0.0,

@@ -72,7 +72,7 @@ fn run_case(
 
 fn duffing(hidden: Hidden) -> Truth {
     Truth {
-        restoring: duffing_restoring,
+        restoring: duffing_restoring(),
         damping: 0.63,
         hidden: vec![hidden],
         x0: 0.0,
@@ -109,7 +109,7 @@ fn duffing_quadratic_damping() {
 #[test]
 fn duffing_cubic_stiffness() {
     let truth = Truth {
-        restoring: duffing_restoring,
+        restoring: duffing_restoring(),
         damping: 0.63,
         hidden: vec![],
         x0: 0.0,
@@ -138,7 +138,7 @@ fn duffing_offset() {
 
 fn kresling(hidden: Vec<Hidden>) -> Truth {
     Truth {
-        restoring: kresling_restoring,
+        restoring: kresling_restoring(),
         damping: 1.99,
         hidden,
         x0: 1.582,

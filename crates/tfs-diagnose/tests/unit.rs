@@ -46,22 +46,18 @@ fn paired_p_value_behaves() {
 #[test]
 fn maxwell_simulation_matches_an_independent_state_space_model() {
     // Truth: x'' = −k x − k x³ − c x' − xb_acc − k_m z, z' = x' − z/τ (integrated as its own state
-    // in the test generator). Model: the Maxwell column y = lowpass(x', τ) = z/τ, coefficient −k_m τ.
+    // by the truth simulator). Model: the internal state y = maxwell(x', τ) (y' = (x' − y)/τ, so
+    // y = z/τ), coefficient −k_m τ.
     let (km, tau) = (20.0, 0.3);
     let truth = Truth {
-        restoring: duffing_restoring,
+        restoring: duffing_restoring(),
         damping: 0.63,
         hidden: vec![Hidden::Maxwell { k: km, tau }],
         x0: 0.0,
     };
     let (rec, x_true) = clean(&truth, 0.3, 3.0, 4.0, 10.0, 0.01);
     let k = 4.0 * std::f64::consts::PI.powi(2);
-    let col = ComputedColumn::Maxwell {
-        dof: "x".into(),
-        tau,
-    }
-    .name();
-    let lib = Library::parse(&format!("x, x^3, x', xb_acc, {col}"), &["x"]).unwrap();
+    let lib = Library::parse(&format!("x, x^3, x', xb_acc, maxwell(x', {tau})"), &["x"]).unwrap();
     let model =
         Model::from_coefficients(&lib, &[vec![-k, -k, -0.63, -1.0, -km * tau]], "truth").unwrap();
     let tr = simulate(&model, &rec).unwrap();
@@ -75,14 +71,12 @@ proptest! {
     fn computed_column_names_round_trip(tau in 1e-3f64..1e3, delay in 1e-4f64..10.0) {
         let dofs = vec!["x".to_string(), "x2".to_string()];
         for c in [
-            ComputedColumn::Maxwell { dof: "x2".into(), tau },
             ComputedColumn::Delayed { input: "xb_acc".into(), delay },
             ComputedColumn::Lowpass { input: "u".into(), tau },
         ] {
-            let back = ComputedColumn::parse(&c.name(), &dofs).unwrap();
+            let back = ComputedColumn::parse(&c.name()).unwrap();
             prop_assert_eq!(back.name(), c.name());
             let (a, b) = match (&c, &back) {
-                (ComputedColumn::Maxwell { tau: a, .. }, ComputedColumn::Maxwell { tau: b, .. }) => (*a, *b),
                 (ComputedColumn::Delayed { delay: a, .. }, ComputedColumn::Delayed { delay: b, .. }) => (*a, *b),
                 (ComputedColumn::Lowpass { tau: a, .. }, ComputedColumn::Lowpass { tau: b, .. }) => (*a, *b),
                 _ => return Err(TestCaseError::fail("kind changed")),
@@ -132,4 +126,28 @@ proptest! {
         let plain = EffectColumn::centred(c.term.clone(), "x", 0.0);
         prop_assert_eq!(plain.expansion(), vec![(c.term.clone(), 1.0)]);
     }
+}
+
+/// A model file written when a Maxwell element was a computed input column
+/// (`maxwell_x_tau_0p3`) is read as the internal state it stood for and simulates the same way.
+#[test]
+fn legacy_maxwell_columns_become_internal_states() {
+    let legacy = Model::from_json_str(
+        r#"{"format":"tfs-model/1","dofs":["x"],"inputs":["xb_acc","maxwell_x_tau_0p3"],
+            "equations":[{"dof":"x","terms":[{"term":"x","coef":-39.48},{"term":"x'","coef":-0.63},
+            {"term":"xb_acc","coef":-1},{"term":"maxwell_x_tau_0p3","coef":-6}]}]}"#,
+    )
+    .unwrap();
+    let m = tfs_diagnose::effects::upgrade_legacy(&legacy).unwrap();
+    assert_eq!(m.inputs, ["xb_acc"]);
+    assert!(
+        m.equation_string().contains("6.000·maxwell(x', 0.3)"),
+        "{}",
+        m.equation_string()
+    );
+    let plain = structure("x, x', xb_acc");
+    assert_eq!(
+        tfs_diagnose::effects::upgrade_legacy(&plain).unwrap(),
+        plain
+    );
 }

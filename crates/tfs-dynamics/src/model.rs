@@ -7,7 +7,10 @@ use tfs_library::{CompiledModel, Model};
 
 impl SecondOrderSystem for CompiledModel {
     fn dofs(&self) -> usize {
-        CompiledModel::dofs(self)
+        CompiledModel::system_dofs(self)
+    }
+    fn internal_states(&self) -> usize {
+        CompiledModel::states(self)
     }
     fn inputs(&self) -> usize {
         CompiledModel::inputs(self)
@@ -79,6 +82,8 @@ pub fn initial_velocity(y: &[f64], dt: f64, m: usize) -> Result<f64> {
 ///   default ([`InitialState::Fitted`]), refined so that the model's own response matches the
 ///   measured displacements over the first periods of the record (noise in the first samples
 ///   otherwise decides the start, and with it the well a multi-stable model ends up in).
+/// * Internal states (`maxwell(x', τ)`, `bouc_wen(x', a, b)`, `dahl(x', κ)` terms) start at 0
+///   and are integrated with the motion; the trajectory holds the model's DOFs only.
 /// * Blow-up gives [`DynError::BlowUp`] with the time and state.
 pub fn simulate_model_on_record(
     model: &Model,
@@ -128,6 +133,10 @@ pub fn simulate_model_on_record(
         .iter()
         .map(|d| record.column(d).ok_or_else(|| missing(d)))
         .collect::<Result<_>>()?;
+    // Internal states (the auxiliary coordinates after the DOFs) start at rest, z = 0.
+    let n = compiled.dofs();
+    x0.resize(compiled.system_dofs(), 0.0);
+    v0.resize(compiled.system_dofs(), 0.0);
     let (x0, v0) = choose_initial_state(
         opts.initial_state,
         &compiled,
@@ -138,7 +147,10 @@ pub fn simulate_model_on_record(
         x0,
         v0,
     )?;
-    opts.integrator.integrate(&compiled, &input, &x0, &v0, t)
+    let mut tr = opts.integrator.integrate(&compiled, &input, &x0, &v0, t)?;
+    tr.x.truncate(n);
+    tr.v.truncate(n);
+    Ok(tr)
 }
 
 #[cfg(test)]

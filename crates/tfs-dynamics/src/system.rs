@@ -45,6 +45,15 @@ pub trait SecondOrderSystem: Sync {
             }
         }
     }
+
+    /// How many of the `dofs()` coordinates, the last ones, carry internal states rather than
+    /// motion: a first-order state `z' = g(…)` held as the velocity of an auxiliary coordinate
+    /// (its acceleration is the state's rate, its position is not used), not measured and
+    /// started at 0 (a Maxwell element, Bouc–Wen hysteresis, Dahl friction; see
+    /// `tfs_library::CompiledModel`). Default 0.
+    fn internal_states(&self) -> usize {
+        0
+    }
 }
 
 /// A [`SecondOrderSystem`] built from a closure `f(t, x, v, u, a)`.

@@ -1,6 +1,7 @@
 //! A compiled model: index-resolved terms for fast, allocation-free acceleration evaluation.
 
 use crate::model::Model;
+use crate::state::StateLaw;
 use crate::term::{Coord, Factor, Var, pow_u, sign0};
 use crate::{LibraryError, Result};
 
@@ -17,6 +18,8 @@ enum Src {
     U(usize),
     RelX(usize, Base),
     RelV(usize, Base),
+    /// Internal state `j`: `v[n + j]`.
+    Z(usize),
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -37,11 +40,25 @@ struct CFactor {
     kind: Kind,
 }
 
+/// One internal state: its drive (a velocity coordinate) and its law.
+#[derive(Debug, Clone, Copy)]
+struct CState {
+    drive: Src,
+    law: StateLaw,
+}
+
 /// A model with every name resolved to an index: `accel` does no allocation and no lookups.
 ///
 /// Build with [`Model::compile`]. States `x`, `v` are in the model's DOF order, inputs `u` in
 /// [`CompiledModel::input_names`] order (`xb`, `xb_vel` for relative coordinates to the base
 /// are inputs too).
+///
+/// **Internal states.** A model whose terms use `m` internal states ([`Model::internal_states`]
+/// order) is a system of `n + m` second-order coordinates ([`CompiledModel::system_dofs`]):
+/// internal state `j` is the *velocity* `v[n + j]` of an auxiliary coordinate, and its
+/// acceleration `out[n + j]` is the state's rate `z_j' = g_j(q', z_j)`. The auxiliary
+/// positions `x[n + j]` are not used. So any integrator of second-order systems integrates the
+/// states with the motion; a simulation starts them at 0.
 #[derive(Debug, Clone)]
 pub struct CompiledModel {
     dof_names: Vec<String>,
@@ -51,6 +68,8 @@ pub struct CompiledModel {
     terms: Vec<(f64, usize, usize)>,
     /// Per equation: range into `terms`.
     equations: Vec<(usize, usize)>,
+    /// Internal states, in [`Model::internal_states`] order.
+    states: Vec<CState>,
 }
 
 impl Model {
@@ -79,6 +98,25 @@ impl Model {
                 Coord::Input(_) => input(&c.velocity_column()).map(Base::U),
             }
         };
+        let src_of = |var: &Var| -> Result<Src> {
+            Ok(match var {
+                Var::Disp(n) => Src::X(dof(n).ok_or_else(|| unknown(n))?),
+                Var::Vel(n) => Src::V(dof(n).ok_or_else(|| unknown(n))?),
+                Var::Input(n) => Src::U(input(n)?),
+                Var::RelDisp(a, b) => Src::RelX(dof(a).ok_or_else(|| unknown(a))?, base_x(b)?),
+                Var::RelVel(a, b) => Src::RelV(dof(a).ok_or_else(|| unknown(a))?, base_v(b)?),
+            })
+        };
+        let internal = self.internal_states();
+        let states = internal
+            .iter()
+            .map(|(v, law)| {
+                Ok(CState {
+                    drive: src_of(v)?,
+                    law: *law,
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
         let mut factors = Vec::new();
         let mut terms = Vec::new();
         let mut equations = Vec::new();
@@ -88,17 +126,19 @@ impl Model {
             for mt in &eq.terms {
                 let f0 = factors.len();
                 for f in mt.term.factors() {
-                    let src = match f.var() {
-                        Var::Disp(n) => Src::X(dof(n).ok_or_else(|| unknown(n))?),
-                        Var::Vel(n) => Src::V(dof(n).ok_or_else(|| unknown(n))?),
-                        Var::Input(n) => Src::U(input(n)?),
-                        Var::RelDisp(a, b) => {
-                            Src::RelX(dof(a).ok_or_else(|| unknown(a))?, base_x(b)?)
-                        }
-                        Var::RelVel(a, b) => {
-                            Src::RelV(dof(a).ok_or_else(|| unknown(a))?, base_v(b)?)
-                        }
-                    };
+                    if let Factor::State(v, law) = f {
+                        // The state's value is a coordinate of the system: a plain first power.
+                        let j = internal
+                            .iter()
+                            .position(|(w, l)| w == v && l == law)
+                            .ok_or_else(|| unknown(&f.to_string()))?;
+                        factors.push(CFactor {
+                            src: Src::Z(j),
+                            kind: Kind::Pow(1),
+                        });
+                        continue;
+                    }
+                    let src = src_of(f.var())?;
                     let kind = match f {
                         Factor::Pow(_, k) => Kind::Pow(*k),
                         Factor::Abs(_) => Kind::Abs,
@@ -106,6 +146,7 @@ impl Model {
                         Factor::Tanh(_, eps) => Kind::Tanh(1.0 / eps),
                         Factor::Below(_, c) => Kind::Below(*c),
                         Factor::Above(_, c) => Kind::Above(*c),
+                        Factor::State(..) => unreachable!("state factors are handled above"),
                     };
                     factors.push(CFactor { src, kind });
                 }
@@ -119,6 +160,7 @@ impl Model {
             factors,
             terms,
             equations,
+            states,
         })
     }
 }
@@ -132,10 +174,21 @@ fn unknown(n: &str) -> LibraryError {
 
 /// The source values of lanes `l0 .. l0 + s.len()` of a component-major block of `m` states.
 #[inline(always)]
-fn lane_values(src: Src, x: &[f64], v: &[f64], u: &[f64], m: usize, l0: usize, s: &mut [f64]) {
+/// The values of `src` for lanes `l0..l0 + s.len()` of a component-major block of `m` states
+/// (`n` motion DOFs; an internal state `j` is the velocity of coordinate `n + j`).
+fn lane_values(
+    src: Src,
+    x: &[f64],
+    v: &[f64],
+    u: &[f64],
+    (m, n): (usize, usize),
+    l0: usize,
+    s: &mut [f64],
+) {
     let w = s.len();
     let col = |i: usize| i * m + l0..i * m + l0 + w;
     match src {
+        Src::Z(j) => s.copy_from_slice(&v[col(n + j)]),
         Src::X(i) => s.copy_from_slice(&x[col(i)]),
         Src::V(i) => s.copy_from_slice(&v[col(i)]),
         Src::U(k) => s.fill(u[k]),
@@ -208,6 +261,79 @@ impl CompiledModel {
         self.dof_names.len()
     }
 
+    /// Number of internal states `m` ([`Model::internal_states`]).
+    pub fn states(&self) -> usize {
+        self.states.len()
+    }
+
+    /// Coordinates of the second-order system: the DOFs, then one auxiliary coordinate per
+    /// internal state (`n + m`; see the type's docs). The length of `x`, `v` and `out` in
+    /// [`CompiledModel::accel`].
+    pub fn system_dofs(&self) -> usize {
+        self.dof_names.len() + self.states.len()
+    }
+
+    /// The refinable parameters of every internal state ([`StateLaw::params`]), state by state.
+    pub fn state_params(&self) -> Vec<f64> {
+        self.states.iter().flat_map(|s| s.law.params()).collect()
+    }
+
+    /// The laws of the internal states, in [`Model::internal_states`] order.
+    pub fn state_laws(&self) -> Vec<StateLaw> {
+        self.states.iter().map(|s| s.law).collect()
+    }
+
+    /// Number of refinable state parameters (the length of [`CompiledModel::state_params`]).
+    pub fn n_state_params(&self) -> usize {
+        self.states.iter().map(|s| s.law.param_names().len()).sum()
+    }
+
+    /// The internal state each entry of [`CompiledModel::state_params`] belongs to.
+    pub fn state_of_param(&self) -> Vec<usize> {
+        self.states
+            .iter()
+            .enumerate()
+            .flat_map(|(j, s)| std::iter::repeat_n(j, s.law.param_names().len()))
+            .collect()
+    }
+
+    /// A copy with the internal states' parameters replaced by `p` ([`CompiledModel::state_params`]
+    /// order); errors on a wrong length or invalid values.
+    pub fn with_state_params(&self, p: &[f64]) -> Result<Self> {
+        if p.len() != self.n_state_params() {
+            return Err(LibraryError::Invalid {
+                field: "state parameters".into(),
+                message: format!(
+                    "{} values given for {} internal-state parameters",
+                    p.len(),
+                    self.n_state_params()
+                ),
+            });
+        }
+        let mut out = self.clone();
+        let mut k = 0;
+        for s in &mut out.states {
+            let r = s.law.param_names().len();
+            s.law = s.law.with_params(&p[k..k + r])?;
+            k += r;
+        }
+        Ok(out)
+    }
+
+    /// `∂z_j'/∂p_r` for every refinable state parameter `r` ([`CompiledModel::state_params`]
+    /// order; parameter `r` acts on state [`CompiledModel::state_of_param`]`[r]` only), at the
+    /// system state `x`, `v` (length [`CompiledModel::system_dofs`]) and inputs `u`.
+    pub fn state_param_gradient(&self, x: &[f64], v: &[f64], u: &[f64], out: &mut [f64]) {
+        let n = self.dofs();
+        let mut k = 0;
+        for (j, s) in self.states.iter().enumerate() {
+            let r = s.law.param_names().len();
+            let q = Self::value(s.drive, x, v, u, n);
+            s.law.rate_gradient(q, v[n + j], &mut out[k..k + r]);
+            k += r;
+        }
+    }
+
     /// Number of inputs.
     pub fn inputs(&self) -> usize {
         self.input_names.len()
@@ -229,8 +355,9 @@ impl CompiledModel {
     }
 
     #[inline(always)]
-    fn value(src: Src, x: &[f64], v: &[f64], u: &[f64]) -> f64 {
+    fn value(src: Src, x: &[f64], v: &[f64], u: &[f64], n: usize) -> f64 {
         match src {
+            Src::Z(j) => v[n + j],
             Src::X(i) => x[i],
             Src::V(i) => v[i],
             Src::U(k) => u[k],
@@ -242,19 +369,21 @@ impl CompiledModel {
     }
 
     /// Accelerations `out[i] = x_i''` for displacements `x`, velocities `v` (DOF order) and inputs
-    /// `u` (input order).
+    /// `u` (input order); with internal states, `x`, `v` and `out` cover
+    /// [`CompiledModel::system_dofs`] coordinates and `out[n + j]` is the rate of state `j`.
     ///
     /// # Panics
-    /// If `x`, `v` or `out` are shorter than [`CompiledModel::dofs`] or `u` shorter than
+    /// If `x`, `v` or `out` are shorter than [`CompiledModel::system_dofs`] or `u` shorter than
     /// [`CompiledModel::inputs`] (a programming error; see [`CompiledModel::try_accel`]).
     #[inline]
     pub fn accel(&self, x: &[f64], v: &[f64], u: &[f64], out: &mut [f64]) {
+        let n = self.dof_names.len();
         for (o, &(t0, t1)) in out.iter_mut().zip(&self.equations) {
             let mut acc = 0.0;
             for &(coef, f0, f1) in &self.terms[t0..t1] {
                 let mut p = coef;
                 for f in &self.factors[f0..f1] {
-                    let s = Self::value(f.src, x, v, u);
+                    let s = Self::value(f.src, x, v, u, n);
                     p *= match f.kind {
                         Kind::Pow(k) => pow_u(s, k),
                         Kind::Abs => s.abs(),
@@ -268,11 +397,16 @@ impl CompiledModel {
             }
             *o = acc;
         }
+        for (j, st) in self.states.iter().enumerate() {
+            let q = Self::value(st.drive, x, v, u, n);
+            out[n + j] = st.law.rate(q, v[n + j]);
+        }
     }
 
-    /// Accelerations of many states at once, component-major: with `m = x.len() / dofs()`
-    /// states, `x[i * m + l]` is DOF `i` of state `l` (likewise `v` and `out`); the inputs `u` are
-    /// shared by every state. Each state gets exactly what [`CompiledModel::accel`] gives it (the
+    /// Accelerations of many states at once, component-major: with `m = x.len() / system_dofs()`
+    /// states, `x[i * m + l]` is coordinate `i` of state `l` (likewise `v` and `out`; with
+    /// internal states, rows `n + j` are their values and rates); the inputs `u` are shared by
+    /// every state. Each state gets exactly what [`CompiledModel::accel`] gives it (the
     /// same operations in the same order), but the loops run across states, eight at a time, so
     /// they vectorise: basin maps integrate many starts side by side through this.
     ///
@@ -285,7 +419,7 @@ impl CompiledModel {
         if n == 0 {
             return;
         }
-        let m = x.len() / n;
+        let m = x.len() / self.system_dofs();
         let mut l0 = 0;
         while l0 < m {
             let w = W.min(m - l0);
@@ -295,7 +429,7 @@ impl CompiledModel {
                     let mut p = [coef; W];
                     for f in &self.factors[f0..f1] {
                         let mut s = [0.0f64; W];
-                        lane_values(f.src, x, v, u, m, l0, &mut s[..w]);
+                        lane_values(f.src, x, v, u, (m, n), l0, &mut s[..w]);
                         apply_lanes(f.kind, &s, &mut p);
                     }
                     for (a, p) in acc.iter_mut().zip(&p) {
@@ -303,6 +437,15 @@ impl CompiledModel {
                     }
                 }
                 out[i * m + l0..i * m + l0 + w].copy_from_slice(&acc[..w]);
+            }
+            // Internal states: each lane's rate, as `accel` computes it.
+            for (j, st) in self.states.iter().enumerate() {
+                let mut q = [0.0f64; W];
+                lane_values(st.drive, x, v, u, (m, n), l0, &mut q[..w]);
+                let k = (n + j) * m + l0;
+                for (l, &ql) in q[..w].iter().enumerate() {
+                    out[k + l] = st.law.rate(ql, v[k + l]);
+                }
             }
             l0 += w;
         }
@@ -333,13 +476,15 @@ impl CompiledModel {
     /// as [`CompiledModel::coefficients`]) and returns everything a sensitivity or Jacobian-based
     /// method needs, without allocating for terms of up to 8 factors:
     /// `a[i] = Σ_j coefs[j]·θ_j` for the terms of equation `i`, the regressors `theta[j] = θ_j`,
-    /// and the state Jacobians `ax[i·n + k] = ∂a_i/∂x_k`, `av[i·n + k] = ∂a_i/∂v_k` (analytic,
+    /// and the state Jacobians `ax[i·N + k] = ∂a_i/∂x_k`, `av[i·N + k] = ∂a_i/∂v_k` (analytic,
     /// by the product rule over each term's factors; `|s|` has derivative `sign(s)`, `sign(s)`
     /// derivative 0, `below(s, c)` −1 below `c` and `above(s, c)` 1 above it, 0 elsewhere).
+    /// `N` is [`CompiledModel::system_dofs`]: with internal states, rows `n + j` are the states'
+    /// rates and their Jacobians (a state's value is `v[n + j]`, see the type's docs).
     ///
     /// # Panics
-    /// On slices shorter than the model needs (`n` DOFs, `n_terms` coefficients, `n²` Jacobian
-    /// entries): a programming error.
+    /// On slices shorter than the model needs (`N` coordinates, `n_terms` coefficients, `N²`
+    /// Jacobian entries): a programming error.
     #[allow(clippy::too_many_arguments)]
     pub fn eval_jacobian(
         &self,
@@ -352,7 +497,8 @@ impl CompiledModel {
         ax: &mut [f64],
         av: &mut [f64],
     ) {
-        let n = self.dofs();
+        let n0 = self.dofs();
+        let n = self.system_dofs();
         a[..n].fill(0.0);
         ax[..n * n].fill(0.0);
         av[..n * n].fill(0.0);
@@ -374,7 +520,7 @@ impl CompiledModel {
                 };
                 let mut prod = 1.0;
                 for (m, f) in fs.iter().enumerate() {
-                    let s = Self::value(f.src, x, v, u);
+                    let s = Self::value(f.src, x, v, u, n0);
                     let (val, der) = match f.kind {
                         Kind::Pow(0) => (1.0, 0.0),
                         Kind::Pow(1) => (s, 1.0),
@@ -421,6 +567,7 @@ impl CompiledModel {
                     match f.src {
                         Src::X(k) => ax[i * n + k] += g,
                         Src::V(k) => av[i * n + k] += g,
+                        Src::Z(k) => av[i * n + n0 + k] += g,
                         Src::U(_) => {}
                         Src::RelX(k, b) => {
                             ax[i * n + k] += g;
@@ -438,11 +585,30 @@ impl CompiledModel {
                 }
             }
         }
+        for (j, st) in self.states.iter().enumerate() {
+            let r = n0 + j;
+            let q = Self::value(st.drive, x, v, u, n0);
+            let z = v[r];
+            a[r] = st.law.rate(q, z);
+            let (dq, dz) = st.law.rate_jacobian(q, z);
+            av[r * n + r] += dz;
+            match st.drive {
+                Src::V(k) => av[r * n + k] += dq,
+                Src::RelV(k, b) => {
+                    av[r * n + k] += dq;
+                    if let Base::X(l) = b {
+                        av[r * n + l] -= dq;
+                    }
+                }
+                // A drive is a velocity coordinate (checked when the term was parsed).
+                _ => {}
+            }
+        }
     }
 
     /// Checked form of [`CompiledModel::accel`]: errors on wrong slice lengths.
     pub fn try_accel(&self, x: &[f64], v: &[f64], u: &[f64], out: &mut [f64]) -> Result<()> {
-        let n = self.dofs();
+        let n = self.system_dofs();
         for (name, len, want) in [
             ("x", x.len(), n),
             ("v", v.len(), n),

@@ -7,8 +7,10 @@
 //!
 //! Term names (DESIGN.md §5): `x`, `x^k`, `x'`, products `x^2*x'`, relative coordinates
 //! `(x2-x1)^k` and `(x2-x1)'`, inputs by column name (`xb_acc`), `abs(v)`, `sign(v)`,
-//! `tanh(v/ε)`, the constant `1`; in library specs also ranges `x^1..7` and the generator
-//! `poly(x, x'; 0..7)` (every monomial of total degree 0..7).
+//! `tanh(v/ε)`, `below(v, c)`, `above(v, c)`, the constant `1`, internal states
+//! `maxwell(v', τ)`, `bouc_wen(v', a, b)`, `dahl(v', κ)` (memory effects, see [`state`]); in
+//! library specs also ranges `x^1..7` and the generator `poly(x, x'; 0..7)` (every monomial of
+//! total degree 0..7).
 //!
 //! ```
 //! use tfs_library::{Library, Model, ColumnSet};
@@ -40,6 +42,7 @@ mod library;
 mod model;
 mod parse;
 mod potential;
+pub mod state;
 mod term;
 
 pub use compiled::CompiledModel;
@@ -49,6 +52,7 @@ pub use model::{
 };
 pub use parse::{MAX_POWER, MAX_SPEC_TERMS};
 pub use potential::{Polynomial, Restoring};
+pub use state::StateLaw;
 pub use term::{Coord, ExactDerivative, Factor, Term, Var};
 
 /// Errors of term parsing, library evaluation and model handling.

@@ -190,6 +190,26 @@ fn fetch<'c>(cols: &'c dyn Columns, name: &str, term: &Term) -> Result<&'c [f64]
     Ok(c)
 }
 
+/// The sampling interval of `cols` from its time column `t`, which an internal state needs to
+/// be integrated along its drive.
+fn sample_interval(cols: &dyn Columns, term: &Term) -> Result<f64> {
+    let t = fetch(cols, "t", term)?;
+    let dt = if t.len() >= 2 {
+        (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64
+    } else {
+        1.0
+    };
+    if !(dt.is_finite() && dt > 0.0) {
+        return Err(LibraryError::Invalid {
+            field: "t".into(),
+            message: format!(
+                "the time column gives a sampling interval of {dt}; term '{term}' integrates an internal state and needs increasing, uniformly sampled times"
+            ),
+        });
+    }
+    Ok(dt)
+}
+
 /// Values of a variable on every row (borrowed for plain columns, computed for relative ones).
 fn var_values<'c>(v: &Var, cols: &'c dyn Columns, term: &Term) -> Result<Cow<'c, [f64]>> {
     let names = v.required_columns();
@@ -276,6 +296,15 @@ fn evaluate_term_into(
                     out.copy_from_slice(pw);
                 } else {
                     out.iter_mut().zip(pw).for_each(|(o, p)| *o *= p);
+                }
+            }
+            Factor::State(drive, law) => {
+                let q = var_values(drive, cols, term)?;
+                let z = law.integrate(&q, sample_interval(cols, term)?);
+                if first {
+                    out.copy_from_slice(&z);
+                } else {
+                    out.iter_mut().zip(&z).for_each(|(o, p)| *o *= p);
                 }
             }
             _ => {

@@ -6,7 +6,8 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use crate::library::Library;
-use crate::term::Term;
+use crate::state::StateLaw;
+use crate::term::{Factor, Term, Var};
 use crate::{LibraryError, Result};
 
 /// The format tag written to and required in model JSON files.
@@ -281,6 +282,10 @@ impl Model {
                         ),
                     ));
                 }
+                for (_, law) in t.term.states() {
+                    law.validate()
+                        .map_err(|e| invalid(format!("{field}.term"), e.to_string()))?;
+                }
                 for d in t.term.dofs() {
                     if !self.dofs.contains(&d) {
                         return Err(invalid(
@@ -319,6 +324,71 @@ impl Model {
             }
         }
         Ok(())
+    }
+
+    /// The internal states the model's terms use (see [`crate::state`]): each distinct
+    /// (drive, law) pair once, in order of first use over the equations (DOF order) and their
+    /// terms. A state used in several terms or equations (a coupling's hysteresis acting on both
+    /// masses) is one state. This is the order of the auxiliary coordinates of
+    /// [`crate::CompiledModel`].
+    pub fn internal_states(&self) -> Vec<(Var, StateLaw)> {
+        let mut out: Vec<(Var, StateLaw)> = Vec::new();
+        for e in &self.equations {
+            for t in &e.terms {
+                for (v, law) in t.term.states() {
+                    if !out.iter().any(|(w, l)| w == v && l == law) {
+                        out.push((v.clone(), *law));
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// A copy whose internal states ([`Model::internal_states`] order) follow the laws `laws`
+    /// instead (same drives; every term using state `j` gets law `j`). Errors on a wrong count
+    /// or invalid parameters.
+    pub fn with_state_laws(&self, laws: &[StateLaw]) -> Result<Model> {
+        let states = self.internal_states();
+        if laws.len() != states.len() {
+            return Err(invalid(
+                "states",
+                format!(
+                    "{} laws given for {} internal states",
+                    laws.len(),
+                    states.len()
+                ),
+            ));
+        }
+        for l in laws {
+            l.validate()?;
+        }
+        let mut m = self.clone();
+        for e in &mut m.equations {
+            for t in &mut e.terms {
+                if t.term.states().is_empty() {
+                    continue;
+                }
+                let factors = t
+                    .term
+                    .factors()
+                    .iter()
+                    .map(|f| match f {
+                        Factor::State(v, law) => {
+                            let j = states
+                                .iter()
+                                .position(|(w, l)| w == v && l == law)
+                                .unwrap_or(0);
+                            Factor::State(v.clone(), laws[j])
+                        }
+                        other => other.clone(),
+                    })
+                    .collect();
+                t.term = Term::new(factors);
+            }
+        }
+        m.validate()?;
+        Ok(m)
     }
 
     /// The equation of `dof`.

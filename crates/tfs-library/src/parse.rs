@@ -6,10 +6,14 @@
 //! item    := "poly" "(" var ("," var)* ";" int ".." int ")" | product
 //! product := factor ("*" factor)*
 //! factor  := "1" | ("abs" | "sign") "(" var ")" | "tanh" "(" var "/" number ")"
+//!          | ("below" | "above") "(" var "," signed ")"
+//!          | "maxwell" "(" var "," number ")" | "dahl" "(" var "," number ")"
+//!          | "bouc_wen" "(" var "," signed "," signed ["," number] ")"
 //!          | var ["^" int [".." int]]
 //! var     := ident ["'"] | "(" ident "-" ident ")" ["'"]
 //! ```
 
+use crate::state::StateLaw;
 use crate::term::{Coord, Factor, Term, Var};
 use crate::{LibraryError, Result};
 
@@ -298,6 +302,11 @@ impl<'a> Parser<'a> {
                 return Ok(vec![Some(f)]);
             }
         }
+        for func in ["maxwell", "bouc_wen", "dahl"] {
+            if self.at_call(func) {
+                return Ok(vec![Some(self.state_factor(func, start)?)]);
+            }
+        }
         for func in ["abs", "sign", "tanh"] {
             if self.at_call(func) {
                 self.ident();
@@ -388,6 +397,71 @@ impl<'a> Parser<'a> {
         Ok((lo..=hi)
             .map(|k| (k > 0).then(|| Factor::Pow(v.clone(), k)))
             .collect())
+    }
+
+    /// A number with an optional leading '-'.
+    fn signed(&mut self) -> Result<f64> {
+        self.skip_ws();
+        let negative = self.eat('-');
+        let v = self.number("a number such as 0.5 or -1.1 for the state's parameter")?;
+        Ok(if negative { -v } else { v })
+    }
+
+    /// `maxwell(v, τ)`, `bouc_wen(v, a, b[, ν])` or `dahl(v, κ)` after its name was seen.
+    fn state_factor(&mut self, func: &str, start: usize) -> Result<Factor> {
+        self.ident();
+        self.expect('(', "'('")?;
+        let vpos = {
+            self.skip_ws();
+            self.pos
+        };
+        let v = self.var()?;
+        if !v.is_velocity() {
+            return Err(self.err_at(
+                vpos,
+                format!("'{v}'"),
+                format!("a velocity coordinate such as x' or (x2-x1)' driving {func}(...)"),
+            ));
+        }
+        let usage = match func {
+            "maxwell" => "maxwell(v', tau)",
+            "dahl" => "dahl(v', kappa)",
+            _ => "bouc_wen(v', a, b) or bouc_wen(v', a, b, nu)",
+        };
+        let mut params = Vec::new();
+        while self.eat(',') {
+            params.push(self.signed()?);
+        }
+        self.expect(')', &format!("',' and a number, or ')' closing {usage}"))?;
+        let law = match (func, params.as_slice()) {
+            ("maxwell", [tau]) => StateLaw::Maxwell { tau: *tau },
+            ("dahl", [kappa]) => StateLaw::Dahl { kappa: *kappa },
+            ("bouc_wen", [a, b]) => StateLaw::BoucWen {
+                a: *a,
+                b: *b,
+                nu: 1.0,
+            },
+            ("bouc_wen", [a, b, nu]) => StateLaw::BoucWen {
+                a: *a,
+                b: *b,
+                nu: *nu,
+            },
+            _ => {
+                return Err(self.err_at(
+                    start,
+                    format!("{} parameter(s)", params.len()),
+                    usage.to_string(),
+                ));
+            }
+        };
+        law.validate().map_err(|e| {
+            self.err_at(
+                start,
+                format!("'{func}'"),
+                format!("valid parameters in {usage}: {e}"),
+            )
+        })?;
+        Ok(Factor::State(v, law))
     }
 
     fn product(&mut self, budget: usize) -> Result<Vec<Term>> {

@@ -4,6 +4,7 @@ use std::cmp::Ordering;
 use std::fmt;
 
 use crate::Result;
+use crate::state::StateLaw;
 
 /// The second operand of a relative coordinate `(a-b)`: another DOF or a base input such as `xb`.
 #[derive(Debug, Clone, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -117,6 +118,10 @@ pub enum Factor {
     Below(Var, f64),
     /// `above(v, c) = max(0, v − c)`: how far `v` is above `c` (a stop from above).
     Above(Var, f64),
+    /// An internal state `z` driven by the velocity coordinate `v` under a law
+    /// (`maxwell(v, τ)`, `bouc_wen(v, a, b)`, `dahl(v, κ)`; see [`crate::state`]): its value is
+    /// `z`, a function of the drive's history, not of its current value.
+    State(Var, StateLaw),
 }
 
 impl Factor {
@@ -128,7 +133,16 @@ impl Factor {
             | Factor::Sign(v)
             | Factor::Tanh(v, _)
             | Factor::Below(v, _)
-            | Factor::Above(v, _) => v,
+            | Factor::Above(v, _)
+            | Factor::State(v, _) => v,
+        }
+    }
+
+    /// The internal-state law, for a state factor.
+    pub fn state_law(&self) -> Option<&StateLaw> {
+        match self {
+            Factor::State(_, law) => Some(law),
+            _ => None,
         }
     }
 
@@ -140,6 +154,7 @@ impl Factor {
             Factor::Tanh(..) => 3,
             Factor::Below(..) => 4,
             Factor::Above(..) => 5,
+            Factor::State(..) => 6,
         }
     }
 
@@ -152,11 +167,23 @@ impl Factor {
                 (Factor::Tanh(_, a), Factor::Tanh(_, b))
                 | (Factor::Below(_, a), Factor::Below(_, b))
                 | (Factor::Above(_, a), Factor::Above(_, b)) => a.total_cmp(b),
+                (Factor::State(_, a), Factor::State(_, b)) => {
+                    a.name().cmp(b.name()).then_with(|| {
+                        let (pa, pb) = (law_key(a), law_key(b));
+                        pa.iter()
+                            .zip(&pb)
+                            .map(|(x, y)| x.total_cmp(y))
+                            .find(|o| *o != Ordering::Equal)
+                            .unwrap_or(Ordering::Equal)
+                    })
+                }
                 _ => Ordering::Equal,
             })
     }
 
-    /// Evaluates the factor at a value `v` of its variable.
+    /// Evaluates the factor at a value `v` of its variable. A state factor has no value at one
+    /// point (it depends on the drive's history): `apply` gives 0, its value on a structure that
+    /// has been at rest; evaluate it on a record with [`crate::evaluate_term`].
     #[inline]
     pub fn apply(&self, v: f64) -> f64 {
         match self {
@@ -166,11 +193,13 @@ impl Factor {
             Factor::Tanh(_, eps) => (v / eps).tanh(),
             Factor::Below(_, c) => (c - v).max(0.0),
             Factor::Above(_, c) => (v - c).max(0.0),
+            Factor::State(..) => 0.0,
         }
     }
 
     /// The factor's derivative with respect to its variable at `v` (`abs`: `sign(v)`; `sign`:
-    /// 0; `below`/`above`: the side's slope, 0 on the free side and at the contact point).
+    /// 0; `below`/`above`: the side's slope, 0 on the free side and at the contact point; a
+    /// state factor: 0, see [`Factor::apply`]).
     #[inline]
     pub fn derivative(&self, v: f64) -> f64 {
         match self {
@@ -196,7 +225,16 @@ impl Factor {
                     0.0
                 }
             }
+            Factor::State(..) => 0.0,
         }
+    }
+}
+
+/// Every parameter of a law (the fixed exponent ν of Bouc–Wen included), for ordering.
+fn law_key(law: &StateLaw) -> Vec<f64> {
+    match *law {
+        StateLaw::BoucWen { a, b, nu } => vec![a, b, nu],
+        other => other.params(),
     }
 }
 
@@ -239,6 +277,18 @@ impl fmt::Display for Factor {
             Factor::Tanh(v, eps) => write!(f, "tanh({v}/{})", fmt_num(*eps)),
             Factor::Below(v, c) => write!(f, "below({v}, {})", fmt_num(*c)),
             Factor::Above(v, c) => write!(f, "above({v}, {})", fmt_num(*c)),
+            Factor::State(v, law) => {
+                write!(f, "{}({v}", law.name())?;
+                for p in law.params() {
+                    write!(f, ", {}", fmt_num(p))?;
+                }
+                if let StateLaw::BoucWen { nu, .. } = law
+                    && *nu != 1.0
+                {
+                    write!(f, ", {}", fmt_num(*nu))?;
+                }
+                write!(f, ")")
+            }
         }
     }
 }
@@ -358,7 +408,18 @@ impl Term {
         self.factors.iter().all(|f| f.var().is_displacement())
     }
 
-    /// True if any factor involves a velocity.
+    /// The internal states the term uses: each state factor's drive and law, in factor order.
+    pub fn states(&self) -> Vec<(&Var, &StateLaw)> {
+        self.factors
+            .iter()
+            .filter_map(|f| match f {
+                Factor::State(v, law) => Some((v, law)),
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// True if any factor involves a velocity (an internal state's drive included).
     pub fn uses_velocity(&self) -> bool {
         self.factors.iter().any(|f| f.var().is_velocity())
     }

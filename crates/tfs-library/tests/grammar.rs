@@ -1,7 +1,7 @@
 //! Grammar tests: print/parse round trips, range expansion, error messages.
 
 use proptest::prelude::*;
-use tfs_library::{Coord, Factor, Library, LibraryError, Term, Var};
+use tfs_library::{Coord, Factor, Library, LibraryError, StateLaw, Term, Var};
 
 const DOFS: [&str; 3] = ["x", "x1", "x2"];
 
@@ -31,8 +31,27 @@ fn var_strategy() -> impl Strategy<Value = Var> {
     ]
 }
 
+/// Velocity coordinates (what drives an internal state).
+fn velocity_strategy() -> impl Strategy<Value = Var> {
+    var_strategy().prop_filter("a velocity", Var::is_velocity)
+}
+
+fn law_strategy() -> impl Strategy<Value = StateLaw> {
+    prop_oneof![
+        (1e-4f64..10.0).prop_map(|tau| StateLaw::Maxwell { tau }),
+        (
+            -1e4f64..1e4,
+            -1e4f64..1e4,
+            prop::sample::select(vec![1.0, 1.5, 2.0])
+        )
+            .prop_map(|(a, b, nu)| StateLaw::BoucWen { a, b, nu }),
+        (1e-3f64..1e5).prop_map(|kappa| StateLaw::Dahl { kappa }),
+    ]
+}
+
 fn factor_strategy() -> impl Strategy<Value = Factor> {
     prop_oneof![
+        (velocity_strategy(), law_strategy()).prop_map(|(v, l)| Factor::State(v, l)),
         (var_strategy(), 1u32..9).prop_map(|(v, k)| Factor::Pow(v, k)),
         var_strategy().prop_map(Factor::Abs),
         var_strategy().prop_map(Factor::Sign),
@@ -248,4 +267,81 @@ fn stops_parse_evaluate_and_refuse_bad_input() {
         let e = Library::parse(bad, &DOFS).unwrap_err().to_string();
         assert!(e.contains("expected"), "{bad}: {e}");
     }
+}
+
+/// Internal states: `maxwell(v', tau)`, `bouc_wen(v', a, b[, nu])`, `dahl(v', kappa)` parse with
+/// signed parameters, print back (ν = 1 omitted), evaluate along a record from rest, and bad
+/// calls are errors naming what was expected.
+#[test]
+fn internal_states_parse_evaluate_and_refuse_bad_input() {
+    let t = Term::parse("bouc_wen(x', 800, -1100)", &DOFS).unwrap();
+    assert_eq!(t.to_string(), "bouc_wen(x', 800, -1100)");
+    assert_eq!(
+        t.states(),
+        vec![(
+            &Var::Vel("x".into()),
+            &StateLaw::BoucWen {
+                a: 800.0,
+                b: -1100.0,
+                nu: 1.0
+            }
+        )]
+    );
+    assert!(t.uses_velocity() && !t.is_linear_in_velocity() && t.exact_derivative().is_none());
+    let t2 = Term::parse("bouc_wen((x2-x1)', 3, 1, 2) * x", &DOFS).unwrap();
+    assert_eq!(t2.to_string(), "x*bouc_wen((x2-x1)', 3, 1, 2)");
+    assert_eq!(
+        Term::parse("maxwell(x1', 0.35)", &DOFS)
+            .unwrap()
+            .to_string(),
+        "maxwell(x1', 0.35)"
+    );
+    assert_eq!(
+        Term::parse("dahl( x' , 2.5e3 )", &DOFS)
+            .unwrap()
+            .to_string(),
+        "dahl(x', 2500)"
+    );
+    // Along a record: the law integrated from rest on the velocity column.
+    let n = 400;
+    let dt = 0.01;
+    let time: Vec<f64> = (0..n).map(|k| k as f64 * dt).collect();
+    let v: Vec<f64> = time.iter().map(|s| (3.0 * s).cos()).collect();
+    let x: Vec<f64> = time.iter().map(|s| (3.0 * s).sin() / 3.0).collect();
+    let rec = tfs_data::Record::new(
+        "r",
+        time,
+        vec![("x".into(), x.clone()), ("x'".into(), v.clone())],
+    )
+    .unwrap();
+    let law = StateLaw::Dahl { kappa: 20.0 };
+    let want = law.integrate(&v, dt);
+    let got =
+        tfs_library::evaluate_term(&Term::parse("x*dahl(x', 20)", &DOFS).unwrap(), &rec).unwrap();
+    for k in 0..n {
+        assert_eq!(got[k], x[k] * want[k]);
+    }
+    assert_eq!(want[0], 0.0);
+    // Dahl saturates at 1 after a long slide in one direction.
+    assert!(want.iter().all(|z| z.abs() <= 1.0 + 1e-9));
+    for (bad, says) in [
+        ("maxwell(x, 0.3)", "velocity"),
+        ("maxwell(xb_acc, 0.3)", "velocity"),
+        ("maxwell(x', 0)", "tau"),
+        ("maxwell(x', -1)", "tau"),
+        ("bouc_wen(x', 1)", "bouc_wen(v', a, b)"),
+        ("bouc_wen(x', 1, 2, 0.5)", "nu"),
+        ("dahl(x')", "dahl(v', kappa)"),
+        ("dahl(x', 3", "')'"),
+    ] {
+        let e = Library::parse(bad, &DOFS).unwrap_err().to_string();
+        assert!(e.contains(says), "{bad}: {e}");
+    }
+    // Distinct laws or parameters are distinct terms.
+    let lib = Library::parse(
+        "maxwell(x', 0.1), maxwell(x', 0.2), maxwell(x', 0.1), dahl(x', 0.1)",
+        &DOFS,
+    )
+    .unwrap();
+    assert_eq!(lib.len(), 3);
 }

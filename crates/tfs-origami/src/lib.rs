@@ -8,6 +8,10 @@
 //! * [`CellSystem`], [`Chain`]: base-excited [`tfs_dynamics::SecondOrderSystem`]s.
 //! * [`generate`]: sweeps/sines of base acceleration, simulated and noised into
 //!   [`tfs_data::Record`]s with metadata.
+//! * [`oscillator`]: single-DOF truths with memory and hidden effects for testing a diagnosis:
+//!   the Bouc–Wen hysteretic benchmark oscillator and Duffing oscillators (single or double
+//!   well) with friction, damping, stiffness, offset, stop, Maxwell, Bouc–Wen, Dahl or exciter
+//!   effects.
 //!
 //! Architecture invariant: no I/O; every result records which truth produced it.
 //!
@@ -26,6 +30,7 @@
 mod cell;
 mod dataset;
 mod geometry;
+pub mod oscillator;
 mod system;
 mod truth;
 
@@ -35,6 +40,7 @@ pub use dataset::{
     build_system, generate,
 };
 pub use geometry::KreslingParams;
+pub use oscillator::{BoucWenOscillator, Hidden, Oscillator};
 pub use system::{CellSystem, Chain, ChainEquilibrium};
 pub use truth::{CellForce, Surrogate, SurrogateSpec, Truth};
 

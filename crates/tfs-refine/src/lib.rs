@@ -77,10 +77,12 @@ mod lm;
 mod refine;
 mod sens;
 mod sensitivity;
+mod validation;
 
 pub use error::{RefineError, Result};
-pub use refine::{RefineOptions, Refined, ValidationScores, choose_by_validation, refine};
+pub use refine::{RefineOptions, Refined, refine};
 pub use sensitivity::{NOISE_SHARE, displacement_noise_var, input_noise_spread, noise_dominated};
+pub use validation::{ValidationScores, choose_by_validation};
 
 #[cfg(test)]
 mod tests;

@@ -17,6 +17,9 @@ pub(crate) struct Prepared {
     pub xm: Vec<Vec<f64>>,
     /// Smoothed velocity estimate per DOF (segment initial guesses).
     pub vm: Vec<Vec<f64>>,
+    /// Each internal state computed along the smoothed velocity from rest (segment initial
+    /// guesses).
+    pub zm: Vec<Vec<f64>>,
     /// Residual weight per DOF.
     pub w: Vec<f64>,
 }
@@ -31,8 +34,9 @@ pub(crate) struct Segment {
     pub linked: bool,
 }
 
-/// The least-squares problem: unknowns `p = [coefficients (P) | per segment (x0, v0) (2n)]`,
-/// all scaled (`c_j = pscale_j p_j`, `x0_i = xs_i p`, `v0_i = vs_i p`).
+/// The least-squares problem: unknowns
+/// `p = [coefficients (P) | state parameters (R) | per segment (x0, v0, z0) (2n + m)]`, all
+/// scaled (`c_j = pscale_j p_j`, `x0_i = xs_i p`, `v0_i = vs_i p`, `z0_j = zs_j p`).
 pub(crate) struct Problem<'a> {
     pub st: &'a Structure,
     pub recs: &'a [Prepared],
@@ -40,6 +44,8 @@ pub(crate) struct Problem<'a> {
     pub pscale: Vec<f64>,
     pub xs: Vec<f64>,
     pub vs: Vec<f64>,
+    /// Scales of the internal states.
+    pub zs: Vec<f64>,
     pub defect_weight: f64,
     pub substeps: usize,
     /// Blow-up limit on |x_i| / xs_i and |v_i| / vs_i.
@@ -49,10 +55,10 @@ pub(crate) struct Problem<'a> {
 /// Per-segment contribution to the normal equations.
 struct SegNormal {
     cost: f64,
-    /// Local normal matrix over `[coefs | own state]` (Q × Q).
+    /// Local normal matrix over `[model unknowns | own state]` (Q × Q).
     l: Mat<f64>,
     gl: Vec<f64>,
-    /// Coupling of local columns to the next segment's state (Q × 2n), if linked.
+    /// Coupling of local columns to the next segment's state (Q × (2n + m)), if linked.
     next: Option<Mat<f64>>,
     /// Gradient contribution to the next segment's state (−w_d · defect).
     gnext: Vec<f64>,
@@ -65,7 +71,8 @@ pub(crate) struct Normal {
     pub defect_rms: f64,
     hcc: Mat<f64>,
     gc: Vec<f64>,
-    /// Per segment: A_s (2n × 2n), C_s (2n × P), B_s (2n × 2n, coupling to s+1), b_s.
+    /// Per segment (`S = 2n + m` states, `P` model unknowns): A_s (S × S), C_s (S × P),
+    /// B_s (S × S, coupling to s+1), b_s.
     a: Vec<Mat<f64>>,
     c: Vec<Mat<f64>>,
     b: Vec<Option<Mat<f64>>>,
@@ -74,10 +81,10 @@ pub(crate) struct Normal {
 
 impl Problem<'_> {
     pub fn n_params(&self) -> usize {
-        self.st.params() + 2 * self.st.n * self.segs.len()
+        self.st.params() + self.st.seg_states() * self.segs.len()
     }
 
-    /// Initial unknowns from coefficients and data.
+    /// Initial unknowns from the model's unknowns (coefficients, state parameters) and data.
     pub fn initial(&self, coefs: &[f64]) -> Vec<f64> {
         let n = self.st.n;
         let mut p: Vec<f64> = coefs.iter().zip(&self.pscale).map(|(c, s)| c / s).collect();
@@ -89,10 +96,14 @@ impl Problem<'_> {
             for i in 0..n {
                 p.push(r.vm[i][sg.k0] / self.vs[i]);
             }
+            for j in 0..self.st.m {
+                p.push(r.zm[j][sg.k0] / self.zs[j]);
+            }
         }
         p
     }
 
+    /// The model's unknowns: coefficients, then state parameters.
     pub fn coefs(&self, p: &[f64]) -> Vec<f64> {
         p[..self.st.params()]
             .iter()
@@ -101,25 +112,52 @@ impl Problem<'_> {
             .collect()
     }
 
-    /// Simulates one segment with sensitivities and accumulates its normal-equation blocks;
-    /// `None` on blow-up or non-finite values.
-    fn segment(&self, s: usize, coefs: &[f64], p: &[f64]) -> Option<SegNormal> {
+    /// Scale of segment state `c` (`x0`, `v0`, then the states' start).
+    fn state_scale(&self, c: usize) -> f64 {
         let n = self.st.n;
+        if c < n {
+            self.xs[c]
+        } else if c < 2 * n {
+            self.vs[c - n]
+        } else {
+            self.zs[c - 2 * n]
+        }
+    }
+
+    /// Where segment state `c` lives in the system's `(x, v)`: `(false, i)` for `x[i]`,
+    /// `(true, i)` for `v[i]` (a state's value is the velocity of its auxiliary coordinate).
+    fn state_slot(&self, c: usize) -> (bool, usize) {
+        let n = self.st.n;
+        // v0 of DOF i is `v[i]`, the start of state j is `v[n + j]`: both at `c − n`.
+        if c < n { (false, c) } else { (true, c - n) }
+    }
+
+    /// Simulates one segment with sensitivities and accumulates its normal-equation blocks;
+    /// `None` on blow-up, non-finite values or invalid state parameters.
+    fn segment(&self, s: usize, model: &[f64], p: &[f64]) -> Option<SegNormal> {
+        let (n, nn) = (self.st.n, self.st.nn);
         let np = self.st.params();
-        let q = np + 2 * n;
+        let pc = self.st.n_coefs();
+        let ns = self.st.seg_states();
+        let q = np + ns;
         let sg = self.segs[s];
         let rec = &self.recs[sg.rec];
-        let sys = Augmented::new(self.st, coefs, &self.pscale, q);
-        let dim = n * (1 + q);
+        let sys = Augmented::new(self.st, &model[..pc], &model[pc..], &self.pscale, q)?;
+        let dim = nn * (1 + q);
         let mut x = vec![0.0; dim];
         let mut v = vec![0.0; dim];
-        let off = np + 2 * n * s;
-        for i in 0..n {
-            x[i] = p[off + i] * self.xs[i];
-            v[i] = p[off + n + i] * self.vs[i];
-            // ∂x/∂(x0 param i) and ∂v/∂(v0 param i).
-            x[n + (np + i) * n + i] = self.xs[i];
-            v[n + (np + n + i) * n + i] = self.vs[i];
+        let off = np + ns * s;
+        for c in 0..ns {
+            let (is_v, i) = self.state_slot(c);
+            let sc = self.state_scale(c);
+            // The state and its derivative with respect to its own (scaled) unknown.
+            if is_v {
+                v[i] = p[off + c] * sc;
+                v[nn + (np + c) * nn + i] = sc;
+            } else {
+                x[i] = p[off + c] * sc;
+                x[nn + (np + c) * nn + i] = sc;
+            }
         }
         let mut scratch = Rk4Scratch::new(dim);
         let ni = self.st.inputs;
@@ -136,7 +174,7 @@ impl Problem<'_> {
                 for i in 0..n {
                     let r = rec.w[i] * (x[i] - rec.xm[i][k]);
                     for (qq, rw) in row.iter_mut().enumerate() {
-                        *rw = rec.w[i] * x[n + qq * n + i];
+                        *rw = rec.w[i] * x[nn + qq * nn + i];
                     }
                     accumulate(&mut l, &mut gl, &row, r);
                     cost += r * r;
@@ -153,12 +191,10 @@ impl Problem<'_> {
                 rec.input.eval(t + h, &mut u1);
                 rk4_step(&sys, t, h, &mut x, &mut v, &u0, &um, &u1, &mut scratch);
             }
-            for i in 0..n {
-                if !(x[i].is_finite()
-                    && v[i].is_finite()
-                    && x[i].abs() <= self.limit * self.xs[i]
-                    && v[i].abs() <= self.limit * self.vs[i])
-                {
+            for c in 0..ns {
+                let (is_v, i) = self.state_slot(c);
+                let val = if is_v { v[i] } else { x[i] };
+                if !(val.is_finite() && val.abs() <= self.limit * self.state_scale(c)) {
                     return None;
                 }
             }
@@ -169,19 +205,20 @@ impl Problem<'_> {
         let mut defect2 = 0.0;
         if sg.linked {
             let wd = self.defect_weight;
-            let offn = off + 2 * n;
-            let mut cn = Mat::<f64>::zeros(q, 2 * n);
-            gnext = vec![0.0; 2 * n];
-            for c in 0..2 * n {
-                let (val, sc, sens): (f64, f64, &[f64]) = if c < n {
-                    (x[c], self.xs[c], &x[n..])
+            let offn = off + ns;
+            let mut cn = Mat::<f64>::zeros(q, ns);
+            gnext = vec![0.0; ns];
+            for c in 0..ns {
+                let (is_v, i) = self.state_slot(c);
+                let sc = self.state_scale(c);
+                let (val, sens): (f64, &[f64]) = if is_v {
+                    (v[i], &v[nn..])
                 } else {
-                    (v[c - n], self.vs[c - n], &v[n..])
+                    (x[i], &x[nn..])
                 };
-                let i = c % n;
                 let d = wd * (val / sc - p[offn + c]);
                 for (qq, rw) in row.iter_mut().enumerate() {
-                    *rw = wd * sens[qq * n + i] / sc;
+                    *rw = wd * sens[qq * nn + i] / sc;
                 }
                 accumulate(&mut l, &mut gl, &row, d);
                 for (qq, rw) in row.iter().enumerate() {
@@ -208,7 +245,7 @@ impl Problem<'_> {
 
     /// Evaluates cost, gradient and Gauss–Newton matrix at `p`; `None` if any segment blows up.
     pub fn normal(&self, p: &[f64]) -> Option<Normal> {
-        let n = self.st.n;
+        let n2 = self.st.seg_states();
         let np = self.st.params();
         let coefs = self.coefs(p);
         let parts: Vec<Option<SegNormal>> = (0..self.segs.len())
@@ -237,11 +274,11 @@ impl Problem<'_> {
                     hcc[(i, j)] += sn.l[(i, j)];
                 }
             }
-            let mut aa = Mat::<f64>::from_fn(2 * n, 2 * n, |i, j| sn.l[(np + i, np + j)]);
-            let mut cc = Mat::<f64>::from_fn(2 * n, np, |i, j| sn.l[(np + i, j)]);
+            let mut aa = Mat::<f64>::from_fn(n2, n2, |i, j| sn.l[(np + i, np + j)]);
+            let mut cc = Mat::<f64>::from_fn(n2, np, |i, j| sn.l[(np + i, j)]);
             let mut g: Vec<f64> = sn.gl[np..].to_vec();
             if let Some((cprev, gprev)) = pending.take() {
-                for i in 0..2 * n {
+                for i in 0..n2 {
                     aa[(i, i)] += wd2;
                     g[i] += gprev[i];
                     for j in 0..np {
@@ -250,9 +287,9 @@ impl Problem<'_> {
                 }
             }
             if let Some(cn) = &sn.next {
-                nd += 2 * n;
-                let bb = Mat::<f64>::from_fn(2 * n, 2 * n, |i, j| cn[(np + i, j)]);
-                let cnext = Mat::<f64>::from_fn(np, 2 * n, |i, j| cn[(i, j)]);
+                nd += n2;
+                let bb = Mat::<f64>::from_fn(n2, n2, |i, j| cn[(np + i, j)]);
+                let cnext = Mat::<f64>::from_fn(np, n2, |i, j| cn[(i, j)]);
                 pending = Some((cnext, sn.gnext.clone()));
                 b.push(Some(bb));
             } else {
@@ -280,7 +317,7 @@ impl Problem<'_> {
 
     /// Diagonal of H in unknown order.
     pub fn diag(&self, nm: &Normal) -> Vec<f64> {
-        let n2 = 2 * self.st.n;
+        let n2 = self.st.seg_states();
         let np = self.st.params();
         let mut d: Vec<f64> = (0..np).map(|i| nm.hcc[(i, i)]).collect();
         for a in &nm.a {
@@ -302,7 +339,7 @@ impl Problem<'_> {
     /// (block-tridiagonal with a dense coefficient border); `None` if a pivot block is not
     /// positive definite.
     pub fn solve(&self, nm: &Normal, damp: &[f64]) -> Option<Vec<f64>> {
-        let n2 = 2 * self.st.n;
+        let n2 = self.st.seg_states();
         let np = self.st.params();
         let ns = nm.a.len();
         let mut hcc = nm.hcc.clone();
@@ -514,7 +551,7 @@ pub(crate) fn levenberg_marquardt(
 impl Problem<'_> {
     /// The full Gauss–Newton matrix, assembled densely from the blocks (tests only).
     pub fn dense(&self, nm: &Normal) -> Mat<f64> {
-        let n2 = 2 * self.st.n;
+        let n2 = self.st.seg_states();
         let np = self.st.params();
         let ns = nm.a.len();
         let dim = np + n2 * ns;

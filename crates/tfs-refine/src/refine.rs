@@ -97,27 +97,7 @@ pub struct Refined {
     pub noise_dominated: Vec<(String, f64, f64)>,
 }
 
-/// Scores of [`choose_by_validation`].
-#[derive(Debug, Clone, PartialEq)]
-pub struct ValidationScores {
-    /// Per record: (source name, RMS error of the first model, RMS error of the second),
-    /// RMS over DOFs, `+∞` for a blow-up.
-    pub per_record: Vec<(String, f64, f64)>,
-    /// Sum over records of squared RMS errors normalised by the record's displacement RMS
-    /// (first model).
-    pub eq_score: f64,
-    /// The same for the second (refined) model.
-    pub refined_score: f64,
-    /// True if the refined model was chosen.
-    pub chose_refined: bool,
-    /// Validation records left out of the choice because the first model's error on them is
-    /// dominated by their input's noise ([`crate::noise_dominated`]: they cannot rank the two);
-    /// (source name, spread, error), RMS over DOFs. With every record left out, the first model
-    /// is kept.
-    pub noise_dominated: Vec<(String, f64, f64)>,
-}
-
-fn check_records(model: &Model, records: &[Record], what: &str) -> Result<()> {
+pub(crate) fn check_records(model: &Model, records: &[Record], what: &str) -> Result<()> {
     if records.is_empty() {
         return Err(RefineError::Invalid {
             name: what.into(),
@@ -165,13 +145,13 @@ fn check_records(model: &Model, records: &[Record], what: &str) -> Result<()> {
     Ok(())
 }
 
-fn rms(x: &[f64]) -> f64 {
+pub(crate) fn rms(x: &[f64]) -> f64 {
     let m = x.iter().sum::<f64>() / x.len() as f64;
     (x.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / x.len() as f64).sqrt()
 }
 
 /// Per-DOF RMS simulation errors of `model` on `record` (`+∞` on blow-up).
-fn sim_errors(model: &Model, record: &Record, opts: &SimulateOptions) -> Vec<f64> {
+pub(crate) fn sim_errors(model: &Model, record: &Record, opts: &SimulateOptions) -> Vec<f64> {
     match simulate_model_on_record(model, record, opts) {
         Ok(tr) => model
             .dofs
@@ -189,12 +169,19 @@ fn sim_errors(model: &Model, record: &Record, opts: &SimulateOptions) -> Vec<f64
     }
 }
 
-fn combine(errs: &[f64]) -> f64 {
+pub(crate) fn combine(errs: &[f64]) -> f64 {
     (errs.iter().map(|e| e * e).sum::<f64>() / errs.len() as f64).sqrt()
 }
 
-fn with_coefs(model: &Model, coefs: &[f64]) -> Model {
-    let mut m = model.clone();
+/// `model` with the unknowns `coefs` of a refinement: its coefficients (DOF by DOF, term by
+/// term) and then the parameters of its internal states (`None` when those are invalid).
+fn with_coefs(st: &Structure, model: &Model, coefs: &[f64]) -> Option<Model> {
+    let pc = st.n_coefs();
+    let mut m = if st.m > 0 {
+        model.with_state_laws(&st.laws(&coefs[pc..])?).ok()?
+    } else {
+        model.clone()
+    };
     let mut j = 0;
     for d in model.dofs.clone() {
         if let Some(eq) = m.equations.iter_mut().find(|e| e.dof == d) {
@@ -205,7 +192,24 @@ fn with_coefs(model: &Model, coefs: &[f64]) -> Model {
             }
         }
     }
-    m
+    Some(m)
+}
+
+/// Each internal state of `model` along a record's measured displacements `xm` and smoothed
+/// velocities `vm` (DOF order), from rest: the initial guesses of the states at segment starts.
+fn state_tracks(model: &Model, r: &Record, vm: &[Vec<f64>]) -> Result<Vec<Vec<f64>>> {
+    let mut cols = tfs_library::ColumnSet::new(r);
+    for (d, v) in model.dofs.iter().zip(vm) {
+        cols.insert(format!("{d}'"), v.clone())?;
+    }
+    model
+        .internal_states()
+        .into_iter()
+        .map(|(v, law)| {
+            let term = tfs_library::Term::new(vec![tfs_library::Factor::State(v, law)]);
+            Ok(tfs_library::evaluate_term(&term, &cols)?)
+        })
+        .collect()
 }
 
 /// Dominant (non-DC) frequency of `x` in Hz, if any.
@@ -291,7 +295,11 @@ fn left_out(list: &[(String, f64, f64)]) -> String {
 /// `Some((spread, error))` (RMS over DOFs) when `record`'s free-run error under `model` is
 /// dominated by the noise on its measured inputs ([`noise_dominated`]); `None` otherwise, and
 /// when it cannot be judged (the simulation blows up, or no input has a noise-only floor).
-fn noise_screen(model: &Model, record: &Record, opts: &SimulateOptions) -> Option<(f64, f64)> {
+pub(crate) fn noise_screen(
+    model: &Model,
+    record: &Record,
+    opts: &SimulateOptions,
+) -> Option<(f64, f64)> {
     let err = sim_errors(model, record, opts);
     if err.iter().any(|e| !e.is_finite()) {
         return None;
@@ -367,11 +375,17 @@ fn start_model_kept(
     }
 }
 
-/// [`refine`] on the records that passed the input-noise screen.
-fn refine_records(model: &Model, train: &[Record], opts: &RefineOptions) -> Result<Refined> {
-    let (st, coefs0) = Structure::new(model)?;
+/// The training records prepared for the least-squares problem (inputs, measured
+/// displacements, smoothed velocities, state tracks, residual weights) and the scales of the
+/// segment unknowns: displacements, velocities, internal states.
+#[allow(clippy::type_complexity)]
+fn prepare(
+    model: &Model,
+    st: &Structure,
+    train: &[Record],
+    opts: &RefineOptions,
+) -> Result<(Vec<Prepared>, Vec<f64>, Vec<f64>, Vec<f64>)> {
     let n = st.n;
-    // Prepare records.
     let mut recs = Vec::with_capacity(train.len());
     for r in train {
         let dt = r.dt();
@@ -390,15 +404,25 @@ fn refine_records(model: &Model, train: &[Record], opts: &RefineOptions) -> Resu
         for x in &xm {
             vm.push(opts.velocity.apply(x, dt, 1)?);
         }
+        let zm = state_tracks(model, r, &vm)?;
         recs.push(Prepared {
             input,
             t0: r.t()[0],
             dt,
             xm,
             vm,
+            zm,
             w: vec![1.0; n],
         });
     }
+    // Scales of the internal states: their RMS along the records (1 if they never move).
+    let zs: Vec<f64> = (0..st.m)
+        .map(|j| {
+            let all: Vec<f64> = recs.iter().flat_map(|r| r.zm[j].iter().copied()).collect();
+            let s = (all.iter().map(|v| v * v).sum::<f64>() / all.len().max(1) as f64).sqrt();
+            if s > 0.0 && s.is_finite() { s } else { 1.0 }
+        })
+        .collect();
     // Weights and scales.
     let mut xs = vec![0.0; n];
     let mut vs = vec![0.0; n];
@@ -425,6 +449,14 @@ fn refine_records(model: &Model, train: &[Record], opts: &RefineOptions) -> Resu
             r.w[i] = 1.0 / s;
         }
     }
+    Ok((recs, xs, vs, zs))
+}
+
+/// [`refine`] on the records that passed the input-noise screen.
+fn refine_records(model: &Model, train: &[Record], opts: &RefineOptions) -> Result<Refined> {
+    let (st, coefs0) = Structure::new(model)?;
+    let n = st.n;
+    let (recs, xs, vs, zs) = prepare(model, &st, train, opts)?;
     // Segment length.
     let seg_len = match opts.segment_len {
         Some(l) => l,
@@ -437,9 +469,28 @@ fn refine_records(model: &Model, train: &[Record], opts: &RefineOptions) -> Resu
             }
         }
     };
+    // Unknowns are scaled by their start values; a state parameter that starts at 0 (a
+    // Bouc–Wen `b`) by the largest parameter of its state, the scale of its effect.
+    let pc = st.n_coefs();
     let pscale: Vec<f64> = coefs0
         .iter()
-        .map(|c| if *c != 0.0 { c.abs() } else { 1.0 })
+        .enumerate()
+        .map(|(k, c)| {
+            if *c != 0.0 {
+                return c.abs();
+            }
+            if k >= pc {
+                let j = st.state_of(k - pc);
+                let sib = (pc..coefs0.len())
+                    .filter(|&q| st.state_of(q - pc) == j)
+                    .map(|q| coefs0[q].abs())
+                    .fold(0.0, f64::max);
+                if sib > 0.0 {
+                    return sib;
+                }
+            }
+            1.0
+        })
         .collect();
     // Blow-up guard: a state beyond 1e6 times the data RMS is treated as divergence.
     let limit = 1e6;
@@ -513,6 +564,7 @@ fn refine_records(model: &Model, train: &[Record], opts: &RefineOptions) -> Resu
                 pscale: pscale.clone(),
                 xs: xs.clone(),
                 vs: vs.clone(),
+                zs: zs.clone(),
                 defect_weight: 0.0,
                 substeps: opts.substeps,
                 limit,
@@ -534,6 +586,7 @@ fn refine_records(model: &Model, train: &[Record], opts: &RefineOptions) -> Resu
                 pscale: pscale.clone(),
                 xs: xs.clone(),
                 vs: vs.clone(),
+                zs: zs.clone(),
                 defect_weight: wd,
                 substeps: opts.substeps,
                 limit,
@@ -584,6 +637,7 @@ fn refine_records(model: &Model, train: &[Record], opts: &RefineOptions) -> Resu
             pscale: pscale.clone(),
             xs: xs.clone(),
             vs: vs.clone(),
+            zs: zs.clone(),
             defect_weight: 0.0,
             substeps: opts.substeps,
             limit,
@@ -609,16 +663,16 @@ fn refine_records(model: &Model, train: &[Record], opts: &RefineOptions) -> Resu
             })),
         }
     }
-    let candidate = with_coefs(model, &coefs);
-    let (cand_cost, errs_after) =
-        if coefs.iter().all(|c| c.is_finite()) && candidate.validate().is_ok() {
-            score(&candidate)
-        } else {
-            (f64::INFINITY, vec![vec![f64::INFINITY; n]; train.len()])
-        };
+    let candidate = with_coefs(&st, model, &coefs).filter(|m| m.validate().is_ok());
+    let (cand_cost, errs_after) = match &candidate {
+        Some(c) if coefs.iter().all(|c| c.is_finite()) => score(c),
+        _ => (f64::INFINITY, vec![vec![f64::INFINITY; n]; train.len()]),
+    };
     let improved =
         cand_cost < initial_cost || (initial_cost.is_infinite() && cand_cost.is_finite());
-    let (mut out_model, final_cost, errs_final, message) = if improved {
+    let (mut out_model, final_cost, errs_final, message) = if let (true, Some(candidate)) =
+        (improved, candidate)
+    {
         (
             candidate,
             cand_cost,
@@ -742,68 +796,4 @@ fn check_options(o: &RefineOptions) -> Result<()> {
         return bad("ftol/gtol", "must be non-negative".into());
     }
     Ok(())
-}
-
-/// Simulates `eq_model` and `refined` on held-out `validation` records (tfs-dynamics
-/// [`simulate_model_on_record`] with default options) and returns a clone of the one that
-/// predicts better (lower sum over records of squared RMS error normalised by the record's
-/// displacement RMS; ties keep `eq_model`), with the scores. Records whose free-run error under
-/// `eq_model` is dominated by the noise on their measured input ([`crate::input_noise_spread`])
-/// cannot rank the two and are left out of the sums (listed in
-/// [`ValidationScores::noise_dominated`]); with none left, `eq_model` is kept.
-pub fn choose_by_validation(
-    eq_model: &Model,
-    refined: &Model,
-    validation: &[Record],
-) -> Result<(Model, ValidationScores)> {
-    check_records(eq_model, validation, "validation")?;
-    check_records(refined, validation, "validation")?;
-    let opts = SimulateOptions::default();
-    let mut per_record = Vec::new();
-    let mut noise_dominated = Vec::new();
-    let (mut s_eq, mut s_ref) = (0.0, 0.0);
-    let screened: Vec<Option<(f64, f64)>> = validation
-        .par_iter()
-        .map(|r| noise_screen(eq_model, r, &opts))
-        .collect();
-    for (r, screen) in validation.iter().zip(screened) {
-        if let Some((spread, error)) = screen {
-            noise_dominated.push((r.source().to_string(), spread, error));
-            continue;
-        }
-        let norm: Vec<f64> = eq_model
-            .dofs
-            .iter()
-            .map(|d| r.column(d).map(rms).unwrap_or(1.0).max(f64::MIN_POSITIVE))
-            .collect();
-        let e1 = sim_errors(eq_model, r, &opts);
-        let e2 = sim_errors(refined, r, &opts);
-        s_eq += e1
-            .iter()
-            .zip(&norm)
-            .map(|(e, s)| (e / s) * (e / s))
-            .sum::<f64>();
-        s_ref += e2
-            .iter()
-            .zip(&norm)
-            .map(|(e, s)| (e / s) * (e / s))
-            .sum::<f64>();
-        per_record.push((r.source().to_string(), combine(&e1), combine(&e2)));
-    }
-    let chose_refined = s_ref < s_eq && noise_dominated.len() < validation.len();
-    let chosen = if chose_refined {
-        refined.clone()
-    } else {
-        eq_model.clone()
-    };
-    Ok((
-        chosen,
-        ValidationScores {
-            per_record,
-            eq_score: s_eq,
-            refined_score: s_ref,
-            chose_refined,
-            noise_dominated,
-        },
-    ))
 }

@@ -128,6 +128,7 @@ fn small_problem<'a>(st: &'a Structure, recs: &'a [Prepared]) -> Problem<'a> {
         pscale: st_scales(st),
         xs: vec![0.5, 0.4],
         vs: vec![0.9, 0.7],
+        zs: (0..st.m).map(|j| 0.3 + 0.2 * j as f64).collect(),
         defect_weight: 3.0,
         substeps: 3,
         limit: 1e3,
@@ -154,22 +155,57 @@ fn records() -> Vec<Prepared> {
         let v2: Vec<f64> = (0..len)
             .map(|k| -0.32 * (0.8 * k as f64 * dt).sin())
             .collect();
+        // Two internal-state tracks (used by the model with states).
+        let z1: Vec<f64> = (0..len)
+            .map(|k| 0.2 * (0.9 * k as f64 * dt).sin())
+            .collect();
+        let z2: Vec<f64> = (0..len)
+            .map(|k| 0.1 * (0.5 * k as f64 * dt).cos())
+            .collect();
         Prepared {
             input: SampledInput::new(0.0, dt, vec![u]).unwrap(),
             t0: 0.0,
             dt,
             xm: vec![x1, x2],
             vm: vec![v1, v2],
+            zm: vec![z1, z2],
             w: vec![2.0, 1.5],
         }
     };
     vec![mk(40, 0.0), mk(30, 1.0)]
 }
 
+/// The two-DOF model plus a hysteretic coupling (in both equations, one state) and a Maxwell
+/// element on `x1`.
+fn model_with_states() -> Model {
+    let mut m = two_dof_model();
+    let t = |s: &str| Term::parse(s, &m.dofs).unwrap();
+    let bw = t("bouc_wen((x2-x1)', 2, -0.5)");
+    m.equations[0].terms.push(ModelTerm::new(bw.clone(), 0.8));
+    m.equations[0]
+        .terms
+        .push(ModelTerm::new(t("maxwell(x1', 0.7)"), -0.6));
+    m.equations[1].terms.push(ModelTerm::new(bw, -0.8));
+    Model::new(m.dofs.clone(), m.equations.clone(), "t").unwrap()
+}
+
 #[test]
 fn gradient_matches_finite_differences_of_the_cost() {
-    let m = two_dof_model();
-    let (st, coefs) = Structure::new(&m).unwrap();
+    gradient_check(&two_dof_model());
+}
+
+/// With internal states, the state parameters and the states' starts are unknowns too: their
+/// gradient from the forward sensitivities matches differences of the cost.
+#[test]
+fn gradient_with_internal_states_matches_finite_differences() {
+    let m = model_with_states();
+    let (st, _) = Structure::new(&m).unwrap();
+    assert_eq!((st.n, st.m, st.n_coefs(), st.params()), (2, 2, 14, 17));
+    gradient_check(&m);
+}
+
+fn gradient_check(m: &Model) {
+    let (st, coefs) = Structure::new(m).unwrap();
     let recs = records();
     let pb = small_problem(&st, &recs);
     let mut p = pb.initial(&coefs);
@@ -197,8 +233,13 @@ fn gradient_matches_finite_differences_of_the_cost() {
 
 #[test]
 fn block_solver_matches_dense_solve() {
-    let m = two_dof_model();
-    let (st, coefs) = Structure::new(&m).unwrap();
+    for m in [two_dof_model(), model_with_states()] {
+        block_check(&m);
+    }
+}
+
+fn block_check(m: &Model) {
+    let (st, coefs) = Structure::new(m).unwrap();
     let recs = records();
     let pb = small_problem(&st, &recs);
     let p = pb.initial(&coefs);

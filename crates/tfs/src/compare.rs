@@ -44,35 +44,23 @@ impl RecordScore {
     }
 }
 
-/// Whether the model has a computed column that is a simulated state (a Maxwell element): then
-/// no input-noise spread is estimated (no input a noise draw could perturb).
-pub fn has_state_columns(model: &Model) -> bool {
-    tfs_diagnose::effects::computed_columns(model)
-        .iter()
-        .any(|c| !c.from_input())
-}
-
 /// Simulates `model` on `record` (offsets already treated) and scores it.
 pub fn score(model: &Model, record: &Record) -> Result<RecordScore> {
     if model.dofs.is_empty() {
         invalid!("the model has no DOFs");
     }
     let src = record.source().to_string();
-    // The same simulation as `diagnose` and `refit` score with: plain models go straight to
-    // tfs-dynamics; computed input columns are added to the record, and each Maxwell element
-    // is integrated as an extra state driven by the simulated velocity.
+    // The same simulation as `diagnose` and `refit` score with: computed input columns are
+    // added to the record, internal states (Maxwell elements, hysteresis, Dahl friction) start
+    // at rest and are integrated with the motion.
     let traj = tfs_diagnose::simulate(model, record)
         .with_context(|| format!("{src}: simulating the model"))?;
     // How far a fresh draw of the input's own noise moves the simulation: an error no larger
     // than that is the measured input's doing, not the model's.
-    let spread = if has_state_columns(model) {
-        None
-    } else {
-        tfs_diagnose::augment_record(model, record, &Default::default())
-            .ok()
-            .and_then(|aug| tfs_refine::input_noise_spread(model, &aug, &Default::default()).ok())
-            .flatten()
-    };
+    let spread = tfs_diagnose::augment_record(model, record, &Default::default())
+        .ok()
+        .and_then(|aug| tfs_refine::input_noise_spread(model, &aug, &Default::default()).ok())
+        .flatten();
     let mut dofs = Vec::new();
     let mut errors = Vec::new();
     let (mut sum, mut sum_b) = (0.0, 0.0);

@@ -337,8 +337,8 @@ pub fn guess_inputs(columns: &[String]) -> Vec<String> {
 }
 
 /// The columns a record must hold to simulate `model`: its DOFs and its inputs, less the effect
-/// columns `tfs diagnose`/`refit` add (delayed or filtered inputs, Maxwell elements), which are
-/// computed from the record.
+/// columns `tfs diagnose`/`refit` add (delayed or filtered inputs), which are computed from the
+/// record (internal states are simulated with the motion).
 pub fn measured_columns(model: &Model) -> Vec<String> {
     let computed = tfs_diagnose::effects::computed_columns(model);
     let mut required = model.dofs.clone();
@@ -352,7 +352,10 @@ pub fn measured_columns(model: &Model) -> Vec<String> {
     required
 }
 
-/// Reads a model file with its path in the error.
+/// Reads a model file with its path in the error (a hidden Maxwell element written as a
+/// computed column by an older version becomes the internal state it stands for).
 pub fn read_model(path: &Path) -> Result<Model> {
-    Model::from_path(path).with_context(|| format!("reading model {}", path.display()))
+    let m = Model::from_path(path).with_context(|| format!("reading model {}", path.display()))?;
+    tfs_diagnose::effects::upgrade_legacy(&m)
+        .with_context(|| format!("reading model {}", path.display()))
 }

@@ -24,18 +24,10 @@ pub struct Refitted {
 }
 
 /// Appends the model's input-derived computed columns (delayed or filtered inputs) to each
-/// record so the model can be simulated under them. State-dependent ones (Maxwell) cannot be
-/// precomputed from measurements: refinement refuses them with a clear error.
+/// record so the model can be simulated under them (internal states are simulated by the model
+/// itself).
 pub fn with_computed_inputs(model: &Model, records: &mut [Record]) -> Result<()> {
     for c in tfs_diagnose::effects::computed_columns(model) {
-        if !c.from_input() {
-            invalid!(
-                "--refine: the model has the state-dependent column '{}' (a hidden Maxwell \
-                 element); simulation-error refinement supports input-derived columns only — \
-                 refine before adding it, or drop --refine",
-                c.name()
-            );
-        }
         for r in records.iter_mut() {
             let v = c
                 .compute(r, r.dt())

@@ -235,7 +235,14 @@ pub fn simulate_model(
     }
     let compiled = model.compile()?;
     let input = SampledInput::new(t[0], dt, u)?;
-    Ok(Dopri5::default().integrate(&compiled, &input, x0, v0, t)?)
+    // Internal states (Maxwell elements, hysteresis, Dahl friction) start at rest.
+    let (mut x0, mut v0) = (x0.to_vec(), v0.to_vec());
+    x0.resize(compiled.system_dofs(), 0.0);
+    v0.resize(compiled.system_dofs(), 0.0);
+    let mut tr = Dopri5::default().integrate(&compiled, &input, &x0, &v0, t)?;
+    tr.x.truncate(n);
+    tr.v.truncate(n);
+    Ok(tr)
 }
 
 /// The accelerations `x''` the model gives at `rows` states: per row the displacements `x`
@@ -251,6 +258,23 @@ pub fn predict(model: &Model, x: &[f64], v: &[f64], u: &[f64], rows: usize) -> R
         );
     }
     let compiled = model.compile()?;
+    if compiled.states() > 0 {
+        invalid!(
+            "predict: the model has internal states ({}); its acceleration depends on the motion's history, not on one state: simulate it instead",
+            model
+                .internal_states()
+                .iter()
+                .map(
+                    |(v, l)| tfs_library::Term::new(vec![tfs_library::Factor::State(
+                        v.clone(),
+                        *l
+                    )])
+                    .to_string()
+                )
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
     let mut out = vec![0.0; rows * n];
     for k in 0..rows {
         compiled.try_accel(

@@ -1,6 +1,6 @@
-//! `tfs compare` on models that `tfs diagnose`/`refit` extended with computed columns: a delayed
-//! input and a hidden Maxwell element are computed from the record (the Maxwell one as a
-//! simulated state), not demanded as CSV columns.
+//! `tfs compare` on models that `tfs diagnose`/`refit` extended: a delayed input is computed
+//! from the record and a hidden Maxwell element is an internal state simulated with the motion
+//! (also when an older model file names it as a computed column), not demanded as CSV columns.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -147,24 +147,46 @@ fn compare_simulates_a_maxwell_element() {
         ],
     );
     let data = write(dir.path(), "maxwell.csv", &sys, vec![u.clone()], &t, &u);
-    let col = "maxwell_x_tau_0p5";
     let m = model(
         &["x"],
         &[&[
             ("x", -4.0),
             ("x'", -0.2),
             ("x^3", -2.0),
-            (col, -1.5),
+            ("maxwell(x', 0.5)", -1.5),
             ("xb_acc", -1.0),
         ]],
     );
     let v = compare(&m, dir.path(), &data);
     let r = v["files"][0]["r_mse"].as_f64().unwrap();
     assert!(r < 1e-2, "the true Maxwell model scores R-MSE {r}: {v}");
+    // A model file written when the element was a computed column scores the same.
+    let legacy = m
+        .to_json_string()
+        .unwrap()
+        .replace("maxwell(x', 0.5)", "maxwell_x_tau_0p5")
+        .replace(
+            r#""inputs": [
+    "xb_acc"
+  ]"#,
+            r#""inputs": ["xb_acc", "maxwell_x_tau_0p5"]"#,
+        );
+    let lpath = dir.path().join("legacy.json");
+    std::fs::write(&lpath, legacy).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_tfs"))
+        .args(["compare", "--model", &lpath.display().to_string()])
+        .arg(&data)
+        .arg("--json")
+        .output()
+        .unwrap();
     assert!(
-        v["files"][0]["dofs"][0]["input_noise_spread"].is_null(),
-        "a Maxwell state has no input-noise spread: {v}"
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
     );
+    let lv: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let lr = lv["files"][0]["r_mse"].as_f64().unwrap();
+    assert!((lr - r).abs() <= 1e-9 * r.max(1e-12), "legacy {lr} vs {r}");
     let plain = model(
         &["x"],
         &[&[("x", -4.0), ("x'", -0.2), ("x^3", -2.0), ("xb_acc", -1.0)]],

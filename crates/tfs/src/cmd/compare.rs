@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use serde_json::json;
-use tfs::compare::{has_state_columns, score};
+use tfs::compare::score;
 use tfs::plot::{Figure, LineChart, Series};
 use tfs::records::{measured_columns, read_model};
 
@@ -38,9 +38,8 @@ pub struct Args {
 /// Runs `tfs compare`.
 pub fn run(args: Args) -> Result<()> {
     let model = read_model(&args.model)?;
-    // Columns that `tfs diagnose`/`refit` added as effects (delayed or filtered inputs, Maxwell
-    // elements) are computed from the record, not read from it.
-    let state_dependent = has_state_columns(&model);
+    // Columns that `tfs diagnose`/`refit` added as effects (delayed or filtered inputs) are
+    // computed from the record, not read from it.
     let required = measured_columns(&model);
     let mut records = read_records(&args.data, &required, &args.data_args)?;
     let offsets_report = offsets_for_model(&mut records, &model, &required, args.offsets.into())?;
@@ -106,11 +105,6 @@ pub fn run(args: Args) -> Result<()> {
         println!(
             "(RMS error and spread in the record's units; the spread is how far a fresh draw of the input's estimated noise moves the simulation)"
         );
-        if state_dependent {
-            println!(
-                "(no spread: the model's Maxwell column is a simulated state, not an input a noise draw could perturb)"
-            );
-        }
     }
     Ok(())
 }
