@@ -3,6 +3,8 @@
 //! with 40 dB white noise.
 #![allow(dead_code)]
 
+pub mod bouc_wen;
+
 use tfs_data::Record;
 use tfs_library::{Library, Model};
 use tfs_signal::{Excitation, Sweep, SweepKind};
@@ -90,7 +92,20 @@ pub fn structure(spec: &str) -> Model {
 
 /// The noise-free record of a truth and its `x`.
 pub fn clean(truth: &Truth, f0: f64, f1: f64, amp: f64, secs: f64, dt: f64) -> (Record, Vec<f64>) {
+    clean_named(truth, "clean", f0, f1, amp, secs, dt)
+}
+
+/// [`clean`] with a record name.
+pub fn clean_named(
+    truth: &Truth,
+    name: &str,
+    f0: f64,
+    f1: f64,
+    amp: f64,
+    secs: f64,
+    dt: f64,
+) -> (Record, Vec<f64>) {
     let (x, u) = simulate(truth, f0, f1, amp, secs, dt);
-    let rec = measured("clean", dt, ("x", &x), ("xb_acc", &u), None, 0).unwrap();
+    let rec = measured(name, dt, ("x", &x), ("xb_acc", &u), None, 0).unwrap();
     (rec, x)
 }
