@@ -108,9 +108,21 @@ pub fn diagnose_with(
     let ex = explain(model, records, catalogue, opts)?;
     let localisation = localise(model, records, opts)?;
     let records = compare(model, records, opts)?;
+    let mut verdict = ex.verdict;
+    // Nothing missing on clean data: say both.
+    if !ex.ranked.iter().any(|r| r.significant) && localisation.iter().all(|l| l.noise.clean()) {
+        let snr = localisation
+            .iter()
+            .map(|l| l.noise.snr_db)
+            .fold(f64::INFINITY, f64::min);
+        verdict.push_str(&format!(
+            "; nothing is missing and the records are clean (measurement noise estimated {:.0} dB below the signal)",
+            snr.min(999.0)
+        ));
+    }
     Ok(Diagnosis {
         ranked: ex.ranked,
-        verdict: ex.verdict,
+        verdict,
         residual_summary: localisation.iter().map(|l| l.summary.clone()).collect(),
         records,
         localisation,

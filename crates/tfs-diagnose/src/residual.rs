@@ -416,7 +416,12 @@ fn summarise(
     // residual noise alone would leave (at least ~45 % of the residual power is noise).
     let is_noise = rel <= NOISE_FACTOR * noise_rel;
     let systematic = best.1.abs() >= 0.2 || past.1.abs() >= 0.2;
-    if is_noise {
+    if noise.clean() {
+        s.push_str(&format!(
+            "; the records are clean (measurement noise estimated {:.0} dB below the signal), so none of it is noise",
+            noise.snr_db.min(999.0)
+        ));
+    } else if is_noise {
         s.push_str(&format!(
             "; measurement noise alone would leave {:.1} % (noise estimate from the records' spectra)",
             100.0 * noise_rel
@@ -428,11 +433,6 @@ fn summarise(
             ));
             return s;
         }
-    } else if noise.clean() {
-        s.push_str(&format!(
-            "; the records are clean (estimated noise {:.0} dB below the signal), so all of it is model error, not noise",
-            noise.snr_db.min(999.0)
-        ));
     } else {
         s.push_str(&format!(
             "; measurement noise {} {:.1} % (noise estimate from the records' spectra), so it is mostly model error, not noise",

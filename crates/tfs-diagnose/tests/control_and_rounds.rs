@@ -64,6 +64,49 @@ fn control_truth_has_no_significant_effect() {
     }
 }
 
+/// The same control without noise: nothing missing, and the records are said to be clean (the
+/// residual is not called noise).
+#[test]
+fn noise_free_control_is_nothing_missing_data_clean() {
+    let truth = Truth {
+        restoring: duffing_restoring(),
+        damping: 0.63,
+        hidden: vec![],
+        x0: 0.0,
+    };
+    let train: Vec<Record> = (0..3)
+        .map(|i| {
+            clean_named(
+                &truth,
+                &format!("c{i}"),
+                0.3,
+                3.0,
+                4.0 * (0.8 + 0.2 * i as f64),
+                30.0,
+                0.01,
+            )
+            .0
+        })
+        .collect();
+    let opts = DiagnoseOptions::default();
+    let start = refit(&structure("x, x^3, x', xb_acc"), &train, &opts).unwrap();
+    let d = diagnose(&start, &train, &opts).unwrap();
+    println!("clean control verdict: {}", d.verdict);
+    println!("clean control residual: {}", d.residual_summary[0]);
+    assert!(d.ranked.iter().all(|r| !r.significant), "{}", d.verdict);
+    assert!(
+        d.verdict
+            .contains("nothing is missing and the records are clean"),
+        "{}",
+        d.verdict
+    );
+    assert!(
+        !d.residual_summary[0].contains("consistent with noise"),
+        "{}",
+        d.residual_summary[0]
+    );
+}
+
 #[test]
 fn two_hidden_effects_are_found_one_per_round() {
     let truth = Truth {
