@@ -356,7 +356,7 @@ pub(crate) fn best_variant(
         }
     }
     match best {
-        Some(b) => Ok(Some(crate::polish::polish(b, &|v| {
+        Some(b) => Ok(Some(crate::polish::polish(b, variants, &|v| {
             score_variant(states, layout, idx, base, v)
         })?)),
         None => Ok(None),

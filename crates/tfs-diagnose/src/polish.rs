@@ -7,7 +7,9 @@
 //! refined by a pattern search on the same held-out criterion: each parameter moved by ± a step
 //! (positive scales on a log scale, starting at half a grid step; Bouc–Wen's `b` in units of
 //! `a`, starting at a quarter), moves kept while they lower the held-out RSS, the step halved
-//! when none does, at most [`MAX_EVALS`] evaluations.
+//! when none does, at most [`MAX_EVALS`] evaluations. The search stays within the range the
+//! effect's scan covered (plus half a step): a time constant far below the scan's shortest is a
+//! different effect (a Maxwell element with τ → 0 is a plain damper).
 
 use tfs_library::{Factor, StateLaw, Term};
 
@@ -16,7 +18,7 @@ use crate::effects::{EffectColumn, Variant};
 use crate::explain::Scored;
 
 /// Most variants a refinement scores.
-pub const MAX_EVALS: usize = 20;
+pub const MAX_EVALS: usize = 12;
 
 /// The variant with the state `law` in place of the single state column of `v`.
 fn with_law(v: &Variant, law: StateLaw) -> Option<Variant> {
@@ -34,15 +36,43 @@ fn with_law(v: &Variant, law: StateLaw) -> Option<Variant> {
     Some(Variant::adding(parameter, vec![EffectColumn::term(term)]))
 }
 
-/// The law of `v`'s single state column, if it is one.
-fn law_of(v: &Variant) -> Option<StateLaw> {
+/// The drive and law of `v`'s single state column, if it is one.
+fn state_of(v: &Variant) -> Option<(&tfs_library::Var, StateLaw)> {
     match v.add.as_slice() {
         [col] if v.replace.is_empty() => match col.term.factors() {
-            [Factor::State(_, law)] => Some(*law),
+            [Factor::State(drive, law)] => Some((drive, *law)),
             _ => None,
         },
         _ => None,
     }
+}
+
+/// Per coordinate, the range the scan covered: over the `variants` with the same drive and law
+/// as `best`, widened by `pad[k]` on either side.
+fn scan_bounds(best: &Variant, variants: &[Variant], pad: &[f64]) -> Option<Vec<(f64, f64)>> {
+    let (drive, law) = state_of(best)?;
+    let mut bounds: Vec<(f64, f64)> = pad
+        .iter()
+        .map(|_| (f64::INFINITY, f64::NEG_INFINITY))
+        .collect();
+    for v in variants {
+        let Some((d, l)) = state_of(v) else { continue };
+        if d != drive || l.name() != law.name() {
+            continue;
+        }
+        let Some(u) = to_coords(&l) else { continue };
+        for (b, x) in bounds.iter_mut().zip(u) {
+            b.0 = b.0.min(x);
+            b.1 = b.1.max(x);
+        }
+    }
+    Some(
+        bounds
+            .into_iter()
+            .zip(pad)
+            .map(|((lo, hi), p)| (lo - p, hi + p))
+            .collect(),
+    )
 }
 
 /// Coordinates of the search for a law: `u` from the parameters and back (`None` when the law
@@ -83,10 +113,14 @@ fn from_coords(law: &StateLaw, u: &[f64]) -> Option<StateLaw> {
     out.validate().ok().map(|()| out)
 }
 
-/// Refines `best` (see the module docs) with `score` scoring a variant; other variants are
-/// returned as they are.
-pub(crate) fn polish(best: Scored, score: &dyn Fn(&Variant) -> Result<Scored>) -> Result<Scored> {
-    let Some(law) = law_of(&best.variant) else {
+/// Refines `best`, the best of the scanned `variants` (see the module docs), with `score`
+/// scoring a variant; other variants are returned as they are.
+pub(crate) fn polish(
+    best: Scored,
+    variants: &[Variant],
+    score: &dyn Fn(&Variant) -> Result<Scored>,
+) -> Result<Scored> {
+    let Some((_, law)) = state_of(&best.variant) else {
         return Ok(best);
     };
     let Some(mut u) = to_coords(&law) else {
@@ -96,6 +130,9 @@ pub(crate) fn polish(best: Scored, score: &dyn Fn(&Variant) -> Result<Scored>) -
     let mut step: Vec<f64> = (0..u.len())
         .map(|k| if k == 0 { 0.55 } else { 0.25 })
         .collect();
+    let Some(bounds) = scan_bounds(&best.variant, variants, &step) else {
+        return Ok(best);
+    };
     let mut best = best;
     let mut evals = 0;
     for _level in 0..3 {
@@ -108,6 +145,9 @@ pub(crate) fn polish(best: Scored, score: &dyn Fn(&Variant) -> Result<Scored>) -
                     }
                     let mut trial = u.clone();
                     trial[k] += sign * step[k];
+                    if !(bounds[k].0..=bounds[k].1).contains(&trial[k]) {
+                        continue;
+                    }
                     let Some(law) = from_coords(&law, &trial) else {
                         continue;
                     };
