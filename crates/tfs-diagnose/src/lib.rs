@@ -15,6 +15,8 @@
 //!   when none passes.
 //! * [`add_effect`] — add an effect by name, refit, and append to the model's history;
 //!   [`error_ladder`] and [`ladder_table`] show each step.
+//! * [`restoring_loop()`](restoring::restoring_loop) — the force–displacement loop measured
+//!   from a record against models' (a hysteresis loop where the structure has memory).
 //! * [`diagnose`] — all of the above in one report.
 //!
 //! Architecture invariant: no I/O and no plotting; everything returned is data.
@@ -54,6 +56,7 @@ mod polish;
 pub mod prepare;
 pub mod refit;
 pub mod residual;
+pub mod restoring;
 pub mod simulate;
 mod stats;
 
@@ -67,6 +70,7 @@ pub use refit::{
     LadderStep, add_effect, add_effect_with, error_ladder, ladder_table, refit, score_records,
 };
 pub use residual::{Localisation, localise};
+pub use restoring::{RestoringLoop, restoring_loop};
 pub use simulate::{augment_record, r_mse, simulate};
 pub use stats::paired_p_value;
 

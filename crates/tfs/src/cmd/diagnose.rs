@@ -21,7 +21,8 @@ pub struct Args {
     /// CSV records with the model's displacement and input columns.
     #[arg(required = true)]
     pub data: Vec<PathBuf>,
-    /// Write residual map, spectra, phase portraits and the ranking (SVG and PNG) into this directory.
+    /// Write residual map, spectra, phase portraits, the ranking and the force–displacement loop
+    /// (before and after adding the top effect) as SVG and PNG into this directory.
     #[arg(long)]
     pub plots: Option<PathBuf>,
     /// Print the diagnosis as JSON on stdout.
@@ -61,6 +62,20 @@ pub fn run(args: Args) -> Result<()> {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("--plots {}: cannot create the directory", dir.display()))?;
         write_plots(dir, &d)?;
+        // The loop before and after adding the top significant effect, on the first record.
+        let after = match d.ranked.iter().find(|r| r.significant) {
+            Some(top) => Some((
+                format!("model + {}", top.name),
+                tfs::diagnose::add_effect(&model, &top.name, &records)
+                    .with_context(|| format!("--plots: adding {} for the loop figure", top.name))?,
+            )),
+            None => None,
+        };
+        let mut models: Vec<(&str, &tfs::library::Model)> = vec![("model", &model)];
+        if let Some((label, m)) = &after {
+            models.push((label.as_str(), m));
+        }
+        super::plots::loop_figures(dir, &models, &records[0])?;
     }
     if args.json {
         print_json(&json!({

@@ -2,9 +2,12 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use tfs::basin::BasinMap;
+use tfs::data::Record;
+use tfs::library::Model;
 use tfs::plot::{BasinMap as BasinFigure, Figure};
+use tfs::plot::{LineChart, Series};
 
 use super::basin::label_index;
 
@@ -59,4 +62,35 @@ pub fn basin_figure(
     let stem: PathBuf = out.with_extension("");
     let files = Figure::from(fig).save(&stem)?;
     Ok(files.iter().map(|p| p.display().to_string()).collect())
+}
+
+/// Draws the force–displacement loop of every DOF of the last of `models` on `record` (the
+/// restoring force measured from the record, and each model's; see
+/// `tfs::diagnose::restoring_loop`) to `<dir>/loop-<dof>.svg` and `.png`; returns the files.
+pub fn loop_figures(dir: &Path, models: &[(&str, &Model)], record: &Record) -> Result<Vec<String>> {
+    let Some((_, last)) = models.last() else {
+        return Ok(Vec::new());
+    };
+    let mut files = Vec::new();
+    for dof in &last.dofs {
+        let l = tfs::diagnose::restoring_loop(models, record, dof, &Default::default())
+            .with_context(|| format!("{}: restoring-force loop of '{dof}'", record.source()))?;
+        let pts =
+            |f: &[f64]| -> Vec<(f64, f64)> { l.x.iter().copied().zip(f.iter().copied()).collect() };
+        let mut chart = LineChart::new(
+            format!(
+                "{}: restoring force against {dof}, t = {:.2}..{:.2} s",
+                l.record, l.window.0, l.window.1
+            ),
+            format!("{dof} (units of the record's {dof})"),
+            l.force_label.clone(),
+        )
+        .with_series(Series::line("measured (from the record)", pts(&l.measured)));
+        for (label, f) in &l.models {
+            chart = chart.with_series(Series::dashed(label.clone(), pts(f)));
+        }
+        let saved = Figure::from(chart).save(&dir.join(format!("loop-{dof}")))?;
+        files.extend(saved.iter().map(|p| p.display().to_string()));
+    }
+    Ok(files)
 }

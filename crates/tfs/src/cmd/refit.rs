@@ -28,7 +28,8 @@ pub struct Args {
     /// Where to write the refitted model.
     #[arg(long)]
     pub out: PathBuf,
-    /// Write the error ladder (R-MSE per step, log scale) as SVG and PNG into this directory.
+    /// Write the error ladder (R-MSE per step, log scale) and the force–displacement loop
+    /// (before and after) as SVG and PNG into this directory.
     #[arg(long)]
     pub plots: Option<PathBuf>,
     /// Print the ladder and the model as JSON on stdout.
@@ -69,6 +70,7 @@ pub fn run(args: Args) -> Result<()> {
         held_out = read_records(&args.validate, &required, &args.data_args)?;
         offsets_for_model(&mut held_out, &model, &required, args.offsets.into())?;
     }
+    let start = model.clone();
     let refitted = super::with_spinner("adding the effects and refitting", || {
         tfs::refit::refit(
             &model,
@@ -97,6 +99,8 @@ pub fn run(args: Args) -> Result<()> {
         };
         tfs::plot::Figure::from(chart)
             .save(&dir.join("ladder"))
+            .with_context(|| format!("--plots {}", dir.display()))?;
+        super::plots::loop_figures(dir, &[("before", &start), ("after", &model)], &records[0])
             .with_context(|| format!("--plots {}", dir.display()))?;
     }
     if args.json {
