@@ -10,6 +10,7 @@
 //! summed over the pieces — the model's error over a horizon the input noise cannot take over.
 //! When neither can be simulated the equation error alone decides.
 
+use rayon::prelude::*;
 use serde::Serialize;
 use tfs_data::Record;
 use tfs_dynamics::{Dopri5, Integrator, SampledInput, SimulateOptions, simulate_model_on_record};
@@ -52,7 +53,7 @@ pub(crate) fn choose(
 ) -> (Judge, String) {
     let sim = SimulateOptions::default();
     let verdicts: Vec<Option<bool>> = states
-        .iter()
+        .par_iter()
         .map(|s| {
             let rec = crate::simulate::augment_record(model, &s.record, opts).ok()?;
             let tr = simulate_model_on_record(model, &rec, &sim).ok()?;
