@@ -722,6 +722,13 @@ impl Catalogue {
         Ok(())
     }
 
+    /// Removes the effect called `name` (an unknown name is an error listing the known ones).
+    pub fn remove(&mut self, name: &str) -> Result<()> {
+        self.get(name)?;
+        self.effects.retain(|e| e.name() != name);
+        Ok(())
+    }
+
     /// The names, in catalogue order.
     pub fn names(&self) -> Vec<String> {
         self.effects.iter().map(|e| e.name()).collect()

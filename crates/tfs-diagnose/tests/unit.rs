@@ -151,3 +151,17 @@ fn legacy_maxwell_columns_become_internal_states() {
         plain
     );
 }
+
+#[test]
+fn catalogue_remove_drops_one_effect_and_names_unknown_ones() {
+    let mut c = tfs_diagnose::Catalogue::standard(7);
+    let n = c.names().len();
+    c.remove("hysteresis").unwrap();
+    assert_eq!(c.names().len(), n - 1);
+    assert!(!c.names().contains(&"hysteresis".to_string()));
+    let e = c.remove("hysteresis").unwrap_err().to_string();
+    assert!(
+        e.contains("unknown effect 'hysteresis'") && e.contains("maxwell"),
+        "{e}"
+    );
+}
