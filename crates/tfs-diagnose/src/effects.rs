@@ -209,6 +209,9 @@ pub struct EffectContext<'a> {
     /// RMS about its mean of each displacement coordinate of the equation: the scale of a
     /// hysteresis or friction state driven by its velocity.
     pub displacement_rms: Vec<(Var, f64)>,
+    /// Duration of the shortest record (s): an internal state started at rest must forget its
+    /// start within it.
+    pub shortest_record: f64,
 }
 
 /// The coordinates of an equation with terms `terms` that `keep` selects: `own` first, then
@@ -246,6 +249,7 @@ impl<'a> EffectContext<'a> {
             displacement_mean: scales.mean,
             displacement_ranges: scales.ranges.clone(),
             displacement_rms: scales.rms.clone(),
+            shortest_record: scales.shortest_record,
         }
     }
 

@@ -388,6 +388,8 @@ pub(crate) struct DataScales {
     pub ranges: Vec<(tfs_library::Var, f64, f64)>,
     /// RMS about its mean of each of those coordinates.
     pub rms: Vec<(tfs_library::Var, f64)>,
+    /// Duration of the shortest record (s).
+    pub shortest_record: f64,
 }
 
 impl DataScales {
@@ -436,7 +438,12 @@ impl DataScales {
             }
         }
         periods.sort_by(f64::total_cmp);
+        let shortest_record = states
+            .iter()
+            .map(|s| s.record.dt() * s.record.len().saturating_sub(1) as f64)
+            .fold(f64::INFINITY, f64::min);
         Ok(Self {
+            shortest_record,
             velocity: rms(&vel),
             period: periods.get(periods.len() / 2).copied().unwrap_or(f64::NAN),
             mean: if xn > 0 { xsum / xn as f64 } else { 0.0 },

@@ -25,7 +25,8 @@ fn state_variant(
 
 /// Viscoelastic relaxation: a hidden Maxwell element (a spring in series with a dashpot), the
 /// velocity low-pass filtered with time constant τ, `maxwell(x', τ)`; τ scanned over
-/// 0.02..2 dominant periods.
+/// 0.02..2 dominant periods, keeping only τ with 3τ within half the shortest record (a state
+/// started at rest must forget its start).
 #[derive(Debug, Clone, Copy)]
 pub struct Maxwell;
 impl Effect for Maxwell {
@@ -43,7 +44,7 @@ impl Effect for Maxwell {
         for v in ctx.velocity_vars() {
             for r in [0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0] {
                 let tau = round3(r * ctx.period);
-                if tau > ctx.dt {
+                if tau > ctx.dt && 3.0 * tau <= 0.5 * ctx.shortest_record {
                     out.extend(state_variant(
                         ctx,
                         &v,
