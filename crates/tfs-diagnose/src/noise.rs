@@ -1,12 +1,12 @@
 //! What measurement noise can explain of an equation residual. The tool's own noise estimate —
-//! the power-law floor that `tfs_criteria::spectral` fits to the upper half of each channel's
+//! the power-law floor that `tfs_signal::band` fits to the upper half of each channel's
 //! spectrum — is carried through what the diagnosis does to the records: the displacement's
 //! noise differentiated twice and low-passed at the cut-off, plus each input's noise through its
 //! coefficient. A residual is called noise only when this says it is the size of the noise.
 
 use serde::Serialize;
-use tfs_criteria::spectral::{Band, band_limit};
 use tfs_library::{Factor, Model, Var};
+use tfs_signal::band::{Band, reconstruct};
 
 use crate::prepare::RecordStates;
 
@@ -71,7 +71,7 @@ pub(crate) fn estimate(model: &Model, idx: usize, states: &[RecordStates]) -> No
         let Some(x) = s.record.column(dof) else {
             continue;
         };
-        let band = band_limit(x, dt, None).band;
+        let band = reconstruct(x, dt, None).band;
         noise_only &= band.floor_is_noise_only();
         let mut var = band_variance(&band, dt, fc, 2);
         let mean = x.iter().sum::<f64>() / x.len().max(1) as f64;
@@ -82,7 +82,7 @@ pub(crate) fn estimate(model: &Model, idx: usize, states: &[RecordStates]) -> No
         }
         for (name, c) in &inputs {
             if let Some(u) = s.record.column(name) {
-                let ub = band_limit(u, dt, None).band;
+                let ub = reconstruct(u, dt, None).band;
                 noise_only &= ub.floor_is_noise_only();
                 var += c * c * band_variance(&ub, dt, fc, 0);
             }
