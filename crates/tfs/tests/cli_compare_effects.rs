@@ -199,3 +199,96 @@ fn compare_simulates_a_maxwell_element() {
         "without the Maxwell element {r0}, with it {r}"
     );
 }
+
+/// Runs `tfs` with `args` and returns its JSON output (the command must succeed).
+fn tfs_json(args: &[&str]) -> serde_json::Value {
+    let out = Command::new(env!("CARGO_BIN_EXE_tfs"))
+        .args(args)
+        .arg("--json")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "tfs {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+/// A double well with Bouc–Wen hysteresis: `refit --add hysteresis` writes a model file whose
+/// internal state carries its law and parameters, and that file is read back and simulated
+/// (state from rest) by `compare`, `diagnose` and `basin`.
+#[test]
+fn hysteretic_model_round_trips_through_refit_compare_diagnose_and_basin() {
+    let dir = tempfile::tempdir().unwrap();
+    let (t, u) = sweep();
+    let structure = [("x", 1.0), ("x^3", -1.0), ("x'", -0.3), ("xb_acc", -1.0)];
+    let mut with_memory = structure.to_vec();
+    with_memory.push(("bouc_wen(x', 3, 1)", -0.5));
+    let truth = model(&["x"], &[&with_memory]);
+    let sys = truth.compile().unwrap();
+    let coords = tfs::dynamics::SecondOrderSystem::dofs(&sys);
+    assert_eq!(coords, 2, "one DOF and one internal state");
+    let traj = Dopri5::with_tol(1e-10, 1e-12)
+        .integrate(
+            &sys,
+            &SampledInput::new(0.0, DT, vec![u.clone()]).unwrap(),
+            &vec![0.0; coords],
+            &vec![0.0; coords],
+            &t,
+        )
+        .unwrap();
+    let rec = Record::new(
+        "bw.csv",
+        t.clone(),
+        vec![("x".into(), traj.x[0].clone()), ("xb_acc".into(), u)],
+    )
+    .unwrap();
+    let data = dir.path().join("bw.csv");
+    write_csv(&data, &rec).unwrap();
+    let p = |name: &str| dir.path().join(name).display().to_string();
+    model(&["x"], &[&structure])
+        .write_path(p("start.json"))
+        .unwrap();
+    let d = data.display().to_string();
+    let refit = tfs_json(&[
+        "refit",
+        "--model",
+        &p("start.json"),
+        "--add",
+        "hysteresis",
+        "--out",
+        &p("bw.json"),
+        &d,
+    ]);
+    // The file carries the state and reads back as the same model.
+    let text = std::fs::read_to_string(p("bw.json")).unwrap();
+    assert!(text.contains("bouc_wen(x', "), "{text}");
+    let back = Model::from_path(p("bw.json")).unwrap();
+    assert_eq!(back.internal_states().len(), 1, "{refit}");
+    let r = |m: &str| {
+        tfs_json(&["compare", "--model", &p(m), &d])["files"][0]["r_mse"]
+            .as_f64()
+            .unwrap()
+    };
+    let (before, after) = (r("start.json"), r("bw.json"));
+    assert!(after < 0.2 * before, "R-MSE {before} -> {after}");
+    let diag = tfs_json(&["diagnose", "--model", &p("bw.json"), &d]);
+    assert!(
+        diag["ranked"].as_array().is_some_and(|a| !a.is_empty()),
+        "{diag}"
+    );
+    let basin = tfs_json(&[
+        "basin",
+        "--model",
+        &p("bw.json"),
+        "--grid",
+        "30x30",
+        "--x",
+        "-2:2",
+        "--v",
+        "-2:2",
+    ]);
+    let text = basin.to_string();
+    assert!(text.contains("stable"), "{text}");
+}
