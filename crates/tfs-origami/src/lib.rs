@@ -12,6 +12,8 @@
 //!   the Bouc–Wen hysteretic benchmark oscillator and Duffing oscillators (single or double
 //!   well) with friction, damping, stiffness, offset, stop, Maxwell, Bouc–Wen, Dahl or exciter
 //!   effects.
+//! * [`hidden`]: any of those effects placed on an element or a mass of any system (a chain's
+//!   coupling, a truss cell), [`WithHidden`], simulated from rest by [`simulate_motion`].
 //!
 //! Architecture invariant: no I/O; every result records which truth produced it.
 //!
@@ -30,6 +32,7 @@
 mod cell;
 mod dataset;
 mod geometry;
+pub mod hidden;
 pub mod oscillator;
 mod system;
 mod truth;
@@ -40,6 +43,7 @@ pub use dataset::{
     build_system, generate,
 };
 pub use geometry::KreslingParams;
+pub use hidden::{Motion, On, Placed, WithHidden, simulate_motion};
 pub use oscillator::{BoucWenOscillator, Hidden, Oscillator};
 pub use system::{CellSystem, Chain, ChainEquilibrium};
 pub use truth::{CellForce, Surrogate, SurrogateSpec, Truth};

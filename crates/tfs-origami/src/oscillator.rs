@@ -179,15 +179,16 @@ pub enum Hidden {
 
 impl Hidden {
     /// True for the effects carried by an internal state.
-    fn has_state(&self) -> bool {
+    pub fn has_state(&self) -> bool {
         matches!(
             self,
             Hidden::Maxwell { .. } | Hidden::BoucWen { .. } | Hidden::Dahl { .. }
         )
     }
 
-    /// The force at `(x, x')` with internal state `z` (0 for stateless effects).
-    fn force(&self, x: f64, v: f64, z: f64) -> f64 {
+    /// The force at `(x, x')` with internal state `z` (0 for stateless effects and for the
+    /// exciter effects, which act through the input: [`felt_input`]).
+    pub fn force(&self, x: f64, v: f64, z: f64) -> f64 {
         match *self {
             Hidden::DryFriction { force, eps } => -force * (v / eps).tanh(),
             Hidden::Quadratic(c) => -c * v * v.abs(),
@@ -202,8 +203,8 @@ impl Hidden {
         }
     }
 
-    /// The internal state's rate.
-    fn rate(&self, v: f64, z: f64) -> f64 {
+    /// The internal state's rate at velocity `v` and state `z` (0 for stateless effects).
+    pub fn rate(&self, v: f64, z: f64) -> f64 {
         match *self {
             Hidden::Maxwell { tau, .. } => v - z / tau,
             Hidden::BoucWen { a, b, nu, .. } => {
@@ -240,46 +241,58 @@ impl Oscillator {
         self.hidden.iter().filter(|h| h.has_state())
     }
 
-    /// The input the structure feels, from the recorded one sampled every `dt` seconds: delayed
-    /// by a hidden [`Hidden::Delay`] (the excitation `delayed(t)` evaluated at `t − δ`, held at
-    /// its start value before 0), then filtered by a hidden [`Hidden::InputFilter`] (RK4 at 20
-    /// steps per sample on the linearly interpolated input, from the first value).
+    /// The input the structure feels, from the recorded one sampled every `dt` seconds (see
+    /// [`felt_input`]).
     pub fn felt_input(&self, recorded: &[f64], dt: f64, delayed: &dyn Fn(f64) -> f64) -> Vec<f64> {
-        let t = |k: usize| k as f64 * dt;
-        let mut felt = match self.hidden.iter().find_map(|h| match h {
-            Hidden::Delay(d) => Some(*d),
-            _ => None,
-        }) {
-            Some(d) => (0..recorded.len())
-                .map(|k| delayed((t(k) - d).max(0.0)))
-                .collect(),
-            None => recorded.to_vec(),
-        };
-        if let Some(tau) = self.hidden.iter().find_map(|h| match h {
-            Hidden::InputFilter(tau) => Some(*tau),
-            _ => None,
-        }) {
-            let sub = 20;
-            let h = dt / sub as f64;
-            let mut y = felt[0];
-            let mut out = vec![y];
-            for w in felt.windows(2) {
-                let du = (w[1] - w[0]) / dt;
-                for s in 0..sub {
-                    let u0 = w[0] + du * s as f64 * h;
-                    let f = |uu: f64, yy: f64| (uu - yy) / tau;
-                    let k1 = f(u0, y);
-                    let k2 = f(u0 + 0.5 * du * h, y + 0.5 * h * k1);
-                    let k3 = f(u0 + 0.5 * du * h, y + 0.5 * h * k2);
-                    let k4 = f(u0 + du * h, y + h * k3);
-                    y += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
-                }
-                out.push(y);
-            }
-            felt = out;
-        }
-        felt
+        felt_input(&self.hidden, recorded, dt, delayed)
     }
+}
+
+/// The input a structure with the exciter effects among `hidden` feels, from the recorded one
+/// sampled every `dt` seconds: delayed by a [`Hidden::Delay`] (the excitation `delayed(t)`
+/// evaluated at `t − δ`, held at its start value before 0), then filtered by a
+/// [`Hidden::InputFilter`] (RK4 at 20 steps per sample on the linearly interpolated input, from
+/// the first value). Without either it is the recorded input.
+pub fn felt_input(
+    hidden: &[Hidden],
+    recorded: &[f64],
+    dt: f64,
+    delayed: &dyn Fn(f64) -> f64,
+) -> Vec<f64> {
+    let t = |k: usize| k as f64 * dt;
+    let mut felt = match hidden.iter().find_map(|h| match h {
+        Hidden::Delay(d) => Some(*d),
+        _ => None,
+    }) {
+        Some(d) => (0..recorded.len())
+            .map(|k| delayed((t(k) - d).max(0.0)))
+            .collect(),
+        None => recorded.to_vec(),
+    };
+    if let Some(tau) = hidden.iter().find_map(|h| match h {
+        Hidden::InputFilter(tau) => Some(*tau),
+        _ => None,
+    }) {
+        let sub = 20;
+        let h = dt / sub as f64;
+        let mut y = felt[0];
+        let mut out = vec![y];
+        for w in felt.windows(2) {
+            let du = (w[1] - w[0]) / dt;
+            for s in 0..sub {
+                let u0 = w[0] + du * s as f64 * h;
+                let f = |uu: f64, yy: f64| (uu - yy) / tau;
+                let k1 = f(u0, y);
+                let k2 = f(u0 + 0.5 * du * h, y + 0.5 * h * k1);
+                let k3 = f(u0 + 0.5 * du * h, y + 0.5 * h * k2);
+                let k4 = f(u0 + du * h, y + h * k3);
+                y += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+            }
+            out.push(y);
+        }
+        felt = out;
+    }
+    felt
 }
 
 impl SecondOrderSystem for Oscillator {
