@@ -1,11 +1,13 @@
 //! tfs automation. `cargo xtask reproduce-paper [--quick] [--out DIR]` rebuilds the paper's
 //! numerical studies (§3.1 white and pink noise, §3.2 two-cell chain, Appendix B, §4 experiment-like
-//! study) from the workspace's own simulators and prints our numbers beside the paper's.
+//! study) from the workspace's own simulators and prints our numbers beside the paper's;
+//! `cargo xtask diagnose-bench [--quick]` scores the diagnosis loop on hidden-effect records.
 //!
 //! Orchestration and presentation only: every number comes from the `tfs` crates.
 
 mod chain;
 mod common;
+mod dbench;
 mod experiment;
 mod peers;
 mod peers_study;
@@ -50,6 +52,10 @@ enum Cmd {
     /// tfs vs PySINDy (weak and classical) on the same CSVs, scored by one code path (a
     /// benchmark: creates a Python virtual environment; CI does not run it).
     Peers(peers::PeersArgs),
+    /// The diagnosis loop scored like a classifier: every catalogue effect hidden in drawn
+    /// truths of six baselines, at drawn sizes and noise levels, with controls and pairs
+    /// (report.md, results.json, figures).
+    DiagnoseBench(dbench::Args),
 }
 
 type StudyFn = fn(&mut Study, &Opts) -> Result<()>;
@@ -117,6 +123,12 @@ fn main() {
         },
         Cmd::Peers(a) => {
             if let Err(e) = peers::run(a) {
+                eprintln!("error: {e:#}");
+                std::process::exit(2);
+            }
+        }
+        Cmd::DiagnoseBench(a) => {
+            if let Err(e) = dbench::run(a) {
                 eprintln!("error: {e:#}");
                 std::process::exit(2);
             }

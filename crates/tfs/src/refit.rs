@@ -1,9 +1,12 @@
 //! Refitting as `tfs refit` and the Python package do: named effects added one by one, then
-//! optionally simulation-error refinement, with the error ladder and what it warns about.
+//! optionally the diagnosis loop run until nothing significant remains (each round adds the top
+//! significant effect), then optionally simulation-error refinement, with the error ladder and
+//! what it warns about.
 
+use serde::Serialize;
 use serde_json::Value;
 use tfs_data::Record;
-use tfs_diagnose::{LadderStep, add_effect, error_ladder};
+use tfs_diagnose::{Catalogue, DiagnoseOptions, LadderStep, add_effect_with, error_ladder, explain};
 use tfs_library::Model;
 
 use crate::error::{Context, Result};
@@ -21,6 +24,69 @@ pub struct Refitted {
     pub warnings: Vec<String>,
     /// The simulation-error refinement (`null` without `refine`).
     pub refine: Value,
+    /// The rounds of the diagnosis loop (empty without `until_clean`).
+    pub rounds: Vec<LoopRound>,
+}
+
+/// One round of the diagnosis loop: what the diagnosis said and what was added.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LoopRound {
+    /// Round number, from 1.
+    pub round: usize,
+    /// The effect added (`name` or `name@dof`), or `None` when nothing was significant.
+    pub added: Option<String>,
+    /// The diagnosis's verdict in that round.
+    pub verdict: String,
+}
+
+/// What [`refit_with`] is asked: effects to add by name, then the diagnosis loop, then
+/// refinement.
+#[derive(Debug, Clone, Default)]
+pub struct RefitRequest {
+    /// Effects to add first, in order (catalogue names, `name@dof`).
+    pub add: Vec<String>,
+    /// Run the diagnosis loop after them for at most this many rounds: each round adds the
+    /// top significant effect; it stops when none is significant.
+    pub until_clean: Option<usize>,
+    /// Re-estimate the resulting structure by simulation error.
+    pub refine: bool,
+    /// Held-out records for `refine` (whichever fit predicts them better is kept).
+    pub held_out: Vec<Record>,
+}
+
+/// The diagnosis loop: at most `max_rounds` times, rank the catalogue's effects on `records`
+/// and add the top significant one (refitting, with its history step); stop when none is
+/// significant. Returns the model and one [`LoopRound`] per round (the last says why it
+/// stopped, unless the rounds ran out).
+pub fn until_clean(
+    model: &Model,
+    records: &[Record],
+    max_rounds: usize,
+    opts: &DiagnoseOptions,
+) -> Result<(Model, Vec<LoopRound>)> {
+    let catalogue = Catalogue::standard(opts.max_power);
+    let mut model = model.clone();
+    let mut rounds = Vec::new();
+    for round in 1..=max_rounds {
+        let ex = explain(&model, records, &catalogue, opts)
+            .with_context(|| format!("--until-clean: diagnosing in round {round}"))?;
+        let Some(top) = ex.ranked.iter().find(|r| r.significant) else {
+            rounds.push(LoopRound {
+                round,
+                added: None,
+                verdict: ex.verdict,
+            });
+            break;
+        };
+        model = add_effect_with(&model, &top.name, records, &catalogue, opts)
+            .with_context(|| format!("--until-clean: adding {} in round {round}", top.name))?;
+        rounds.push(LoopRound {
+            round,
+            added: Some(top.name.clone()),
+            verdict: ex.verdict,
+        });
+    }
+    Ok((model, rounds))
 }
 
 /// Appends the model's input-derived computed columns (delayed or filtered inputs) to each
@@ -72,22 +138,50 @@ pub fn ladder_warnings(ladder: &[LadderStep]) -> Vec<String> {
 /// Adds the effects `add` (catalogue names, `name@dof`) to `model` one by one, refitting on
 /// `records` (offsets already treated as `offsets` says); with `refine`, re-estimates the
 /// resulting structure by simulation error, keeping with `held_out` records (offsets treated
-/// the same) whichever fit predicts them better.
+/// the same) whichever fit predicts them better. See [`refit_with`] for the diagnosis loop.
 pub fn refit(
     model: &Model,
     add: &[String],
     records: &[Record],
     refine: bool,
-    mut held_out: Vec<Record>,
+    held_out: Vec<Record>,
     offsets: &Value,
 ) -> Result<Refitted> {
-    if add.is_empty() {
-        invalid!("--add: give at least one effect name");
+    let req = RefitRequest {
+        add: add.to_vec(),
+        until_clean: None,
+        refine,
+        held_out,
+    };
+    refit_with(model, records, &req, offsets)
+}
+
+/// [`refit`] with the diagnosis loop: the effects `req.add` first, then with `req.until_clean`
+/// the loop of [`until_clean`] (default diagnosis options), then refinement.
+pub fn refit_with(
+    model: &Model,
+    records: &[Record],
+    req: &RefitRequest,
+    offsets: &Value,
+) -> Result<Refitted> {
+    if req.add.is_empty() && req.until_clean.is_none() {
+        invalid!("--add: give at least one effect name (or --until-clean)");
     }
+    if req.until_clean == Some(0) {
+        invalid!("--until-clean 0: give the most rounds the loop may run (at least 1)");
+    }
+    let opts = DiagnoseOptions::default();
+    let catalogue = Catalogue::standard(opts.max_power);
     let mut model = model.clone();
-    for name in add {
-        model = add_effect(&model, name, records).with_context(|| format!("--add {name}"))?;
+    for name in &req.add {
+        model = add_effect_with(&model, name, records, &catalogue, &opts)
+            .with_context(|| format!("--add {name}"))?;
     }
+    let mut rounds = Vec::new();
+    if let Some(max) = req.until_clean {
+        (model, rounds) = until_clean(&model, records, max, &opts)?;
+    }
+    let (refine, mut held_out) = (req.refine, req.held_out.clone());
     let mut report = Value::Null;
     if refine {
         let mut train = records.to_vec();
@@ -118,6 +212,7 @@ pub fn refit(
         ladder,
         warnings,
         refine: report,
+        rounds,
     })
 }
 

@@ -1,5 +1,6 @@
-//! `tfs refit`: add named physical effects to a model one by one, refit by equation error on the
-//! records, keep the history, and print the error ladder.
+//! `tfs refit`: add named physical effects to a model one by one (or let the diagnosis loop add
+//! the top significant effect round after round until none remains), refit by equation error on
+//! the records, keep the history, and print the error ladder.
 
 use std::path::PathBuf;
 
@@ -20,8 +21,12 @@ pub struct Args {
     /// An effect to add (catalogue name, e.g. dry-friction, quadratic-damping, cubic-damping,
     /// stiffness-x^3, offset, maxwell, input-delay, input-filter, stop; `name@dof` for one
     /// DOF of a chain; `tfs diagnose` lists them all). Repeat to add several.
-    #[arg(long = "add", required = true)]
+    #[arg(long = "add", required_unless_present = "until_clean")]
     pub add: Vec<String>,
+    /// After the --add effects, run the diagnosis loop: each round adds the top significant
+    /// effect `tfs diagnose` finds, until none is significant (at most N rounds, default 5).
+    #[arg(long, value_name = "N", num_args = 0..=1, default_missing_value = "5")]
+    pub until_clean: Option<usize>,
     /// CSV records with the model's displacement and input columns.
     #[arg(required = true)]
     pub data: Vec<PathBuf>,
@@ -71,16 +76,16 @@ pub fn run(args: Args) -> Result<()> {
         offsets_for_model(&mut held_out, &model, &required, args.offsets.into())?;
     }
     let start = model.clone();
+    let req = tfs::refit::RefitRequest {
+        add: args.add.clone(),
+        until_clean: args.until_clean,
+        refine: args.refine,
+        held_out,
+    };
     let refitted = super::with_spinner("adding the effects and refitting", || {
-        tfs::refit::refit(
-            &model,
-            &args.add,
-            &records,
-            args.refine,
-            held_out,
-            &offsets_report,
-        )
+        tfs::refit::refit_with(&model, &records, &req, &offsets_report)
     })?;
+    let rounds = refitted.rounds;
     let (model, ladder, warnings) = (refitted.model, refitted.ladder, refitted.warnings);
     let refine_report = refitted.refine;
     super::write_model(&model, &args.out, "--out")?;
@@ -110,9 +115,22 @@ pub fn run(args: Args) -> Result<()> {
             "model": model.to_json_value()?,
             "offsets": offsets_report,
             "refine": refine_report,
+            "rounds": rounds,
             "warnings": warnings,
         }))?;
     } else {
+        for r in &rounds {
+            match &r.added {
+                Some(name) => println!("round {}: added {name} ({})", r.round, r.verdict),
+                None => println!("round {}: {}; the loop stops", r.round, r.verdict),
+            }
+        }
+        if args.until_clean.is_some() && rounds.last().is_some_and(|r| r.added.is_some()) {
+            println!(
+                "the loop stopped after {} rounds with effects still significant; run it again to continue",
+                rounds.len()
+            );
+        }
         println!("{}", model.equation_string());
         print!("{}", ladder_table(&ladder));
         if !refine_report.is_null() {

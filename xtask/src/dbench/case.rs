@@ -1,0 +1,401 @@
+//! One benchmark case: draw a baseline, hide its effects, simulate and measure three training
+//! records and a held-out one, then identify → diagnose → refit through the `tfs` library (as the
+//! CLI does) and score the diagnosis and the held-out error.
+
+use std::time::Instant;
+
+use anyhow::{Context, Result, anyhow};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+use serde_json::Value;
+use tfs::data::Record;
+use tfs::diagnose::{DiagnoseOptions, Explanation};
+use tfs::identify::{IdentifyOptions, identify, plan};
+use tfs::library::{Library, Model};
+
+use super::hide::{Hide, hide};
+use super::truth::{self, Baseline, Kind, rms, std_dev};
+
+/// What kind of case.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Group {
+    /// One hidden effect.
+    Single,
+    /// Nothing hidden.
+    Control,
+    /// Two hidden effects (two rounds).
+    Pair,
+}
+
+/// What to run.
+#[derive(Debug, Clone, Serialize)]
+pub struct CaseSpec {
+    /// Index in the plan.
+    pub id: usize,
+    /// The baseline.
+    #[serde(serialize_with = "kind_key")]
+    pub kind: Kind,
+    /// The kind of case.
+    pub group: Group,
+    /// Hidden catalogue effects.
+    pub hidden: Vec<String>,
+    /// Target share of each (its force RMS over the RMS acceleration).
+    pub sizes: Vec<f64>,
+    /// SNR in dB (None: noise-free).
+    pub snr: Option<f64>,
+    /// Seed of everything drawn in the case.
+    pub seed: u64,
+}
+
+fn kind_key<S: serde::Serializer>(k: &Kind, s: S) -> std::result::Result<S::Ok, S::Error> {
+    s.serialize_str(k.key())
+}
+
+/// One round of diagnose → refit.
+#[derive(Debug, Clone, Serialize)]
+pub struct Round {
+    /// The top significant effect (`name` as `--add` takes it), if any.
+    pub top: Option<String>,
+    /// Its catalogue effect.
+    pub top_effect: Option<String>,
+    /// Its scanned parameter.
+    pub top_parameter: Option<(String, f64)>,
+    /// The diagnosis's verdict.
+    pub verdict: String,
+    /// The three best-ranked candidates (name, significant, held-out equation-error drop, why).
+    pub ranked: Vec<(String, bool, f64, String)>,
+    /// Held-out R-MSE of the model before the round.
+    pub before: Option<f64>,
+    /// Held-out R-MSE after adding the top effect (= before when nothing was added).
+    pub after: Option<f64>,
+    /// Why a simulation failed, if one did.
+    pub failure: Option<String>,
+    /// Seconds spent in diagnose and refit.
+    pub seconds: f64,
+}
+
+/// The outcome of one case.
+#[derive(Debug, Clone, Serialize)]
+pub struct CaseResult {
+    /// What was run.
+    pub spec: CaseSpec,
+    /// `ok`, `not-applicable`, `truth-failed` or `failed`.
+    pub status: String,
+    /// Why not ok.
+    pub message: Option<String>,
+    /// The baseline's drawn parameters.
+    pub baseline: Value,
+    /// Each hidden effect's drawn parameters.
+    pub hidden_params: Vec<Value>,
+    /// Each hidden effect's realised share (force RMS over acceleration RMS, training records).
+    pub realised: Vec<f64>,
+    /// The DOFs whose equation may name each hidden effect.
+    pub hidden_dofs: Vec<Vec<String>>,
+    /// The identified start model.
+    pub start: Option<String>,
+    /// Round 1 and (for pairs, or when something remains) round 2.
+    pub rounds: Vec<Round>,
+    /// Held-out R-MSE after adding the hidden effect itself by name (one hidden effect).
+    pub oracle_after: Option<f64>,
+    /// Seconds: identify, whole case.
+    pub identify_seconds: f64,
+    /// Whole case.
+    pub seconds: f64,
+}
+
+impl CaseResult {
+    fn new(spec: &CaseSpec) -> Self {
+        Self {
+            spec: spec.clone(),
+            status: "ok".into(),
+            message: None,
+            baseline: Value::Null,
+            hidden_params: Vec::new(),
+            realised: Vec::new(),
+            hidden_dofs: Vec::new(),
+            start: None,
+            rounds: Vec::new(),
+            oracle_after: None,
+            identify_seconds: 0.0,
+            seconds: 0.0,
+        }
+    }
+
+    /// True when the case ran to the end.
+    pub fn ok(&self) -> bool {
+        self.status == "ok"
+    }
+
+    /// The effect named by round `r` (catalogue name) or "none".
+    pub fn found(&self, r: usize) -> String {
+        self.rounds
+            .get(r)
+            .and_then(|x| x.top_effect.clone())
+            .unwrap_or_else(|| "none".into())
+    }
+
+    /// Round 1 named a hidden effect, on a DOF whose equation may hold it.
+    pub fn top1_correct(&self) -> bool {
+        self.named_hidden(0).is_some()
+    }
+
+    /// Which hidden effect round `r` named (index), if it named one on an admissible DOF.
+    pub fn named_hidden(&self, r: usize) -> Option<usize> {
+        let round = self.rounds.get(r)?;
+        let effect = round.top_effect.as_ref()?;
+        let top = round.top.as_ref()?;
+        let dof = top.split_once('@').map(|(_, d)| d);
+        self.spec.hidden.iter().enumerate().find_map(|(i, h)| {
+            let dof_ok = match dof {
+                None => true,
+                Some(d) => self.hidden_dofs[i].iter().any(|x| x == d),
+            };
+            (h == effect && dof_ok).then_some(i)
+        })
+    }
+
+    /// Held-out error factor of round `r` (before / after).
+    pub fn drop(&self, r: usize) -> Option<f64> {
+        let round = self.rounds.get(r)?;
+        Some(round.before? / round.after?)
+    }
+}
+
+/// The start library of each DOF: the baseline's, less the terms an effect's presence removes.
+fn libraries(b: &Baseline, hides: &[Hide]) -> Result<Vec<String>> {
+    let dofs: Vec<&str> = b.dofs.iter().map(String::as_str).collect();
+    b.libraries
+        .iter()
+        .map(|spec| {
+            let lib = Library::parse(spec, &dofs)?;
+            let kept: Vec<String> = lib
+                .terms()
+                .iter()
+                .map(ToString::to_string)
+                .filter(|t| !hides.iter().any(|h| h.drop.contains(t)))
+                .collect();
+            Ok(kept.join(", "))
+        })
+        .collect()
+}
+
+/// Realised share of each hidden effect over the training records.
+fn realised(b: &Baseline, hides: &[Hide], clean: &[truth::Clean]) -> Vec<f64> {
+    let mut slot = 0;
+    hides
+        .iter()
+        .map(|h| {
+            let (mut num, mut den) = (0.0, 0.0);
+            for c in clean {
+                let a = std_dev(&c.motion.a[h.dof]);
+                den += a * a;
+                // A force's mean moves the rest state (the model's other terms take it up),
+                // except for an offset, which is nothing but its mean.
+                let spread = |f: &[f64]| {
+                    if h.effect == "offset" {
+                        rms(f)
+                    } else {
+                        std_dev(f)
+                    }
+                };
+                let f: Vec<f64> = if !h.placed.is_empty() {
+                    c.motion.forces[slot]
+                        .iter()
+                        .map(|f| f / b.masses[h.dof])
+                        .collect()
+                } else if !h.exciter.is_empty() {
+                    c.felt
+                        .iter()
+                        .zip(&c.u)
+                        .map(|(f, u)| b.gain * (f - u))
+                        .collect()
+                } else {
+                    // The baseline's own stiffness power.
+                    let p = h.params["own_term"]
+                        .as_str()
+                        .and_then(|t| t.rsplit_once('^').map(|(_, p)| p.parse().unwrap_or(1)))
+                        .unwrap_or(1);
+                    let coef = h.params["coef"].as_f64().unwrap_or(0.0);
+                    let x = &c.motion.x[h.dof];
+                    let base = if h.dof == 0 {
+                        x.clone()
+                    } else {
+                        x.iter()
+                            .zip(&c.motion.x[h.dof - 1])
+                            .map(|(a, b)| a - b)
+                            .collect()
+                    };
+                    base.iter().map(|v| coef * v.powi(p)).collect()
+                };
+                let r = spread(&f);
+                num += r * r;
+            }
+            slot += h.placed.len();
+            (num / den.max(f64::MIN_POSITIVE)).sqrt()
+        })
+        .collect()
+}
+
+fn round(
+    model: &Model,
+    train: &[Record],
+    heldout: &Record,
+    offsets: &Value,
+) -> Result<(Round, Option<Model>)> {
+    let t0 = Instant::now();
+    // The ranking `tfs diagnose` prints (its comparison and residual maps are not scored).
+    let opts = DiagnoseOptions::default();
+    let d: Explanation = tfs::diagnose::explain(
+        model,
+        train,
+        &tfs::diagnose::Catalogue::standard(opts.max_power),
+        &opts,
+    )
+    .context("diagnose")?;
+    let top = d.ranked.iter().find(|r| r.significant);
+    let before = tfs::diagnose::r_mse(model, heldout);
+    let mut failure = before.as_ref().err().map(|e| format!("before: {e}"));
+    let mut after = before.as_ref().ok().copied();
+    let mut refitted = None;
+    if let Some(t) = top {
+        let r = tfs::refit::refit(model, &[t.name.clone()], train, false, Vec::new(), offsets)
+            .with_context(|| format!("refit --add {}", t.name))?;
+        after = match tfs::diagnose::r_mse(&r.model, heldout) {
+            Ok(v) => Some(v),
+            Err(e) => {
+                failure = Some(format!("after: {e}"));
+                None
+            }
+        };
+        refitted = Some(r.model);
+    }
+    Ok((
+        Round {
+            top: top.map(|t| t.name.clone()),
+            top_effect: top.map(|t| t.effect.clone()),
+            top_parameter: top.and_then(|t| t.parameter.clone()),
+            verdict: d.verdict.clone(),
+            ranked: d
+                .ranked
+                .iter()
+                .take(3)
+                .map(|r| {
+                    (
+                        r.name.clone(),
+                        r.significant,
+                        r.delta_heldout,
+                        r.reason.clone(),
+                    )
+                })
+                .collect(),
+            before: before.ok(),
+            after,
+            failure,
+            seconds: t0.elapsed().as_secs_f64(),
+        },
+        refitted,
+    ))
+}
+
+/// Runs one case; failures are recorded in the result, not returned.
+pub fn run(spec: &CaseSpec) -> CaseResult {
+    let t0 = Instant::now();
+    let mut out = CaseResult::new(spec);
+    if let Err(e) = run_into(spec, &mut out) {
+        if out.status == "ok" {
+            out.status = "failed".into();
+        }
+        out.message = Some(format!("{e:#}"));
+    }
+    out.seconds = t0.elapsed().as_secs_f64();
+    out
+}
+
+fn run_into(spec: &CaseSpec, out: &mut CaseResult) -> Result<()> {
+    let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
+    let b = truth::draw(spec.kind, &mut rng)?;
+    out.baseline = b.params.clone();
+    let pilot = truth::simulate(&b, 0, &[], &[]).context("pilot")?;
+    let mut hides = Vec::new();
+    for (name, &size) in spec.hidden.iter().zip(&spec.sizes) {
+        match hide(name, &b, &pilot, size, &mut rng)? {
+            Some(h) => hides.push(h),
+            None => {
+                out.status = "not-applicable".into();
+                return Err(anyhow!("no truth for '{name}' on {}", spec.kind.key()));
+            }
+        }
+    }
+    out.hidden_params = hides.iter().map(|h| h.params.clone()).collect();
+    out.hidden_dofs = hides.iter().map(|h| h.dofs.clone()).collect();
+    let placed: Vec<_> = hides.iter().flat_map(|h| h.placed.clone()).collect();
+    let exciter: Vec<_> = hides.iter().flat_map(|h| h.exciter.clone()).collect();
+    let mut clean = Vec::new();
+    for i in 0..b.excitations.len() {
+        match truth::simulate(&b, i, &placed, &exciter) {
+            Ok(c) => clean.push(c),
+            Err(e) => {
+                out.status = "truth-failed".into();
+                return Err(e);
+            }
+        }
+    }
+    out.realised = realised(&b, &hides, &clean[..3]);
+    let mut records = Vec::new();
+    for (i, c) in clean.iter().enumerate() {
+        let name = if i < 3 {
+            format!("train{i}")
+        } else {
+            "heldout".into()
+        };
+        records.push(truth::measure(
+            &b,
+            &name,
+            c,
+            spec.snr,
+            spec.seed ^ (0x5eed + 7919 * i as u64),
+        )?);
+    }
+    let heldout = records.pop().ok_or_else(|| anyhow!("no held-out record"))?;
+    let train = records;
+    // identify, as `tfs identify --library ... --offsets ...` does.
+    let libs = libraries(&b, &hides)?;
+    let opts = IdentifyOptions {
+        library: Some(libs[0].clone()),
+        dofs: b.dofs.clone(),
+        offsets: b.offsets,
+        ..Default::default()
+    };
+    let cols: Vec<String> = train[0].names().to_vec();
+    let t1 = Instant::now();
+    let mut p = plan(&opts, &cols, "train0")?;
+    if libs.len() > 1 {
+        p.spec.dof_libraries = libs.clone();
+    }
+    let id = identify(train.clone(), Vec::new(), &opts, &p).context("identify")?;
+    out.identify_seconds = t1.elapsed().as_secs_f64();
+    out.start = Some(id.model.equation_string());
+    let (r1, m1) = round(&id.model, &train, &heldout, &id.offsets)?;
+    out.rounds.push(r1);
+    if let Some(m1) = m1
+        && spec.group == Group::Pair
+    {
+        let (r2, _) = round(&m1, &train, &heldout, &id.offsets)?;
+        out.rounds.push(r2);
+    }
+    if spec.group == Group::Single && !hides.is_empty() {
+        let h = &hides[0];
+        let name = if b.dofs.len() > 1 {
+            format!("{}@{}", h.effect, h.dofs[h.dofs.len() - 1])
+        } else {
+            h.effect.clone()
+        };
+        if let Ok(r) = tfs::refit::refit(&id.model, &[name], &train, false, Vec::new(), &id.offsets)
+        {
+            out.oracle_after = tfs::diagnose::r_mse(&r.model, &heldout).ok();
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,277 @@
+//! `cargo xtask diagnose-bench [--quick]`: the diagnosis loop scored like a classifier on
+//! records it has never seen. Every effect of the standard catalogue (enumerated, so a new effect
+//! enters by itself once the benchmark has a truth for it) is hidden in drawn truths of six
+//! baselines, at drawn sizes and noise levels, with controls that hide nothing and pairs that
+//! hide two; each case runs identify → diagnose → refit through the `tfs` library as the CLI does.
+//! Writes `report.md`, `results.json` and figures.
+
+mod case;
+mod hide;
+mod render;
+mod summary;
+mod truth;
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use serde_json::json;
+
+pub use case::{CaseResult, CaseSpec, Group};
+pub use truth::Kind;
+
+/// Arguments of `cargo xtask diagnose-bench`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// A small fixed subset (two baselines, 40 dB, large effects, controls): a regression guard
+    /// that runs in a few minutes.
+    #[arg(long)]
+    pub quick: bool,
+    /// Output folder.
+    #[arg(long, default_value = "target/diagnose-bench")]
+    pub out: PathBuf,
+    /// Master seed: every case's parameters, sizes and noise are drawn from it.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Only these baselines (keys: duffing, double-well, surrogate, truss, chain, rig).
+    #[arg(long, value_delimiter = ',')]
+    pub only: Vec<String>,
+    /// Only these catalogue effects (controls and pairs are skipped when given).
+    #[arg(long, value_delimiter = ',')]
+    pub effects: Vec<String>,
+    /// Only these noise levels (`clean`, or an SNR in dB among 40, 30, 20).
+    #[arg(long, value_delimiter = ',')]
+    pub noise: Vec<String>,
+}
+
+/// Noise levels: noise-free, then SNR in dB.
+pub const NOISE: [Option<f64>; 4] = [None, Some(40.0), Some(30.0), Some(20.0)];
+/// Effect sizes are drawn log-uniformly from this range of shares of the RMS acceleration,
+/// stratified so that each case of a cell gets its own part of the range.
+pub const SIZES: (f64, f64) = (0.01, 0.5);
+/// Sizes of the two effects of a pair (each large enough to be found at 40 dB).
+pub const PAIR_SIZES: (f64, f64) = (0.05, 0.5);
+
+fn splitmix(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// A seed from the master seed and a case's coordinates (stable under changes of the plan's
+/// other cells).
+fn seed_of(master: u64, parts: &[&str], k: u64) -> u64 {
+    let mut h = splitmix(master);
+    for p in parts {
+        for b in p.bytes() {
+            h = splitmix(h ^ b as u64);
+        }
+        h = splitmix(h ^ 0xff);
+    }
+    splitmix(h ^ k)
+}
+
+/// Stratum `j` of `n` of the log-size range, drawn uniformly in log inside it.
+fn stratified(rng: &mut ChaCha8Rng, j: usize, n: usize, range: (f64, f64)) -> f64 {
+    let (lo, hi) = (range.0.ln(), range.1.ln());
+    let w = (hi - lo) / n as f64;
+    (lo + w * (j as f64 + rng.random::<f64>())).exp()
+}
+
+fn noise_key(snr: Option<f64>) -> String {
+    snr.map_or("clean".into(), |s| format!("{s}dB"))
+}
+
+/// The cases of a run.
+pub fn plan(args: &Args, catalogue: &[String]) -> Result<Vec<CaseSpec>> {
+    for k in &args.only {
+        if !Kind::ALL.iter().any(|b| b.key() == k) {
+            anyhow::bail!(
+                "--only {k}: unknown baseline; use one of {}",
+                Kind::ALL.map(|b| b.key()).join(", ")
+            );
+        }
+    }
+    for e in &args.effects {
+        if !catalogue.contains(e) {
+            anyhow::bail!(
+                "--effects {e}: not in the catalogue; use one of {}",
+                catalogue.join(", ")
+            );
+        }
+    }
+    let kinds: Vec<Kind> = if args.quick {
+        vec![Kind::Duffing, Kind::Surrogate]
+    } else {
+        Kind::ALL.to_vec()
+    };
+    let kinds: Vec<Kind> = kinds
+        .into_iter()
+        .filter(|k| args.only.is_empty() || args.only.iter().any(|o| o == k.key()))
+        .collect();
+    let effects: Vec<String> = if args.effects.is_empty() {
+        catalogue.to_vec()
+    } else {
+        args.effects.clone()
+    };
+    let mut specs = Vec::new();
+    let mut push = |kind, group, hidden: Vec<String>, sizes, snr, seed| {
+        specs.push(CaseSpec {
+            id: 0,
+            kind,
+            group,
+            hidden,
+            sizes,
+            snr,
+            seed,
+        })
+    };
+    let (noise, strata, controls, pairs): (&[Option<f64>], usize, usize, usize) = if args.quick {
+        (&[Some(40.0)], 1, 1, 0)
+    } else {
+        (&NOISE, 3, 4, 2)
+    };
+    for n in &args.noise {
+        if !NOISE.iter().any(|l| noise_key(*l) == *n || noise_key(*l) == format!("{n}dB")) {
+            anyhow::bail!("--noise {n}: use clean, 40, 30 or 20");
+        }
+    }
+    let keep = |snr: Option<f64>| {
+        args.noise.is_empty()
+            || args
+                .noise
+                .iter()
+                .any(|n| noise_key(snr) == *n || noise_key(snr) == format!("{n}dB"))
+    };
+    let noise: Vec<Option<f64>> = noise.iter().copied().filter(|l| keep(*l)).collect();
+    for &kind in &kinds {
+        let key = kind.key();
+        // Quick: four effects drawn per baseline (the stiffness powers count as one family),
+        // each in the top third of the size range.
+        let chosen: Vec<&String> = if args.quick {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed_of(args.seed, &[key, "quick"], 0));
+            let powers: Vec<&String> = effects
+                .iter()
+                .filter(|e| e.starts_with("stiffness-"))
+                .collect();
+            let mut pool: Vec<&String> = effects
+                .iter()
+                .filter(|e| !e.starts_with("stiffness-"))
+                .collect();
+            if !powers.is_empty() {
+                pool.push(powers[rng.random_range(0..powers.len())]);
+            }
+            (0..4.min(pool.len()))
+                .map(|_| pool.remove(rng.random_range(0..pool.len())))
+                .collect()
+        } else {
+            effects.iter().collect()
+        };
+        for e in chosen {
+            for &snr in &noise {
+                for j in 0..strata {
+                    let seed = seed_of(args.seed, &[key, e, &noise_key(snr)], j as u64);
+                    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 1);
+                    let size = if args.quick {
+                        stratified(&mut rng, 2, 3, SIZES)
+                    } else {
+                        stratified(&mut rng, j, strata, SIZES)
+                    };
+                    push(kind, Group::Single, vec![e.clone()], vec![size], snr, seed);
+                }
+            }
+        }
+        if !args.effects.is_empty() {
+            continue;
+        }
+        for &snr in &noise {
+            for j in 0..controls {
+                let seed = seed_of(args.seed, &[key, "control", &noise_key(snr)], j as u64);
+                push(kind, Group::Control, vec![], vec![], snr, seed);
+            }
+        }
+        // Pairs: two effects drawn (not stiffness powers, which the start library may hold).
+        let pool: Vec<&String> = effects
+            .iter()
+            .filter(|e| !e.starts_with("stiffness-"))
+            .collect();
+        for j in 0..pairs {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed_of(args.seed, &[key, "pair"], j as u64));
+            if pool.len() < 2 {
+                break;
+            }
+            let a = rng.random_range(0..pool.len());
+            let mut b = rng.random_range(0..pool.len() - 1);
+            if b >= a {
+                b += 1;
+            }
+            for snr in [None, Some(40.0), Some(30.0)].into_iter().filter(|l| keep(*l)) {
+                let seed = seed_of(args.seed, &[key, "pair", &noise_key(snr)], j as u64);
+                let mut r2 = ChaCha8Rng::seed_from_u64(seed ^ 2);
+                let sizes = (0..2)
+                    .map(|_| stratified(&mut r2, 0, 1, PAIR_SIZES))
+                    .collect();
+                push(
+                    kind,
+                    Group::Pair,
+                    vec![pool[a].clone(), pool[b].clone()],
+                    sizes,
+                    snr,
+                    seed,
+                );
+            }
+        }
+    }
+    for (i, s) in specs.iter_mut().enumerate() {
+        s.id = i;
+    }
+    Ok(specs)
+}
+
+/// Runs `cargo xtask diagnose-bench`.
+pub fn run(args: Args) -> Result<()> {
+    let catalogue = tfs::diagnose::Catalogue::standard(7).names();
+    let specs = plan(&args, &catalogue)?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating the output folder {}", args.out.display()))?;
+    let t0 = Instant::now();
+    let pb = crate::common::progress(specs.len() as u64, "cases");
+    let results: Vec<CaseResult> = specs
+        .par_iter()
+        .map(|s| {
+            let r = case::run(s);
+            pb.inc(1);
+            r
+        })
+        .collect();
+    pb.finish_and_clear();
+    let total = t0.elapsed().as_secs_f64();
+    let s = summary::Summary::new(&results, &catalogue);
+    let md = s.markdown(&args, total);
+    let json = json!({
+        "quick": args.quick,
+        "seed": args.seed,
+        "seconds": total,
+        "catalogue": catalogue,
+        "summary": s.to_json(),
+        "cases": results,
+    });
+    std::fs::write(
+        args.out.join("results.json"),
+        serde_json::to_string_pretty(&json)?.as_bytes(),
+    )?;
+    std::fs::write(args.out.join("report.md"), md.as_bytes())?;
+    s.figures(&args.out)?;
+    println!("{}", s.headline());
+    println!(
+        "\nreport: {}/report.md, {}/results.json ({total:.1} s, {} cases)",
+        args.out.display(),
+        args.out.display(),
+        results.len()
+    );
+    Ok(())
+}

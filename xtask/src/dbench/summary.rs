@@ -1,0 +1,255 @@
+//! Scoring a benchmark run like a classifier: confusion matrix (hidden × top-ranked), top-1
+//! accuracy, false alarms on controls, held-out error drops, detection thresholds in effect size
+//! and time per case; as Markdown, JSON and figures.
+
+use super::case::{CaseResult, Group};
+use super::truth::Kind;
+use crate::common::{f4, pct};
+
+/// The diagnosis's own minimum effect size (share of the force RMS) by default.
+pub const MIN_SHARE: f64 = 0.02;
+
+/// Noise groups of the report.
+pub const GROUPS: [(&str, &[Option<f64>]); 3] = [
+    ("≥40 dB", &[None, Some(40.0)]),
+    ("30 dB", &[Some(30.0)]),
+    ("20 dB", &[Some(20.0)]),
+];
+
+fn in_group(c: &CaseResult, g: &[Option<f64>]) -> bool {
+    g.contains(&c.spec.snr)
+}
+
+/// Median of finite values (NaN when none).
+pub fn median(mut v: Vec<f64>) -> f64 {
+    v.retain(|x| x.is_finite());
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// `a` of `n` as a percentage with the counts, or a dash when `n` is 0.
+pub fn cell(a: usize, n: usize) -> String {
+    if n == 0 {
+        "—".into()
+    } else {
+        format!("{} ({a}/{n})", pct(a as f64 / n as f64))
+    }
+}
+
+/// Where detection stops for one effect at one noise group, from its cases sorted by size.
+#[derive(Debug, Clone, Copy)]
+pub struct Threshold {
+    /// Cases.
+    pub n: usize,
+    /// Smallest realised size found first.
+    pub smallest_found: f64,
+    /// Smallest size above which at least 90 % of the cases are found first (NaN: never).
+    pub s90: f64,
+    /// Largest size not found first (NaN: none missed).
+    pub largest_missed: f64,
+}
+
+/// The scored run.
+pub struct Summary<'a> {
+    cases: &'a [CaseResult],
+    catalogue: &'a [String],
+}
+
+impl<'a> Summary<'a> {
+    /// Scores `cases` of a run over `catalogue`.
+    pub fn new(cases: &'a [CaseResult], catalogue: &'a [String]) -> Self {
+        Self { cases, catalogue }
+    }
+
+    /// Every case of the run.
+    pub fn cases(&self) -> &[CaseResult] {
+        self.cases
+    }
+
+    /// The catalogue's effect names.
+    pub fn catalogue(&self) -> &[String] {
+        self.catalogue
+    }
+
+    /// (realised size, found first) of every single-effect case of noise group `g`.
+    pub fn single_sized(&self, g: &[Option<f64>]) -> Vec<(f64, bool)> {
+        self.of(Group::Single, g)
+            .filter_map(|c| Some((*c.realised.first()?, c.top1_correct())))
+            .filter(|(s, _)| s.is_finite())
+            .collect()
+    }
+
+    fn of(&self, group: Group, g: &[Option<f64>]) -> impl Iterator<Item = &CaseResult> + '_ {
+        let g = g.to_vec();
+        self.cases
+            .iter()
+            .filter(move |c| c.ok() && c.spec.group == group && in_group(c, &g))
+    }
+
+    /// Single-effect cases counted for accuracy: the effect's realised size at least the
+    /// diagnosis's own minimum size (smaller ones are reported apart).
+    fn counted(&self, g: &[Option<f64>]) -> Vec<&CaseResult> {
+        self.of(Group::Single, g)
+            .filter(|c| c.realised.first().is_none_or(|s| !(s < &MIN_SHARE)))
+            .collect()
+    }
+
+    /// (correct, total) top-1 over counted single cases of noise group `g`, optionally one
+    /// effect and one baseline.
+    pub fn top1(
+        &self,
+        g: &[Option<f64>],
+        effect: Option<&str>,
+        kind: Option<Kind>,
+    ) -> (usize, usize) {
+        let v: Vec<_> = self
+            .counted(g)
+            .into_iter()
+            .filter(|c| effect.is_none_or(|e| c.spec.hidden[0] == e))
+            .filter(|c| kind.is_none_or(|k| c.spec.kind == k))
+            .collect();
+        (v.iter().filter(|c| c.top1_correct()).count(), v.len())
+    }
+
+    /// (alarms, controls) of noise group `g`, optionally one baseline.
+    pub fn false_alarms(&self, g: &[Option<f64>], kind: Option<Kind>) -> (usize, usize) {
+        let v: Vec<_> = self
+            .of(Group::Control, g)
+            .filter(|c| kind.is_none_or(|k| c.spec.kind == k))
+            .collect();
+        (v.iter().filter(|c| c.found(0) != "none").count(), v.len())
+    }
+
+    /// Median held-out error factor after round 1 over counted single cases (nothing added
+    /// counts as 1×; a failed simulation after adding is excluded and counted).
+    pub fn drop(&self, g: &[Option<f64>], effect: Option<&str>) -> (f64, usize) {
+        let v: Vec<_> = self
+            .counted(g)
+            .into_iter()
+            .filter(|c| effect.is_none_or(|e| c.spec.hidden[0] == e))
+            .collect();
+        let failed = v.iter().filter(|c| c.drop(0).is_none()).count();
+        (median(v.iter().filter_map(|c| c.drop(0)).collect()), failed)
+    }
+
+    /// Median held-out factor when the hidden effect itself is added by name.
+    pub fn oracle_drop(&self, g: &[Option<f64>], effect: &str) -> f64 {
+        median(
+            self.counted(g)
+                .into_iter()
+                .filter(|c| c.spec.hidden[0] == effect)
+                .filter_map(|c| Some(c.rounds.first()?.before? / c.oracle_after?))
+                .collect(),
+        )
+    }
+
+    /// Pairs of group `g`: (both found in two rounds, total, median factor after two rounds).
+    pub fn pairs(&self, g: &[Option<f64>]) -> (usize, usize, f64) {
+        let v: Vec<_> = self.of(Group::Pair, g).collect();
+        let both = v
+            .iter()
+            .filter(|c| {
+                let (a, b) = (c.named_hidden(0), c.named_hidden(1));
+                matches!((a, b), (Some(x), Some(y)) if x != y)
+            })
+            .count();
+        let drops = v
+            .iter()
+            .filter_map(|c| {
+                let before = c.rounds.first()?.before?;
+                let after = c.rounds.last()?.after?;
+                Some(before / after)
+            })
+            .collect();
+        (both, v.len(), median(drops))
+    }
+
+    /// Where detection of `effect` stops at noise levels `g`.
+    pub fn threshold(&self, g: &[Option<f64>], effect: &str) -> Threshold {
+        let mut v: Vec<(f64, bool)> = self
+            .of(Group::Single, g)
+            .filter(|c| c.spec.hidden[0] == effect)
+            .filter_map(|c| Some((*c.realised.first()?, c.top1_correct())))
+            .filter(|(s, _)| s.is_finite())
+            .collect();
+        v.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let smallest_found = v.iter().find(|x| x.1).map_or(f64::NAN, |x| x.0);
+        let largest_missed = v.iter().rev().find(|x| !x.1).map_or(f64::NAN, |x| x.0);
+        // From the top down: the last size at which the cases from there up are ≥ 90 % found.
+        let mut s90 = f64::NAN;
+        let (mut found, mut seen) = (0usize, 0usize);
+        for &(s, ok) in v.iter().rev() {
+            seen += 1;
+            found += ok as usize;
+            if found as f64 >= 0.9 * seen as f64 {
+                s90 = s;
+            }
+        }
+        Threshold {
+            n: v.len(),
+            smallest_found,
+            s90,
+            largest_missed,
+        }
+    }
+
+    /// Confusion counts of group `g`: rows are hidden effects (and "control"), columns what
+    /// round 1 named (and "none").
+    pub fn confusion(&self, g: &[Option<f64>]) -> (Vec<String>, Vec<String>, Vec<Vec<usize>>) {
+        let mut rows: Vec<String> = self.catalogue.to_vec();
+        rows.push("control".into());
+        let mut cols: Vec<String> = self.catalogue.to_vec();
+        cols.push("none".into());
+        let mut m = vec![vec![0usize; cols.len()]; rows.len()];
+        for c in self.cases.iter().filter(|c| c.ok() && in_group(c, g)) {
+            let r = match c.spec.group {
+                Group::Single => c.spec.hidden[0].clone(),
+                Group::Control => "control".into(),
+                Group::Pair => continue,
+            };
+            let found = c.found(0);
+            let (Some(i), Some(j)) = (
+                rows.iter().position(|x| *x == r),
+                cols.iter().position(|x| *x == found),
+            ) else {
+                continue;
+            };
+            m[i][j] += 1;
+        }
+        (rows, cols, m)
+    }
+
+    /// Seconds per case: (median, max), over cases that ran.
+    pub fn times(&self, kind: Option<Kind>) -> (f64, f64) {
+        let t: Vec<f64> = self
+            .cases
+            .iter()
+            .filter(|c| c.ok() && kind.is_none_or(|k| c.spec.kind == k))
+            .map(|c| c.seconds)
+            .collect();
+        let max = t.iter().copied().fold(f64::NAN, f64::max);
+        (median(t), max)
+    }
+
+    /// The three done-criteria numbers in one paragraph.
+    pub fn headline(&self) -> String {
+        let g = GROUPS[0].1;
+        let (c, n) = self.top1(g, None, None);
+        let (fa, nc) = self.false_alarms(g, None);
+        let (d, _) = self.drop(g, None);
+        format!(
+            "at 40 dB and above: top-1 correct {}; false alarms on controls {}; median held-out error drop after the top effect {}×",
+            cell(c, n),
+            cell(fa, nc),
+            f4(d)
+        )
+    }
+}
