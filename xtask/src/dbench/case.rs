@@ -106,7 +106,8 @@ pub struct CaseResult {
 }
 
 impl CaseResult {
-    fn new(spec: &CaseSpec) -> Self {
+    /// A result of `spec` that ran ("ok") with nothing measured yet.
+    pub fn new(spec: &CaseSpec) -> Self {
         Self {
             spec: spec.clone(),
             status: "ok".into(),

@@ -30,8 +30,6 @@ pub struct Hide {
     pub dof: usize,
     /// Drawn parameters, for the report.
     pub params: Value,
-    /// The share asked for (its force RMS over the RMS of the DOF's acceleration).
-    pub target: f64,
 }
 
 /// The baseline's own polynomial coefficient of `h^p` in cell `cell`, per unit mass, if it has
@@ -208,7 +206,6 @@ pub fn hide(
                 dofs: vec![b.dofs[cell].clone()],
                 dof: cell,
                 params: json!({"force": f, "mass": b.dofs[cell]}),
-                target,
             }));
         }
         "maxwell" => {
@@ -277,7 +274,6 @@ pub fn hide(
                 dofs: b.dofs.clone(),
                 dof: 0,
                 params: json!({ key: p, "samples": p / b.dt }),
-                target,
             }));
         }
         other => {
@@ -332,6 +328,5 @@ pub fn hide(
         dofs,
         dof: cell,
         params,
-        target,
     }))
 }

@@ -260,18 +260,21 @@ pub fn run(args: Args) -> Result<()> {
         "summary": s.to_json(),
         "cases": results,
     });
-    std::fs::write(
-        args.out.join("results.json"),
-        serde_json::to_string_pretty(&json)?.as_bytes(),
-    )?;
-    std::fs::write(args.out.join("report.md"), md.as_bytes())?;
+    let save = |name: &str, text: &str| {
+        let p = args.out.join(name);
+        tfs::data::write_atomic(&p, text.as_bytes())
+            .with_context(|| format!("writing {}", p.display()))
+    };
+    save("results.json", &serde_json::to_string_pretty(&json)?)?;
+    save("report.md", &md)?;
+    save("confusion.csv", &s.confusion_csv())?;
+    save("cases.csv", &s.cases_csv())?;
     s.figures(&args.out)?;
-    println!("{}", s.headline());
+    print!("{}", s.terminal());
     println!(
-        "\nreport: {}/report.md, {}/results.json ({total:.1} s, {} cases)",
-        args.out.display(),
-        args.out.display(),
-        results.len()
+        "\n{} cases in {total:.1} s; report.md, results.json, confusion.csv, cases.csv and detection.png in {}",
+        results.len(),
+        args.out.display()
     );
     Ok(())
 }

@@ -17,6 +17,57 @@ fn size(v: f64) -> String {
     if v.is_finite() { pct(v) } else { "—".into() }
 }
 
+/// A plain-text table with aligned columns, for the terminal.
+fn text_table(out: &mut String, header: &[String], rows: &[Vec<String>]) {
+    let width = |j: usize| {
+        rows.iter()
+            .map(|r| r[j].chars().count())
+            .chain([header[j].chars().count()])
+            .max()
+            .unwrap_or(0)
+    };
+    let widths: Vec<usize> = (0..header.len()).map(width).collect();
+    let line = |r: &[String]| {
+        let cells: Vec<String> = r
+            .iter()
+            .zip(&widths)
+            .enumerate()
+            .map(|(j, (c, w))| {
+                let pad = w - c.chars().count();
+                if j == 0 {
+                    format!("{c}{}", " ".repeat(pad))
+                } else {
+                    format!("{}{c}", " ".repeat(pad))
+                }
+            })
+            .collect();
+        cells.join("  ").trim_end().to_string()
+    };
+    let _ = writeln!(out, "{}", line(header));
+    for r in rows {
+        let _ = writeln!(out, "{}", line(r));
+    }
+}
+
+/// One CSV field, quoted when it holds a comma, a quote or a line break.
+fn csv_field(v: &str) -> String {
+    if v.contains([',', '"', '\n']) {
+        format!("\"{}\"", v.replace('"', "\"\""))
+    } else {
+        v.to_string()
+    }
+}
+
+fn csv_line(out: &mut String, fields: &[String]) {
+    let f: Vec<String> = fields.iter().map(|x| csv_field(x)).collect();
+    let _ = writeln!(out, "{}", f.join(","));
+}
+
+fn opt(v: Option<f64>) -> String {
+    v.filter(|x| x.is_finite())
+        .map_or(String::new(), |x| format!("{x:.6e}"))
+}
+
 fn table(out: &mut String, header: &[&str], rows: &[Vec<String>]) {
     let _ = writeln!(out, "| {} |", header.join(" | "));
     let _ = writeln!(out, "|{}", "---|".repeat(header.len()));
@@ -190,7 +241,7 @@ impl Summary<'_> {
         );
         let _ = writeln!(
             s,
-            "![confusion matrix](confusion.png)\n\n![detection against effect size](detection.png)\n"
+            "The same matrix for every noise group is in `confusion.csv`; every case in `cases.csv` and `results.json`.\n\n![detection against effect size](detection.png)\n"
         );
         let (med, max) = self.times(None);
         let _ = writeln!(
@@ -241,6 +292,191 @@ impl Summary<'_> {
             s,
             "\n{small} single-effect cases came out below the minimum size and are not counted in top-1 (they are in the thresholds)."
         );
+        s
+    }
+
+    /// The confusion matrix (rows hidden and rows without nothing hidden, columns named first),
+    /// trimmed to the rows and columns that hold a case, as aligned text.
+    fn confusion_text(&self, out: &mut String, g: &[Option<f64>]) {
+        let (rows, cols, m) = self.confusion(g);
+        let used: Vec<usize> = (0..cols.len())
+            .filter(|&j| m.iter().any(|r| r[j] > 0))
+            .collect();
+        let mut header = vec!["hidden \\ named first".to_string()];
+        header.extend(used.iter().map(|&j| cols[j].clone()));
+        let body: Vec<Vec<String>> = rows
+            .iter()
+            .zip(&m)
+            .filter(|(_, r)| r.iter().any(|&v| v > 0))
+            .map(|(name, r)| {
+                let mut row = vec![name.clone()];
+                row.extend(used.iter().map(|&j| match r[j] {
+                    0 => "·".to_string(),
+                    v => v.to_string(),
+                }));
+                row
+            })
+            .collect();
+        if body.is_empty() {
+            let _ = writeln!(out, "(no case ran)");
+        } else {
+            text_table(out, &header, &body);
+        }
+    }
+
+    /// What the terminal shows: per noise group that ran, the headline numbers and the
+    /// confusion matrix; then the per-effect table at the noise levels that ran.
+    pub fn terminal(&self) -> String {
+        let mut s = String::new();
+        for (name, g) in GROUPS {
+            if !self.cases().iter().any(|c| c.ok() && g.contains(&c.spec.snr)) {
+                continue;
+            }
+            let (c, n) = self.top1(g, None, None);
+            let (fa, nc) = self.false_alarms(g, None);
+            let (d, failed) = self.drop(g, None);
+            let _ = writeln!(s, "\n{name}:");
+            let _ = writeln!(s, "  top-1 correct                  {}", cell(c, n));
+            let _ = writeln!(s, "  false alarms on controls       {}", cell(fa, nc));
+            let _ = writeln!(
+                s,
+                "  median held-out error drop     {}× after the top effect{}",
+                f4(d),
+                if failed > 0 {
+                    format!(" ({failed} simulations failed)")
+                } else {
+                    String::new()
+                }
+            );
+            let (pb, pn, pd) = self.pairs(g);
+            if pn > 0 {
+                let _ = writeln!(
+                    s,
+                    "  two hidden, both found         {}; median drop after two rounds {}×",
+                    cell(pb, pn),
+                    f4(pd)
+                );
+            }
+            let _ = writeln!(s);
+            self.confusion_text(&mut s, g);
+        }
+        let header: Vec<String> = ["effect", "top-1", "median drop", "oracle drop", "cases"]
+            .map(String::from)
+            .to_vec();
+        let all: Vec<Option<f64>> = GROUPS.iter().flat_map(|(_, g)| g.to_vec()).collect();
+        let rows: Vec<Vec<String>> = self
+            .catalogue()
+            .iter()
+            .filter_map(|e| {
+                let (c, n) = self.top1(&all, Some(e), None);
+                (n > 0).then(|| {
+                    vec![
+                        e.clone(),
+                        cell(c, n),
+                        format!("{}×", f4(self.drop(&all, Some(e)).0)),
+                        format!("{}×", f4(self.oracle_drop(&all, e))),
+                        n.to_string(),
+                    ]
+                })
+            })
+            .collect();
+        if !rows.is_empty() {
+            let _ = writeln!(s, "\nPer effect (all noise levels that ran):");
+            text_table(&mut s, &header, &rows);
+        }
+        s
+    }
+
+    /// `confusion.csv`: one line per noise group, hidden effect (or control) and named effect
+    /// (or none) with its count; cells with no case are left out.
+    pub fn confusion_csv(&self) -> String {
+        let mut s = String::new();
+        csv_line(
+            &mut s,
+            &["noise", "hidden", "named_first", "cases"].map(String::from),
+        );
+        for (name, g) in GROUPS {
+            let (rows, cols, m) = self.confusion(g);
+            for (r, counts) in rows.iter().zip(&m) {
+                for (c, &v) in cols.iter().zip(counts) {
+                    if v > 0 {
+                        csv_line(
+                            &mut s,
+                            &[name.to_string(), r.clone(), c.clone(), v.to_string()],
+                        );
+                    }
+                }
+            }
+        }
+        s
+    }
+
+    /// `cases.csv`: one line per case with what was hidden, its size, what was named and the
+    /// held-out errors.
+    pub fn cases_csv(&self) -> String {
+        let mut s = String::new();
+        csv_line(
+            &mut s,
+            &[
+                "id",
+                "baseline",
+                "group",
+                "hidden",
+                "snr_db",
+                "target_size",
+                "realised_size",
+                "status",
+                "named_first",
+                "correct",
+                "heldout_before",
+                "heldout_after",
+                "oracle_after",
+                "named_second",
+                "heldout_after_second",
+                "seconds",
+            ]
+            .map(String::from),
+        );
+        for c in self.cases() {
+            let r1 = c.rounds.first();
+            let r2 = c.rounds.get(1);
+            csv_line(
+                &mut s,
+                &[
+                    c.spec.id.to_string(),
+                    c.spec.kind.key().to_string(),
+                    format!("{:?}", c.spec.group).to_lowercase(),
+                    c.spec.hidden.join("+"),
+                    c.spec.snr.map_or("clean".into(), |v| v.to_string()),
+                    c.spec
+                        .sizes
+                        .iter()
+                        .map(|v| format!("{v:.4}"))
+                        .collect::<Vec<_>>()
+                        .join("+"),
+                    c.realised
+                        .iter()
+                        .map(|v| format!("{v:.4}"))
+                        .collect::<Vec<_>>()
+                        .join("+"),
+                    c.status.clone(),
+                    r1.and_then(|r| r.top.clone()).unwrap_or_else(|| {
+                        if c.ok() { "none".into() } else { String::new() }
+                    }),
+                    if c.ok() && c.spec.group != Group::Control {
+                        c.top1_correct().to_string()
+                    } else {
+                        String::new()
+                    },
+                    opt(r1.and_then(|r| r.before)),
+                    opt(r1.and_then(|r| r.after)),
+                    opt(c.oracle_after),
+                    r2.and_then(|r| r.top.clone()).unwrap_or_default(),
+                    opt(r2.and_then(|r| r.after)),
+                    format!("{:.3}", c.seconds),
+                ],
+            );
+        }
         s
     }
 

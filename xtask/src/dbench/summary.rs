@@ -253,3 +253,121 @@ impl<'a> Summary<'a> {
         )
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dbench::case::{CaseSpec, Round};
+
+    /// A case that ran: `hidden` at `snr` with realised size `size`, round 1 named `named`
+    /// (`None`: nothing significant) and moved the held-out error from `before` to `after`.
+    fn case(
+        group: Group,
+        hidden: &[&str],
+        snr: Option<f64>,
+        size: f64,
+        named: Option<&str>,
+        before: f64,
+        after: f64,
+    ) -> CaseResult {
+        let spec = CaseSpec {
+            id: 0,
+            kind: Kind::Duffing,
+            group,
+            hidden: hidden.iter().map(|s| s.to_string()).collect(),
+            sizes: vec![size; hidden.len()],
+            snr,
+            seed: 0,
+        };
+        let mut c = CaseResult::new(&spec);
+        c.realised = vec![size; hidden.len()];
+        c.hidden_dofs = vec![vec!["x1".to_string()]; hidden.len()];
+        c.rounds.push(Round {
+            top: named.map(String::from),
+            top_effect: named.map(|n| n.split('@').next().unwrap_or(n).to_string()),
+            top_parameter: None,
+            verdict: String::new(),
+            ranked: Vec::new(),
+            before: Some(before),
+            after: Some(after),
+            failure: None,
+            seconds: 1.0,
+        });
+        c
+    }
+
+    /// A hand-built run whose every score is known: the scoring must reproduce it.
+    #[test]
+    fn scores_a_hand_built_confusion() {
+        let cat: Vec<String> = ["a", "b", "c"].map(String::from).to_vec();
+        let s40 = Some(40.0);
+        let mut cases = vec![
+            case(Group::Single, &["a"], s40, 0.3, Some("a"), 1.0, 0.1), // right, 10x
+            case(Group::Single, &["a"], None, 0.3, Some("b"), 1.0, 0.5), // wrong, 2x
+            case(Group::Single, &["b"], s40, 0.3, Some("b"), 1.0, 0.2), // right, 5x
+            case(Group::Single, &["c"], s40, 0.3, None, 1.0, 1.0),      // missed, 1x
+            // On the wrong DOF of a chain: wrong, 1.25x.
+            case(Group::Single, &["c"], s40, 0.3, Some("c@x2"), 1.0, 0.8),
+            // Below the minimum size: in the matrix, not in top-1 or the drop.
+            case(Group::Single, &["c"], s40, 0.005, Some("c"), 1.0, 0.01),
+            case(Group::Control, &[], s40, 0.0, None, 1.0, 1.0),
+            case(Group::Control, &[], None, 0.0, Some("a"), 1.0, 0.9), // false alarm
+            case(Group::Control, &[], s40, 0.0, None, 1.0, 1.0),
+            case(Group::Control, &[], s40, 0.0, None, 1.0, 1.0),
+            // Other noise group: not in the ≥40 dB scores.
+            case(Group::Single, &["a"], Some(20.0), 0.3, Some("b"), 1.0, 1.0),
+            case(Group::Control, &[], Some(20.0), 0.0, Some("b"), 1.0, 1.0),
+        ];
+        // A case that failed counts nowhere.
+        let mut failed = case(Group::Single, &["a"], s40, 0.3, Some("a"), 1.0, 0.1);
+        failed.status = "failed".into();
+        cases.push(failed);
+        let s = Summary::new(&cases, &cat);
+        let g = GROUPS[0].1;
+
+        assert_eq!(s.top1(g, None, None), (2, 5));
+        assert_eq!(s.top1(g, Some("a"), None), (1, 2));
+        assert_eq!(s.top1(g, Some("c"), None), (0, 2));
+        assert_eq!(s.false_alarms(g, None), (1, 4));
+        assert_eq!(s.false_alarms(GROUPS[2].1, None), (1, 1));
+        // Drops of the counted cases: 10, 2, 5, 1, 1.25 → median 2.
+        let (d, failed) = s.drop(g, None);
+        assert!((d - 2.0).abs() < 1e-12, "median drop {d}");
+        assert_eq!(failed, 0);
+        assert_eq!(s.top1(GROUPS[2].1, None, None), (0, 1));
+
+        let (rows, cols, m) = s.confusion(g);
+        let at = |r: &str, c: &str| {
+            let i = rows.iter().position(|x| x == r).unwrap();
+            let j = cols.iter().position(|x| x == c).unwrap();
+            m[i][j]
+        };
+        assert_eq!(rows.last().map(String::as_str), Some("control"));
+        assert_eq!(cols.last().map(String::as_str), Some("none"));
+        assert_eq!((at("a", "a"), at("a", "b")), (1, 1));
+        assert_eq!(at("b", "b"), 1);
+        assert_eq!((at("c", "none"), at("c", "c")), (1, 2));
+        assert_eq!((at("control", "none"), at("control", "a")), (3, 1));
+        let total: usize = m.iter().flatten().sum();
+        assert_eq!(total, 10, "every ok case of the group, pairs aside, once");
+
+        let t = s.threshold(g, "c");
+        assert_eq!(t.n, 3);
+        assert_eq!(t.smallest_found, 0.005);
+        assert_eq!(t.largest_missed, 0.3);
+        assert!(t.s90.is_nan(), "the largest sizes are missed");
+
+        // The CSV holds the same matrix.
+        let csv = s.confusion_csv();
+        assert!(csv.contains("≥40 dB,control,none,3\n"), "{csv}");
+        assert!(csv.contains("≥40 dB,c,c,2\n"), "{csv}");
+        assert_eq!(s.cases_csv().lines().count(), cases.len() + 1);
+    }
+
+    #[test]
+    fn median_of_even_odd_and_nan() {
+        assert_eq!(median(vec![3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(vec![4.0, 1.0, f64::NAN, 2.0, 3.0]), 2.5);
+        assert!(median(vec![f64::NAN]).is_nan());
+    }
+}
