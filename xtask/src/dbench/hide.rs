@@ -304,7 +304,6 @@ pub fn hide(
                     dofs,
                     dof: cell,
                     params: json!({"own_term": term, "coef": own}),
-                    target: f64::NAN,
                 }));
             }
             if in_library {

@@ -26,7 +26,8 @@ pub use truth::Kind;
 /// Arguments of `cargo xtask diagnose-bench`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// A small fixed subset (two baselines, 40 dB, large effects, controls): a regression guard
+    /// A small subset (three baselines, four drawn effects each at 40 dB in the top third of
+    /// the size range, controls noise-free and at 40 dB, one draw each): a regression guard
     /// that runs in a few minutes.
     #[arg(long)]
     pub quick: bool,
@@ -39,7 +40,7 @@ pub struct Args {
     /// Only these baselines (keys: duffing, double-well, surrogate, truss, chain, rig).
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
-    /// Only these catalogue effects (controls and pairs are skipped when given).
+    /// Only these catalogue effects (pairs are skipped when given; controls still run).
     #[arg(long, value_delimiter = ',')]
     pub effects: Vec<String>,
     /// Only these noise levels (`clean`, or an SNR in dB among 40, 30, 20).
@@ -105,7 +106,7 @@ pub fn plan(args: &Args, catalogue: &[String]) -> Result<Vec<CaseSpec>> {
         }
     }
     let kinds: Vec<Kind> = if args.quick {
-        vec![Kind::Duffing, Kind::Surrogate]
+        vec![Kind::Duffing, Kind::Surrogate, Kind::Rig]
     } else {
         Kind::ALL.to_vec()
     };
@@ -185,14 +186,20 @@ pub fn plan(args: &Args, catalogue: &[String]) -> Result<Vec<CaseSpec>> {
                 }
             }
         }
-        if !args.effects.is_empty() {
-            continue;
-        }
-        for &snr in &noise {
+        // Quick: one control noise-free and one at the effects' noise level.
+        let control_noise: Vec<Option<f64>> = if args.quick {
+            [None, Some(40.0)].into_iter().filter(|l| keep(*l)).collect()
+        } else {
+            noise.clone()
+        };
+        for &snr in &control_noise {
             for j in 0..controls {
                 let seed = seed_of(args.seed, &[key, "control", &noise_key(snr)], j as u64);
                 push(kind, Group::Control, vec![], vec![], snr, seed);
             }
+        }
+        if !args.effects.is_empty() {
+            continue;
         }
         // Pairs: two effects drawn (not stiffness powers, which the start library may hold).
         let pool: Vec<&String> = effects
