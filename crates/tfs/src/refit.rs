@@ -6,7 +6,9 @@
 use serde::Serialize;
 use serde_json::Value;
 use tfs_data::Record;
-use tfs_diagnose::{Catalogue, DiagnoseOptions, LadderStep, add_effect_with, error_ladder, explain};
+use tfs_diagnose::{
+    Catalogue, DiagnoseOptions, LadderStep, add_effect_with, error_ladder, explain,
+};
 use tfs_library::Model;
 
 use crate::error::{Context, Result};

@@ -261,8 +261,15 @@ fn round(
     let mut after = before.as_ref().ok().copied();
     let mut refitted = None;
     if let Some(t) = top {
-        let r = tfs::refit::refit(model, &[t.name.clone()], train, false, Vec::new(), offsets)
-            .with_context(|| format!("refit --add {}", t.name))?;
+        let r = tfs::refit::refit(
+            model,
+            std::slice::from_ref(&t.name),
+            train,
+            false,
+            Vec::new(),
+            offsets,
+        )
+        .with_context(|| format!("refit --add {}", t.name))?;
         after = match tfs::diagnose::r_mse(&r.model, heldout) {
             Ok(v) => Some(v),
             Err(e) => {

@@ -137,7 +137,10 @@ pub fn plan(args: &Args, catalogue: &[String]) -> Result<Vec<CaseSpec>> {
         (&NOISE, 3, 4, 2)
     };
     for n in &args.noise {
-        if !NOISE.iter().any(|l| noise_key(*l) == *n || noise_key(*l) == format!("{n}dB")) {
+        if !NOISE
+            .iter()
+            .any(|l| noise_key(*l) == *n || noise_key(*l) == format!("{n}dB"))
+        {
             anyhow::bail!("--noise {n}: use clean, 40, 30 or 20");
         }
     }
@@ -188,7 +191,10 @@ pub fn plan(args: &Args, catalogue: &[String]) -> Result<Vec<CaseSpec>> {
         }
         // Quick: one control noise-free and one at the effects' noise level.
         let control_noise: Vec<Option<f64>> = if args.quick {
-            [None, Some(40.0)].into_iter().filter(|l| keep(*l)).collect()
+            [None, Some(40.0)]
+                .into_iter()
+                .filter(|l| keep(*l))
+                .collect()
         } else {
             noise.clone()
         };
@@ -216,7 +222,10 @@ pub fn plan(args: &Args, catalogue: &[String]) -> Result<Vec<CaseSpec>> {
             if b >= a {
                 b += 1;
             }
-            for snr in [None, Some(40.0), Some(30.0)].into_iter().filter(|l| keep(*l)) {
+            for snr in [None, Some(40.0), Some(30.0)]
+                .into_iter()
+                .filter(|l| keep(*l))
+            {
                 let seed = seed_of(args.seed, &[key, "pair", &noise_key(snr)], j as u64);
                 let mut r2 = ChaCha8Rng::seed_from_u64(seed ^ 2);
                 let sizes = (0..2)

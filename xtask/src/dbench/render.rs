@@ -329,7 +329,11 @@ impl Summary<'_> {
     pub fn terminal(&self) -> String {
         let mut s = String::new();
         for (name, g) in GROUPS {
-            if !self.cases().iter().any(|c| c.ok() && g.contains(&c.spec.snr)) {
+            if !self
+                .cases()
+                .iter()
+                .any(|c| c.ok() && g.contains(&c.spec.snr))
+            {
                 continue;
             }
             let (c, n) = self.top1(g, None, None);
@@ -460,9 +464,8 @@ impl Summary<'_> {
                         .collect::<Vec<_>>()
                         .join("+"),
                     c.status.clone(),
-                    r1.and_then(|r| r.top.clone()).unwrap_or_else(|| {
-                        if c.ok() { "none".into() } else { String::new() }
-                    }),
+                    r1.and_then(|r| r.top.clone())
+                        .unwrap_or_else(|| if c.ok() { "none".into() } else { String::new() }),
                     if c.ok() && c.spec.group != Group::Control {
                         c.top1_correct().to_string()
                     } else {

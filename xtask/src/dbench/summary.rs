@@ -98,7 +98,11 @@ impl<'a> Summary<'a> {
     /// diagnosis's own minimum size (smaller ones are reported apart).
     fn counted(&self, g: &[Option<f64>]) -> Vec<&CaseResult> {
         self.of(Group::Single, g)
-            .filter(|c| c.realised.first().is_none_or(|s| !(s < &MIN_SHARE)))
+            .filter(|c| {
+                c.realised
+                    .first()
+                    .is_none_or(|s| s.partial_cmp(&MIN_SHARE) != Some(std::cmp::Ordering::Less))
+            })
             .collect()
     }
 
