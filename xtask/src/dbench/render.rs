@@ -212,28 +212,7 @@ impl Summary<'_> {
             s,
             "## Confusion matrix (≥40 dB; rows hidden, columns named first)\n"
         );
-        let (rows, cols, m) = self.confusion(GROUPS[0].1);
-        let used: Vec<usize> = (0..cols.len())
-            .filter(|&j| m.iter().any(|r| r[j] > 0))
-            .collect();
-        let mut header = vec!["hidden \\ named".to_string()];
-        header.extend(used.iter().map(|&j| cols[j].clone()));
-        let body: Vec<Vec<String>> = rows
-            .iter()
-            .zip(&m)
-            .filter(|(_, r)| r.iter().any(|&v| v > 0))
-            .map(|(name, r)| {
-                let mut row = vec![name.clone()];
-                row.extend(used.iter().map(|&j| {
-                    if r[j] == 0 {
-                        "·".into()
-                    } else {
-                        r[j].to_string()
-                    }
-                }));
-                row
-            })
-            .collect();
+        let (header, body) = self.confusion_cells(GROUPS[0].1);
         table(
             &mut s,
             &header.iter().map(String::as_str).collect::<Vec<_>>(),
@@ -295,9 +274,9 @@ impl Summary<'_> {
         s
     }
 
-    /// The confusion matrix (rows hidden and rows without nothing hidden, columns named first),
-    /// trimmed to the rows and columns that hold a case, as aligned text.
-    fn confusion_text(&self, out: &mut String, g: &[Option<f64>]) {
+    /// The confusion matrix of noise group `g` (rows hidden, and "control"; columns named
+    /// first, and "none"), trimmed to the rows and columns that hold a case: header and rows.
+    fn confusion_cells(&self, g: &[Option<f64>]) -> (Vec<String>, Vec<Vec<String>>) {
         let (rows, cols, m) = self.confusion(g);
         let used: Vec<usize> = (0..cols.len())
             .filter(|&j| m.iter().any(|r| r[j] > 0))
@@ -317,6 +296,12 @@ impl Summary<'_> {
                 row
             })
             .collect();
+        (header, body)
+    }
+
+    /// The confusion matrix of noise group `g` as aligned text.
+    fn confusion_text(&self, out: &mut String, g: &[Option<f64>]) {
+        let (header, body) = self.confusion_cells(g);
         if body.is_empty() {
             let _ = writeln!(out, "(no case ran)");
         } else {
