@@ -298,7 +298,7 @@ fn run_draw(ctx: &DrawContext<'_>, out: &Path, draw: u64) -> Result<Vec<Value>> 
         )];
         let tfs_spec = |form: TransformForm, lib: &str| {
             let mut s = IdentifySpec::new(&["x"], lib);
-            s.tfs.form = form;
+            s.tfs.criterion3.form = form;
             s
         };
         for (name, spec, classical) in [
@@ -346,7 +346,8 @@ fn run_draw(ctx: &DrawContext<'_>, out: &Path, draw: u64) -> Result<Vec<Value>> 
             let secs = times[times.len() / 2];
             fits.push((
                 name.to_string(),
-                r.map(|id| (id.model, secs)).map_err(|e| e.to_string()),
+                r.map(|id| (id.model_with_trace(), secs))
+                    .map_err(|e| e.to_string()),
                 Value::Null,
             ));
         }

@@ -5,7 +5,10 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use tfs_criteria::synthetic::{NoiseSpec, Surrogate, SweepSpec, surrogate_record};
+#[path = "../tests/common/synthetic.rs"]
+mod synthetic;
+
+use synthetic::{NoiseSpec, Surrogate, SweepSpec, surrogate_record};
 use tfs_criteria::{IdentifySpec, identify_sindy, identify_tfs};
 use tfs_data::Record;
 use tfs_signal::NoiseKind;

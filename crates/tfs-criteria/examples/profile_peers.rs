@@ -9,6 +9,9 @@
 
 use std::time::Instant;
 
+#[path = "../tests/common/synthetic.rs"]
+mod synthetic;
+
 use tfs_criteria::{IdentifySpec, identify_sindy, identify_tfs};
 use tfs_data::Record;
 use tfs_library::{Model, Term};
@@ -19,8 +22,8 @@ fn truth(h: f64) -> f64 {
 }
 
 /// The peers system (m = 1, c = 2, the surrogate force of [`truth`]).
-fn peers_truth() -> tfs_criteria::synthetic::Surrogate {
-    tfs_criteria::synthetic::Surrogate {
+fn peers_truth() -> synthetic::Surrogate {
+    synthetic::Surrogate {
         c: 2.0,
         a: [12.145, -18.0618, 6.5625],
     }
@@ -29,12 +32,12 @@ fn peers_truth() -> tfs_criteria::synthetic::Surrogate {
 /// A 200 Hz sweep record `(f0, f1, duration, amplitude)` of `sys`, with noise `(SNR dB, kind,
 /// seed)` or clean.
 fn sweep(
-    sys: &tfs_criteria::synthetic::Surrogate,
+    sys: &synthetic::Surrogate,
     name: &str,
     (f0, f1, duration, amplitude): (f64, f64, f64, f64),
     noise: Option<(f64, tfs_signal::NoiseKind, u64)>,
 ) -> Result<Record, Box<dyn std::error::Error>> {
-    use tfs_criteria::synthetic::{NoiseSpec, SweepSpec, surrogate_record};
+    use synthetic::{NoiseSpec, SweepSpec, surrogate_record};
     let sw = SweepSpec {
         f0,
         f1,
@@ -42,7 +45,7 @@ fn sweep(
         amplitude,
     };
     let ns = noise.map(|(snr_db, kind, seed)| NoiseSpec { snr_db, kind, seed });
-    Ok(surrogate_record(name, sys, sw, 200.0, ns)?)
+    surrogate_record(name, sys, sw, 200.0, ns)
 }
 
 /// Relative RMS error of the model's restoring force over 0 ≤ h ≤ 1.8.
@@ -69,7 +72,7 @@ fn tweak(spec: &mut IdentifySpec) {
         .ok()
         .and_then(|s| s.parse().ok())
     {
-        spec.tfs.reweight = v;
+        spec.tfs.criterion3.reweight = v;
     }
     let list = |k: &str| -> Option<Vec<f64>> {
         std::env::var(k)
@@ -77,36 +80,36 @@ fn tweak(spec: &mut IdentifySpec) {
             .map(|s| s.split(',').filter_map(|v| v.parse().ok()).collect())
     };
     if let Some(d) = list("TFS_DELTAS") {
-        spec.tfs.deltas = d;
+        spec.tfs.criterion3.deltas = d;
     }
     if let Some(w) = list("TFS_WINDOWS") {
-        spec.tfs.window_counts = w.into_iter().map(|v| v as usize).collect();
+        spec.tfs.criterion3.window_counts = w.into_iter().map(|v| v as usize).collect();
     }
     if let Ok(v) = std::env::var("TFS_RESELECT") {
-        spec.tfs.reselect_for_support = v != "0";
+        spec.tfs.fit.reselect_for_support = v != "0";
     }
     if std::env::var("TFS_NODEBIAS").is_ok() {
-        spec.tfs.debias = false;
+        spec.tfs.criterion3.debias = false;
     }
     if let Some(g) = list("TFS_GUARD") {
-        spec.tfs.guard_octaves = g.first().copied().unwrap_or(0.0);
+        spec.tfs.criterion3.guard_octaves = g.first().copied().unwrap_or(0.0);
     }
     if let Some(c) = list("TFS_CUTOFF") {
-        spec.tfs.cutoff_hz = c.first().copied();
+        spec.tfs.criterion3.cutoff_hz = c.first().copied();
     }
     if let Some(g) = list("TFS_GATE") {
-        spec.tfs.min_bin_snr = g.first().copied().filter(|v| *v > 0.0);
+        spec.tfs.criterion3.min_bin_snr = g.first().copied().filter(|v| *v > 0.0);
     }
     if let Some(e) = list("TFS_EIV") {
-        spec.tfs.noise_correction_draws = e.first().map_or(0, |v| *v as usize);
+        spec.tfs.fit.noise_correction_draws = e.first().map_or(0, |v| *v as usize);
     }
     if let Some(k) = list("TFS_KAPPA0") {
         if let Some(&k) = k.first() {
-            spec.tfs.kappa0 = tfs_criteria::Kappa0Choice::Fixed(k);
+            spec.tfs.criterion1.kappa0 = tfs_criteria::Kappa0Choice::Fixed(k);
         }
     }
     if let Some(p) = list("TFS_PRUNE") {
-        spec.tfs.prune_insignificant = p.first().map_or(0, |v| *v as usize);
+        spec.tfs.uncertainty.elimination_rounds = p.first().map_or(0, |v| *v as usize);
     }
 }
 
@@ -319,155 +322,182 @@ fn monte_carlo(
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
-    if args.get(1).is_some_and(|s| s == "spec") {
-        let dir = args.get(2).cloned().unwrap_or_default();
-        for r in read(&dir)? {
-            let x = r.column("x").unwrap();
-            let n = x.len();
-            let f = tfs_signal::fft::plan_forward(2 * n);
-            let mut buf = f.make_input_vec();
-            buf[..n].copy_from_slice(x);
-            for i in 0..n {
-                buf[2 * n - 1 - i] = x[i];
-            }
-            let mut sp = f.make_output_vec();
-            f.process(&mut buf, &mut sp).unwrap();
-            let p: Vec<f64> = sp.iter().map(|c| c.norm_sqr()).collect();
-            let fl = tfs_signal::NoiseFloor::fit(&p);
-            let (a, b) = (fl.log_a, fl.beta);
-            let (kc, _, _) = tfs_signal::choose_cutoff(&p, 1);
-            let df = 1.0 / (2.0 * n as f64 * r.dt());
-            println!(
-                "{}: beta {b:.3} kc {kc} ({:.2} Hz)",
-                r.source(),
-                kc as f64 * df
-            );
-            let m = 128;
-            let mut line = String::new();
-            let mut k0 = (0.5 / df) as usize;
-            while (k0 as f64) * df < 20.0 {
-                let mean = p[k0..k0 + m].iter().sum::<f64>() / m as f64;
-                let fl = (k0..k0 + m)
-                    .map(|i| (a + b * (i as f64).ln()).exp())
-                    .sum::<f64>()
-                    / m as f64;
-                line += &format!(" {:.1}:{:.2}", k0 as f64 * df, mean / fl);
-                k0 += m;
-            }
-            println!("  {line}");
-        }
-        return Ok(());
+    match args.get(1).map(String::as_str) {
+        Some("spec") => spec_mode(&args),
+        Some("bands") => bands_mode(&args),
+        Some("noisecheck") => noisecheck_mode(&args),
+        Some("mc") => mc_mode(&args),
+        Some("dump") => dump_mode(&args),
+        Some("score") => score_mode(&args),
+        _ => timing_mode(&args),
     }
-    if args.get(1).is_some_and(|s| s == "bands") {
-        let dir = args.get(2).cloned().unwrap_or_default();
-        for r in read(&dir)? {
-            let x = r.column("x").unwrap();
-            // As the pipeline sees it: cut to a fast FFT length first.
-            let x = &x[..tfs_signal::smooth_len(x.len())];
-            let b = tfs_signal::band::reconstruct(x, r.dt(), None).band;
-            println!(
-                "{}: cutoff {:.2} beta {:.3} noise_var {:.3e} total {:.3e} share {:.4}",
-                r.source(),
-                b.cutoff_hz,
-                b.floor_beta,
-                b.noise_var,
-                b.total_noise_var(),
-                b.in_band_noise_share
-            );
+}
+
+/// `spec <dir>`: each record's noise floor slope, cut-off bin and spectrum over the floor.
+fn spec_mode(args: &[String]) -> Result<(), Box<dyn std::error::Error>> {
+    let dir = args.get(2).cloned().unwrap_or_default();
+    for r in read(&dir)? {
+        let x = r.column("x").unwrap();
+        let n = x.len();
+        let f = tfs_signal::fft::plan_forward(2 * n);
+        let mut buf = f.make_input_vec();
+        buf[..n].copy_from_slice(x);
+        for i in 0..n {
+            buf[2 * n - 1 - i] = x[i];
         }
-        return Ok(());
+        let mut sp = f.make_output_vec();
+        f.process(&mut buf, &mut sp).unwrap();
+        let p: Vec<f64> = sp.iter().map(|c| c.norm_sqr()).collect();
+        let fl = tfs_signal::NoiseFloor::fit(&p);
+        let (a, b) = (fl.log_a, fl.beta);
+        let (kc, _, _) = tfs_signal::choose_cutoff(&p, 1);
+        let df = 1.0 / (2.0 * n as f64 * r.dt());
+        println!(
+            "{}: beta {b:.3} kc {kc} ({:.2} Hz)",
+            r.source(),
+            kc as f64 * df
+        );
+        let m = 128;
+        let mut line = String::new();
+        let mut k0 = (0.5 / df) as usize;
+        while (k0 as f64) * df < 20.0 {
+            let mean = p[k0..k0 + m].iter().sum::<f64>() / m as f64;
+            let fl = (k0..k0 + m)
+                .map(|i| (a + b * (i as f64).ln()).exp())
+                .sum::<f64>()
+                / m as f64;
+            line += &format!(" {:.1}:{:.2}", k0 as f64 * df, mean / fl);
+            k0 += m;
+        }
+        println!("  {line}");
     }
-    if args.get(1).is_some_and(|s| s == "noisecheck") {
-        // In-band noise of the reconstruction: estimated (band.noise_var) vs actual.
-        let kind = if args.get(2).is_some_and(|s| s == "pink") {
-            tfs_signal::NoiseKind::Pink
-        } else {
-            tfs_signal::NoiseKind::White
+    Ok(())
+}
+
+/// `bands <dir>`: each record's reconstruction band as the pipeline sees it.
+fn bands_mode(args: &[String]) -> Result<(), Box<dyn std::error::Error>> {
+    let dir = args.get(2).cloned().unwrap_or_default();
+    for r in read(&dir)? {
+        let x = r.column("x").unwrap();
+        // As the pipeline sees it: cut to a fast FFT length first.
+        let x = &x[..tfs_signal::smooth_len(x.len())];
+        let b = tfs_signal::band::reconstruct(x, r.dt(), None).band;
+        println!(
+            "{}: cutoff {:.2} beta {:.3} noise_var {:.3e} total {:.3e} share {:.4}",
+            r.source(),
+            b.cutoff_hz,
+            b.floor_beta,
+            b.noise_var,
+            b.total_noise_var(),
+            b.in_band_noise_share
+        );
+    }
+    Ok(())
+}
+
+/// `noisecheck [white|pink] [snr]`: the reconstruction's estimated in-band noise against the
+/// actual one, on fresh sweeps.
+fn noisecheck_mode(args: &[String]) -> Result<(), Box<dyn std::error::Error>> {
+    // In-band noise of the reconstruction: estimated (band.noise_var) vs actual.
+    let kind = if args.get(2).is_some_and(|s| s == "pink") {
+        tfs_signal::NoiseKind::Pink
+    } else {
+        tfs_signal::NoiseKind::White
+    };
+    let snr: f64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(10.0);
+    let sys = peers_truth();
+    for (i, &(f0, f1, duration, amplitude)) in [(0.05, 1.5, 100.0, 3.0), (0.1, 1.2, 80.0, 5.0)]
+        .iter()
+        .enumerate()
+    {
+        let sw = (f0, f1, duration, amplitude);
+        let noisy = sweep(&sys, "n", sw, Some((snr, kind, 17 * i as u64)))?;
+        let clean = sweep(&sys, "c", sw, None)?;
+        let sn = tfs_signal::band::reconstruct(noisy.column("x").unwrap(), noisy.dt(), None);
+        let sc = tfs_signal::band::reconstruct(
+            clean.column("x").unwrap(),
+            clean.dt(),
+            Some(sn.band.cutoff_hz),
+        );
+        let n = sn.x.len();
+        let (a, b) = (n / 10, n - n / 10);
+        let var = |u: &[f64], v: &[f64]| {
+            (a..b).map(|k| (u[k] - v[k]).powi(2)).sum::<f64>() / (b - a) as f64
         };
-        let snr: f64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(10.0);
-        let sys = peers_truth();
-        for (i, &(f0, f1, duration, amplitude)) in [(0.05, 1.5, 100.0, 3.0), (0.1, 1.2, 80.0, 5.0)]
-            .iter()
-            .enumerate()
-        {
-            let sw = (f0, f1, duration, amplitude);
-            let noisy = sweep(&sys, "n", sw, Some((snr, kind, 17 * i as u64)))?;
-            let clean = sweep(&sys, "c", sw, None)?;
-            let sn = tfs_signal::band::reconstruct(noisy.column("x").unwrap(), noisy.dt(), None);
-            let sc = tfs_signal::band::reconstruct(
-                clean.column("x").unwrap(),
-                clean.dt(),
-                Some(sn.band.cutoff_hz),
-            );
-            let n = sn.x.len();
-            let (a, b) = (n / 10, n - n / 10);
-            let var = |u: &[f64], v: &[f64]| {
-                (a..b).map(|k| (u[k] - v[k]).powi(2)).sum::<f64>() / (b - a) as f64
-            };
-            let dr = tfs_signal::band::noise_draw(&sn.band, n, 1).unwrap();
-            let z = vec![0.0; n];
-            println!(
-                "rec {i}: cutoff {:.2} Hz; x: est {:.3e} actual {:.3e} draw {:.3e}; v: actual {:.3e} draw {:.3e}",
-                sn.band.cutoff_hz,
-                sn.band.noise_var,
-                var(&sn.x, &sc.x),
-                var(&dr.x, &z),
-                var(&sn.v, &sc.v),
-                var(&dr.v, &z)
-            );
-        }
-        return Ok(());
+        let dr = tfs_signal::band::noise_draw(&sn.band, n, 1).unwrap();
+        let z = vec![0.0; n];
+        println!(
+            "rec {i}: cutoff {:.2} Hz; x: est {:.3e} actual {:.3e} draw {:.3e}; v: actual {:.3e} draw {:.3e}",
+            sn.band.cutoff_hz,
+            sn.band.noise_var,
+            var(&sn.x, &sc.x),
+            var(&dr.x, &z),
+            var(&sn.v, &sc.v),
+            var(&dr.v, &z)
+        );
     }
-    if args.get(1).is_some_and(|s| s == "mc") {
-        let kind = args.get(2).cloned().unwrap_or_else(|| "pink".into());
-        let snr: f64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(30.0);
-        let seeds: u64 = args.get(4).and_then(|s| s.parse().ok()).unwrap_or(8);
-        let which = args.get(5).cloned().unwrap_or_else(|| "both".into());
-        return monte_carlo(&kind, snr, seeds, &which);
-    }
-    if args.get(1).is_some_and(|s| s == "dump") {
-        // Every coefficient, interval and inclusion of every case and both peers libraries to
-        // full precision: diff two dumps to see whether a change moved any fit.
-        let root = args
-            .get(2)
-            .cloned()
-            .unwrap_or_else(|| "target/peers/data".into());
-        for case in ["white60", "white30", "white20", "pink30", "white10"] {
-            let recs = read(&format!("{root}/{case}"))?;
-            for lib in ["x^1..7, x', xb_acc", "poly(x, x'; 1..7), xb_acc"] {
-                let mut spec = IdentifySpec::new(&["x"], lib);
-                tweak(&mut spec);
-                let id = identify_tfs(&recs, &spec)?;
-                println!("{case} [{lib}]");
-                for t in &id.model.equation("x")?.terms {
-                    println!(
-                        "  {} {:e} {:?} {:?}",
-                        t.term, t.coef, t.interval, t.inclusion
-                    );
-                }
-                let d = &id.trace.dofs[0];
-                let qs: Vec<usize> = d.bins.iter().map(|b| b.decimation).collect();
-                if let Some(c1) = &d.criterion1 {
-                    println!(
-                        "  κ {:.6} raw {:.6} κ0 {:.6} high {}",
-                        c1.kappa.standardised, c1.kappa.raw, c1.kappa0, c1.high_snr
-                    );
-                }
+    Ok(())
+}
+
+/// `mc [kind] [snr] [seeds] [which]`: Monte Carlo over noise seeds (see [`monte_carlo`]).
+fn mc_mode(args: &[String]) -> Result<(), Box<dyn std::error::Error>> {
+    let kind = args.get(2).cloned().unwrap_or_else(|| "pink".into());
+    let snr: f64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(30.0);
+    let seeds: u64 = args.get(4).and_then(|s| s.parse().ok()).unwrap_or(8);
+    let which = args.get(5).cloned().unwrap_or_else(|| "both".into());
+    monte_carlo(&kind, snr, seeds, &which)
+}
+
+/// `dump [root]`: every coefficient, interval and inclusion of every peers case and both
+/// libraries to full precision, to diff two builds.
+fn dump_mode(args: &[String]) -> Result<(), Box<dyn std::error::Error>> {
+    // Every coefficient, interval and inclusion of every case and both peers libraries to
+    // full precision: diff two dumps to see whether a change moved any fit.
+    let root = args
+        .get(2)
+        .cloned()
+        .unwrap_or_else(|| "target/peers/data".into());
+    for case in ["white60", "white30", "white20", "pink30", "white10"] {
+        let recs = read(&format!("{root}/{case}"))?;
+        for lib in ["x^1..7, x', xb_acc", "poly(x, x'; 1..7), xb_acc"] {
+            let mut spec = IdentifySpec::new(&["x"], lib);
+            tweak(&mut spec);
+            let id = identify_tfs(&recs, &spec)?;
+            println!("{case} [{lib}]");
+            for t in &id.model.equation("x")?.terms {
                 println!(
-                    "  δ {} w {} q {qs:?} thr {:e} verdict {}",
-                    d.settings.delta, d.settings.windows, d.settings.threshold, d.assembly_verdict
+                    "  {} {:e} {:?} {:?}",
+                    t.term, t.coef, t.interval, t.inclusion
                 );
             }
+            let d = &id.trace.dofs[0];
+            let qs: Vec<usize> = d.bins.iter().map(|b| b.decimation).collect();
+            if let Some(c1) = &d.criterion1 {
+                println!(
+                    "  κ {:.6} raw {:.6} κ0 {:.6} high {}",
+                    c1.kappa.standardised, c1.kappa.raw, c1.kappa0, c1.high_snr
+                );
+            }
+            println!(
+                "  δ {} w {} q {qs:?} thr {:e} verdict {}",
+                d.settings.delta, d.settings.windows, d.settings.threshold, d.assembly_verdict
+            );
         }
-        return Ok(());
     }
-    if args.get(1).is_some_and(|s| s == "score") {
-        let root = args
-            .get(2)
-            .cloned()
-            .unwrap_or_else(|| "target/peers/data".into());
-        return score(&root);
-    }
+    Ok(())
+}
+
+/// `score [root]`: the coefficients and force error per case and library (see [`score`]).
+fn score_mode(args: &[String]) -> Result<(), Box<dyn std::error::Error>> {
+    let root = args
+        .get(2)
+        .cloned()
+        .unwrap_or_else(|| "target/peers/data".into());
+    score(&root)
+}
+
+/// The default mode: times `identify_tfs` on one case `reps` times.
+fn timing_mode(args: &[String]) -> Result<(), Box<dyn std::error::Error>> {
     let dir = args
         .get(1)
         .cloned()

@@ -7,8 +7,7 @@
 //! `E[AᵀA] = A₀ᵀA₀ + D` and `E[Aᵀy] = A₀ᵀy₀ + d`, with `D = E[δAᵀδA]` and `d = E[δAᵀδy]` the
 //! second moments of the noise part `δ` of the rows. Least squares on `AᵀA` therefore shrinks the
 //! coefficients, and most for high powers, whose noise `k·x^{k−1}·e` is `k` times that of `x`
-//! relative to the signal: on the paper's cell at 20 dB every stiffness coefficient came out
-//! 1–2 % small, which lowers the barrier between the wells.
+//! relative to the signal.
 //!
 //! The correction estimates `D` and `d` by simulation: draws of each record's own noise model
 //! (its fitted noise floor, limited to its cut-off; see [`tfs_signal::band::noise_draw`]) are pushed through the
@@ -30,12 +29,14 @@ use tfs_library::{Library, Var};
 use tfs_regress::Compressed;
 use tfs_signal::Complex;
 
-use crate::error::Result;
-use crate::pipeline::TfsOptions;
-use crate::prepare::{
-    Prepared, RecordSeries, Series, TransformForm, WindowTransform, decimate, decimated_inputs,
-    decimated_series, record_series, rows_for, window,
+use crate::blocks::Prepared;
+use crate::criterion3::rows::{WindowTransform, rows_for};
+use crate::criterion3::series::{
+    RecordSeries, Series, TransformForm, decimate, decimated_inputs, decimated_series,
+    record_series, window,
 };
+use crate::error::Result;
+use crate::options::TfsOptions;
 use tfs_signal::band::noise_spectrum;
 use tfs_signal::{Band, NoiseSpectrum, Smoothed, bin_omegas, window_layout};
 
@@ -137,7 +138,7 @@ fn no_noise_model(
     if draws == 0 {
         return Some("tfs.noise_correction_draws = 0".into());
     }
-    if opt.form == TransformForm::PlainSavitzkyGolay {
+    if opt.criterion3.form == TransformForm::PlainSavitzkyGolay {
         return Some("the plain Savitzky–Golay form has no noise model".into());
     }
     for p in preps {
@@ -200,146 +201,26 @@ pub(crate) fn noise_moments(
             .map(|&j| lib.terms()[cols[j]].clone())
             .collect(),
     )?;
+    let job = DrawJob {
+        preps,
+        dofs,
+        dof,
+        sub: &sub,
+        noisy_at: &noisy_at,
+        k,
+        transforms,
+        qs,
+        delta,
+        opt,
+        cache,
+    };
     let jobs: Vec<(usize, usize)> = (0..preps.len().min(transforms.len()))
         .flat_map(|r| (0..draws).map(move |m| (r, m)))
         .collect();
     let parts: Vec<(Mat<f64>, Vec<f64>)> = jobs
         .par_iter()
         .with_max_len(1)
-        .map(|&(r, m)| -> Result<(Mat<f64>, Vec<f64>)> {
-            let p = &preps[r];
-            let n = p.rec.len();
-            let q = qs[r];
-            // Decimated series read only every q-th sample of the reconstruction: the shifted
-            // copy is made at those samples alone (the same sums as shifting, then decimating),
-            // and the noise is drawn at them alone. A term that uses an input reads the
-            // reconstruction at the full rate.
-            let decimated = q > 1 && !sub.terms().iter().any(|t| t.uses_input());
-            let inputs = decimated.then(|| decimated_inputs(p, &sub, q));
-            let step = if decimated { q } else { 1 };
-            let noise: Vec<Option<Smoothed>> = p
-                .smooth
-                .iter()
-                .enumerate()
-                .map(|(i, s)| {
-                    cache
-                        .get(&s.band, r, m, i)
-                        .as_ref()
-                        .as_ref()
-                        .and_then(|d| d.series(n, step, cache.with_acc))
-                })
-                .collect();
-            let shifted = |sign: f64| -> Vec<Smoothed> {
-                let add = |a: &[f64], b: &[f64]| -> Vec<f64> {
-                    a.iter()
-                        .step_by(step)
-                        .zip(b)
-                        .map(|(u, v)| u + sign * v)
-                        .collect()
-                };
-                p.smooth
-                    .iter()
-                    .zip(&noise)
-                    .map(|(s, e)| match e {
-                        None => Smoothed {
-                            x: decimate(&s.x, step),
-                            v: decimate(&s.v, step),
-                            a: decimate(&s.a, step),
-                            band: s.band,
-                        },
-                        Some(e) => Smoothed {
-                            x: add(&s.x, &e.x),
-                            v: add(&s.v, &e.v),
-                            a: add(&s.a, &e.a),
-                            band: s.band,
-                        },
-                    })
-                    .collect()
-            };
-            let series = |sign: f64| match &inputs {
-                Some(base) => decimated_series(
-                    p,
-                    base,
-                    shifted(sign),
-                    dofs,
-                    dof,
-                    &sub,
-                    opt.form == TransformForm::Weak,
-                    q,
-                    opt.debias,
-                ),
-                None => record_series(
-                    &Prepared {
-                        rec: p.rec,
-                        dt: p.dt,
-                        smooth: shifted(sign),
-                    },
-                    dofs,
-                    dof,
-                    &sub,
-                    opt.form,
-                    opt.savitzky_golay,
-                    q,
-                    opt.debias,
-                ),
-            };
-            let (plus, minus) = (series(1.0)?, series(-1.0)?);
-            let half = |a: &[f64], b: &[f64]| -> Vec<f64> {
-                a.iter().zip(b).map(|(u, v)| 0.5 * (u - v)).collect()
-            };
-            let d_lhs = half(&plus.lhs, &minus.lhs);
-            let d_terms: Vec<Series> = plus
-                .terms
-                .iter()
-                .zip(&minus.terms)
-                .map(|(a, b)| match (a, b) {
-                    (Series::Plain(a), Series::Plain(b)) => Series::Plain(half(a, b)),
-                    (Series::Transfer(a), Series::Transfer(b)) => Series::Transfer(half(a, b)),
-                    _ => unreachable!("the same term gives the same form"),
-                })
-                .collect();
-            let delta_series = RecordSeries {
-                dt: plus.dt,
-                lhs: d_lhs,
-                weak_lhs: plus.weak_lhs,
-                terms: d_terms,
-                noise: None,
-            };
-            let wins = &transforms[r];
-            let (starts, len) = window_layout(delta_series.lhs.len(), wins.len());
-            let win = window(len, plus.dt);
-            let om = bin_omegas(len, plus.dt);
-            let df = 1.0 / (len as f64 * plus.dt);
-            let all: Vec<usize> = (0..k).collect();
-            let mut dd = Mat::<f64>::zeros(k, k);
-            let mut dy = vec![0.0; k];
-            for (w, &st) in wins.iter().zip(&starts) {
-                // The noise part of this window's rows: same bins and weights as the data's.
-                let at: Vec<usize> = w
-                    .freq
-                    .iter()
-                    .map(|f| ((f / df).round() as usize).min(len / 2))
-                    .collect();
-                let lhs = delta_series.lhs_spectrum_at(st, &win, &om, &at);
-                let mut cols = vec![vec![Complex::new(0.0, 0.0); at.len()]; k];
-                for (s, &j) in noisy_at.iter().enumerate() {
-                    cols[j] = delta_series.term_spectrum_at(s, st, &win, &om, &at);
-                }
-                let noise_rows = WindowTransform {
-                    freq: w.freq.clone(),
-                    rel_amp: w.rel_amp.clone(),
-                    lhs,
-                    cols,
-                    weight: w.weight.clone(),
-                };
-                let (a, y, _) = rows_for(&noise_rows, delta, &all);
-                dd += a.transpose() * &a;
-                for (i, v) in dy.iter_mut().enumerate() {
-                    *v += (0..a.nrows()).map(|m| a[(m, i)] * y[m]).sum::<f64>();
-                }
-            }
-            Ok((dd, dy))
-        })
+        .map(|&(r, m)| job.moments(r, m))
         .collect::<Result<_>>()?;
     let mut d = Mat::<f64>::zeros(k, k);
     let mut dy = vec![0.0; k];
@@ -351,6 +232,173 @@ pub(crate) fn noise_moments(
     d *= faer::Scale(scale);
     dy.iter_mut().for_each(|v| *v *= scale);
     Ok(Moments::Estimated(NoiseMoments { d, dy, draws }))
+}
+
+/// One DOF's noise-moment estimate: what every (record, draw) job reads.
+struct DrawJob<'a> {
+    preps: &'a [Prepared<'a>],
+    dofs: &'a [String],
+    dof: usize,
+    /// The noisy terms of the support, as a library.
+    sub: &'a Library,
+    /// Their positions among the support's `k` columns.
+    noisy_at: &'a [usize],
+    k: usize,
+    transforms: &'a [Vec<WindowTransform>],
+    qs: &'a [usize],
+    delta: f64,
+    opt: &'a TfsOptions,
+    cache: &'a NoiseDraws,
+}
+
+impl DrawJob<'_> {
+    /// The noise part of the series of record `r` in draw `m`: the series of the reconstruction
+    /// plus and minus the draw, half their difference (the part odd in the noise).
+    fn noise_series(&self, r: usize, m: usize) -> Result<RecordSeries> {
+        let (preps, dofs, dof, sub, opt, cache) = (
+            self.preps, self.dofs, self.dof, self.sub, self.opt, self.cache,
+        );
+        let p = &preps[r];
+        let n = p.rec.len();
+        let q = self.qs[r];
+        // Decimated series read only every q-th sample of the reconstruction: the shifted
+        // copy is made at those samples alone (the same sums as shifting, then decimating),
+        // and the noise is drawn at them alone. A term that uses an input reads the
+        // reconstruction at the full rate.
+        let decimated = q > 1 && !sub.terms().iter().any(|t| t.uses_input());
+        let inputs = decimated.then(|| decimated_inputs(p, sub, q));
+        let step = if decimated { q } else { 1 };
+        let noise: Vec<Option<Smoothed>> = p
+            .smooth
+            .iter()
+            .enumerate()
+            .map(|(i, s)| {
+                cache
+                    .get(&s.band, r, m, i)
+                    .as_ref()
+                    .as_ref()
+                    .and_then(|d| d.series(n, step, cache.with_acc))
+            })
+            .collect();
+        let shifted = |sign: f64| -> Vec<Smoothed> {
+            let add = |a: &[f64], b: &[f64]| -> Vec<f64> {
+                a.iter()
+                    .step_by(step)
+                    .zip(b)
+                    .map(|(u, v)| u + sign * v)
+                    .collect()
+            };
+            p.smooth
+                .iter()
+                .zip(&noise)
+                .map(|(s, e)| match e {
+                    None => Smoothed {
+                        x: decimate(&s.x, step),
+                        v: decimate(&s.v, step),
+                        a: decimate(&s.a, step),
+                        band: s.band,
+                    },
+                    Some(e) => Smoothed {
+                        x: add(&s.x, &e.x),
+                        v: add(&s.v, &e.v),
+                        a: add(&s.a, &e.a),
+                        band: s.band,
+                    },
+                })
+                .collect()
+        };
+        let series = |sign: f64| match &inputs {
+            Some(base) => decimated_series(
+                p,
+                base,
+                shifted(sign),
+                dofs,
+                dof,
+                sub,
+                opt.criterion3.form == TransformForm::Weak,
+                q,
+                opt.criterion3.debias,
+            ),
+            None => record_series(
+                &Prepared {
+                    rec: p.rec,
+                    dt: p.dt,
+                    smooth: shifted(sign),
+                },
+                dofs,
+                dof,
+                sub,
+                opt.criterion3.form,
+                opt.criterion3.savitzky_golay,
+                q,
+                opt.criterion3.debias,
+            ),
+        };
+        let (plus, minus) = (series(1.0)?, series(-1.0)?);
+        let half = |a: &[f64], b: &[f64]| -> Vec<f64> {
+            a.iter().zip(b).map(|(u, v)| 0.5 * (u - v)).collect()
+        };
+        let d_lhs = half(&plus.lhs, &minus.lhs);
+        let d_terms: Vec<Series> = plus
+            .terms
+            .iter()
+            .zip(&minus.terms)
+            .map(|(a, b)| match (a, b) {
+                (Series::Plain(a), Series::Plain(b)) => Series::Plain(half(a, b)),
+                (Series::Transfer(a), Series::Transfer(b)) => Series::Transfer(half(a, b)),
+                _ => unreachable!("the same term gives the same form"),
+            })
+            .collect();
+        let delta_series = RecordSeries {
+            dt: plus.dt,
+            lhs: d_lhs,
+            weak_lhs: plus.weak_lhs,
+            terms: d_terms,
+            noise: None,
+        };
+        Ok(delta_series)
+    }
+
+    /// The contribution of draw `m` of record `r` to `D` and `d`: the noise part of its rows,
+    /// in the same windows, bins and weights as the data's.
+    fn moments(&self, r: usize, m: usize) -> Result<(Mat<f64>, Vec<f64>)> {
+        let delta_series = self.noise_series(r, m)?;
+        let (k, noisy_at, delta) = (self.k, self.noisy_at, self.delta);
+        let wins = &self.transforms[r];
+        let (starts, len) = window_layout(delta_series.lhs.len(), wins.len());
+        let win = window(len, delta_series.dt);
+        let om = bin_omegas(len, delta_series.dt);
+        let df = 1.0 / (len as f64 * delta_series.dt);
+        let all: Vec<usize> = (0..k).collect();
+        let mut dd = Mat::<f64>::zeros(k, k);
+        let mut dy = vec![0.0; k];
+        for (w, &st) in wins.iter().zip(&starts) {
+            // The noise part of this window's rows: same bins and weights as the data's.
+            let at: Vec<usize> = w
+                .freq
+                .iter()
+                .map(|f| ((f / df).round() as usize).min(len / 2))
+                .collect();
+            let lhs = delta_series.lhs_spectrum_at(st, &win, &om, &at);
+            let mut cols = vec![vec![Complex::new(0.0, 0.0); at.len()]; k];
+            for (s, &j) in noisy_at.iter().enumerate() {
+                cols[j] = delta_series.term_spectrum_at(s, st, &win, &om, &at);
+            }
+            let noise_rows = WindowTransform {
+                freq: w.freq.clone(),
+                rel_amp: w.rel_amp.clone(),
+                lhs,
+                cols,
+                weight: w.weight.clone(),
+            };
+            let (a, y, _) = rows_for(&noise_rows, delta, &all);
+            dd += a.transpose() * &a;
+            for (i, v) in dy.iter_mut().enumerate() {
+                *v += (0..a.nrows()).map(|m| a[(m, i)] * y[m]).sum::<f64>();
+            }
+        }
+        Ok((dd, dy))
+    }
 }
 
 /// The outcome of [`corrected_fit`].

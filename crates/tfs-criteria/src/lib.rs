@@ -1,33 +1,30 @@
-//! The criteria of T-F-S SINDy (Qian et al.) and the identification pipelines built on them.
+//! The criteria of T-F-S SINDy (Qian et al.) and the identification pipelines built on them, one
+//! module per stage, each computing its part, deciding, and reporting it in the [`Trace`]:
 //!
-//! * Criterion 1 ([`noise_level_index`], [`noise_level_index_factor`], [`knee_index`]): the noise
-//!   level index κ of `B = [Θ | x'']` on the measured data (`x''` by Savitzky–Golay, as in the
-//!   paper), raw and standardised, and the threshold κ0 calibrated by adding known noise to the
-//!   user's own data.
-//! * Criterion 2 ([`prune_library`], [`prune_factor`]): backward elimination on κ, run on the small
-//!   factor of one thin QR.
-//! * Criterion 3 ([`TransformForm`], on `tfs_signal`'s windows and band-limited reconstruction):
-//!   windowed transforms (plain or derivative-transfer "weak" form),
-//!   bins kept where `|ẍ̂| ≥ δ·max` and where `|ẍ̂|²` exceeds the variance the estimated
-//!   displacement noise gives at that bin ([`TfsOptions::min_bin_snr`]; noise of `x` enters both
-//!   sides of the regression there and would bias it), nonlinear terms evaluated on a
-//!   band-limited reconstruction whose band comes from the data (noise floor fitted on the upper
-//!   half of the spectrum, cut-off extended to harmonics that rise above the floor).
-//! * Criterion 4 ([`residual_stats`]) inside the record-by-record data assembly of
-//!   [`identify_tfs`]; once it is met, the structure it accepted is refit on every record
-//!   ([`TfsOptions::refit_all_records`]). [`identify_sindy`] is the classical baseline.
-//! * The final coefficients are corrected for errors in variables
-//!   ([`TfsOptions::noise_correction_draws`]): draws of each record's estimated noise, pushed
-//!   through the same reconstruction, windows, bins and weights (`tfs_signal::band::noise_draw`),
-//!   estimate the noise's share of the normal equations, which is removed before solving.
-//! * Every kept coefficient gets a 95 % interval (a jackknife over clusters of neighbouring bins)
-//!   and an inclusion probability (bootstrap over the same clusters); a kept term must pass the
-//!   [`TermTest`] (significance shared among every candidate term of the library), else the
-//!   least significant is removed and the selection re-run;
-//!   [`Criterion1::supported`] and [`Trace::warnings`] say when the data are too noisy for the
-//!   library instead of presenting a wrong model with confidence.
-//! * Chains ([`identify_tfs_tied`]): the same rows for every DOF stacked, with each element's
-//!   force law shared by the two DOFs it connects (Newton's third law, [`chain_ties`]).
+//! 1. `blocks`: records cut to blocks of fast transform lengths, checked, every DOF
+//!    reconstructed in its data-chosen band (`tfs_signal::band`).
+//! 2. `criterion1`: the noise level index κ of `B = [Θ | x'']` on the measured data
+//!    ([`noise_level_index`]) and its threshold κ0, calibrated by adding known noise to the user's
+//!    own data ([`knee_index`]): high or low SNR.
+//! 3. `criterion2`: library pruning by backward elimination on κ ([`prune_library`]).
+//! 4. `criterion3`: the frequency-domain (weak-form) rows — windowed transforms of every library
+//!    column, bins kept where `|ẍ̂| ≥ δ·max` and above the estimated noise, weighted by feasible
+//!    GLS — and δ and the window count chosen by held-out error ([`Criterion3Options`]).
+//! 5. `criterion4`: data assembly record by record until the held-out residual is small and has
+//!    converged ([`residual_stats`]).
+//! 6. `fit` (and `eiv`): the chosen structure's coefficients, with the settings chosen again for
+//!    them and the errors-in-variables correction ([`FitOptions`]).
+//! 7. `uncertainty`: 95 % intervals by a cluster jackknife, inclusion probabilities by a
+//!    bootstrap, and the [`TermTest`] every kept term must pass.
+//! 8. `verdict`: does the data support the library ([`Support`], [`Trace::warnings`])?
+//! 9. `elimination`: while a kept term fails the term test, the least significant is removed
+//!    and the selection re-run.
+//!
+//! `pipeline` ([`identify_tfs`]) runs them in this order; `tied` ([`identify_tfs_tied`]) runs
+//! the same stages on the stacked rows of a chain's DOFs with each element's force law shared
+//! by the two DOFs it connects ([`chain_ties`]); `classical` ([`identify_sindy`]) is the
+//! classical SINDy baseline. Options come grouped by stage ([`TfsOptions`]) and are checked
+//! once per identification.
 //!
 //! Architecture invariant: every m-row matrix is decomposed once; all selection runs on small
 //! factors ([`tfs_regress::Compressed`]).
@@ -49,25 +46,42 @@
 //! assert_eq!(c2.kept, vec![1]);
 //! ```
 
-mod eiv;
-mod error;
-mod kappa;
-mod pipeline;
-mod prepare;
-mod prune;
-pub mod synthetic;
-mod tied;
+#![warn(missing_docs)]
 
+mod blocks;
+mod classical;
+mod criterion1;
+mod criterion2;
+mod criterion3;
+mod criterion4;
+mod eiv;
+mod elimination;
+mod error;
+mod fit;
+mod options;
+mod pipeline;
+mod tied;
+mod trace;
+mod uncertainty;
+mod verdict;
+
+pub use classical::identify_sindy;
+pub use criterion1::kappa::{
+    CalibrationPoint, Criterion1, KAPPA_CAP, Kappa, Kappa0Source, KappaVariant, kappa0_from_curve,
+    knee_index, noise_level_index, noise_level_index_factor,
+};
+pub use criterion2::{Criterion2, Kappa1Reason, PruneStep, prune_factor, prune_library};
+pub use criterion3::TransformForm;
+pub use criterion4::residual_stats;
 pub use error::{CriteriaError, Result};
-pub use kappa::{
-    CalibrationPoint, Criterion1, KAPPA_CAP, Kappa, KappaVariant, kappa0_from_curve, knee_index,
-    noise_level_index, noise_level_index_factor,
+pub use options::{
+    Criterion1Options, Criterion2Options, Criterion3Options, Criterion4Options, FitOptions,
+    IdentifySpec, Kappa0Choice, SindyOptions, TfsOptions, UncertaintyOptions,
 };
-pub use pipeline::{
-    AssemblyStep, ChosenSettings, DofTrace, Identified, IdentifySpec, Kappa0Choice, RecordBins,
-    SettingScore, SindyOptions, TermTest, TfsOptions, Trace, identify_sindy, identify_tfs,
-    residual_stats,
-};
-pub use prepare::TransformForm;
-pub use prune::{Criterion2, PruneStep, prune_factor, prune_library};
+pub use pipeline::identify_tfs;
 pub use tied::{MassChoice, Tie, TieOptions, chain_ties, identify_tfs_tied};
+pub use trace::{
+    AssemblyStep, AssemblyVerdict, ChosenSettings, Criterion4Outcome, DofTrace, Identified, Method,
+    Problem, RecordBins, SettingScore, Support, TieTrace, TiedTrace, Trace,
+};
+pub use uncertainty::TermTest;

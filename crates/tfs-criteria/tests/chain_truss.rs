@@ -144,7 +144,7 @@ fn check(snr: f64, seed: u64) {
             .as_ref()
             .expect("criterion 1 in the tied trace");
         assert!(c1.kappa0 > 0.0 && c1.kappa.get(c1.variant) > 0.0);
-        assert!(c1.supported, "{}: {}", d.dof, c1.support_note);
+        assert!(c1.support.is_supported(), "{}: {}", d.dof, c1.support);
     }
     // Tied: every (x2-x1) term of x1'' is minus its coefficient in x2''.
     for t in &ties {
@@ -228,7 +228,7 @@ fn untieable_spec_and_bad_masses_are_errors() {
         MassChoice::Given(vec![1.0, -1.0]),
         MassChoice::Estimate { candidates: vec![] },
     ] {
-        let e = identify_tfs_tied(&recs, &chain_spec(), &TieOptions { masses: m }).unwrap_err();
+        let e = identify_tfs_tied(&recs, &chain_spec(), &TieOptions::new(m)).unwrap_err();
         assert!(e.to_string().contains("tie.masses"), "{e}");
     }
 }
@@ -243,21 +243,17 @@ fn mass_scan_finds_equal_masses_and_given_ratio_scales_the_tie() {
     let id = identify_tfs_tied(
         &recs,
         &sp,
-        &TieOptions {
-            masses: MassChoice::Estimate {
-                candidates: vec![0.5, 1.0, 2.0],
-            },
-        },
+        &TieOptions::new(MassChoice::Estimate {
+            candidates: vec![0.5, 1.0, 2.0],
+        }),
     )
     .unwrap();
-    assert_eq!(id.model.trace["masses"], serde_json::json!([1.0, 1.0]));
+    assert_eq!(id.trace.tied.as_ref().unwrap().masses, vec![1.0, 1.0]);
     // With m2/m1 = 2 given, every tied coefficient of x1'' is −2 × its x2'' value.
     let id = identify_tfs_tied(
         &recs,
         &sp,
-        &TieOptions {
-            masses: MassChoice::Given(vec![1.0, 2.0]),
-        },
+        &TieOptions::new(MassChoice::Given(vec![1.0, 2.0])),
     )
     .unwrap();
     for t in chain_ties(&sp).unwrap() {

@@ -79,7 +79,7 @@ fn coverage(reweight: usize) {
     let sys = Linear { k: 4.0, c: 0.4 };
     let truth: [(&str, f64); 3] = [("x", -4.0), ("x'", -0.4), ("xb_acc", -1.0)];
     let mut spec = IdentifySpec::new(&["x"], "x, x', xb_acc");
-    spec.tfs.reweight = reweight;
+    spec.tfs.criterion3.reweight = reweight;
     let (mut covered, mut total, mut rel_width) = (0, 0, 0.0);
     // Lowest bootstrap inclusion of a true term pinned down to better than ±25 %.
     let mut min_incl: f64 = 1.0;

@@ -78,11 +78,11 @@ fn coefficients_use_the_setting_that_predicts_held_out_records_best() {
     let mut spec = IdentifySpec::new(&["x"], "poly(x, x'; 1..7), xb_acc");
     let on = identify_tfs(&recs, &spec).unwrap();
     let s = &on.trace.dofs[0].settings;
-    let grid = spec.tfs.deltas.len() * spec.tfs.window_counts.len();
+    let grid = spec.tfs.criterion3.deltas.len() * spec.tfs.criterion3.window_counts.len();
     assert_eq!(s.candidates.len(), grid);
     assert_eq!(s.coefficient_candidates.len(), grid);
     assert_eq!((s.delta, s.windows), best(&s.coefficient_candidates));
-    spec.tfs.reselect_for_support = false;
+    spec.tfs.fit.reselect_for_support = false;
     let off = identify_tfs(&recs, &spec).unwrap();
     let s = &off.trace.dofs[0].settings;
     assert!(s.coefficient_candidates.is_empty());

@@ -6,7 +6,7 @@
 
 mod common;
 
-use tfs_criteria::synthetic::{NoiseSpec, SweepSpec, surrogate_record};
+use common::synthetic::{NoiseSpec, SweepSpec, surrogate_record};
 use tfs_criteria::{IdentifySpec, TfsOptions, identify_tfs};
 use tfs_data::Record;
 use tfs_library::Term;
@@ -47,15 +47,15 @@ fn draw(seed: u64, snr_db: f64) -> Vec<Record> {
 /// of the correction (0 = off), and the correction notes of the first fit.
 fn mean_coefs(seeds: u64, draws: usize) -> ([f64; 2], String) {
     let mut spec = IdentifySpec::new(&["x"], "x^5..7, x', xb_acc");
-    spec.tfs.threshold = Some(0.0);
-    spec.tfs.prune_insignificant = 0;
-    spec.tfs.bagging = 0;
-    spec.tfs.cutoff_hz = Some(3.0);
-    spec.tfs.deltas = vec![0.3];
-    spec.tfs.window_counts = vec![3];
-    spec.tfs.min_bin_snr = None;
-    spec.tfs.reweight = 0;
-    spec.tfs.noise_correction_draws = draws;
+    spec.tfs.fit.threshold = Some(0.0);
+    spec.tfs.uncertainty.elimination_rounds = 0;
+    spec.tfs.uncertainty.bagging = 0;
+    spec.tfs.criterion3.cutoff_hz = Some(3.0);
+    spec.tfs.criterion3.deltas = vec![0.3];
+    spec.tfs.criterion3.window_counts = vec![3];
+    spec.tfs.criterion3.min_bin_snr = None;
+    spec.tfs.criterion3.reweight = 0;
+    spec.tfs.fit.noise_correction_draws = draws;
     let dofs = ["x".to_string()];
     let mut sum = [0.0; 2];
     let mut note = String::new();
@@ -81,7 +81,7 @@ fn mean_coefs(seeds: u64, draws: usize) -> ([f64; 2], String) {
 fn correction_removes_the_damping_attenuation_with_pinned_settings() {
     let seeds = 6;
     let (plain, off_note) = mean_coefs(seeds, 0);
-    let (fixed, on_note) = mean_coefs(seeds, TfsOptions::default().noise_correction_draws);
+    let (fixed, on_note) = mean_coefs(seeds, TfsOptions::default().fit.noise_correction_draws);
     let truth = -common::TRUTH.c;
     let (e_plain, e_fixed) = (plain[0] / truth - 1.0, fixed[0] / truth - 1.0);
     eprintln!(

@@ -2,8 +2,8 @@
 //! displacement and the base acceleration): the default T-F-S pipeline must stay accurate.
 
 mod common;
+use common::synthetic::{NoiseSpec, SweepSpec, surrogate_record};
 use common::*;
-use tfs_criteria::synthetic::{NoiseSpec, SweepSpec, surrogate_record};
 use tfs_criteria::{IdentifySpec, identify_tfs};
 use tfs_data::Record;
 use tfs_signal::NoiseKind;

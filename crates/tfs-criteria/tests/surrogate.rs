@@ -61,10 +61,14 @@ fn tfs_meets_the_30_db_bounds_on_short_records() {
 fn full_noise_ladder() {
     let mut spec = IdentifySpec::new(&["x"], LIB);
     // Variants for the report: TFS_NODEBIAS=1, TFS_FORM=plain-spectral|plain-sg.
-    spec.tfs.debias = std::env::var("TFS_NODEBIAS").is_err();
+    spec.tfs.criterion3.debias = std::env::var("TFS_NODEBIAS").is_err();
     match std::env::var("TFS_FORM").as_deref() {
-        Ok("plain-spectral") => spec.tfs.form = tfs_criteria::TransformForm::PlainSpectral,
-        Ok("plain-sg") => spec.tfs.form = tfs_criteria::TransformForm::PlainSavitzkyGolay,
+        Ok("plain-spectral") => {
+            spec.tfs.criterion3.form = tfs_criteria::TransformForm::PlainSpectral
+        }
+        Ok("plain-sg") => {
+            spec.tfs.criterion3.form = tfs_criteria::TransformForm::PlainSavitzkyGolay
+        }
         _ => {}
     }
     for (snr, kind) in [

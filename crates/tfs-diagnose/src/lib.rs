@@ -1,4 +1,4 @@
-//! The diagnosis loop of tfs (DESIGN.md §3): *compare the model with measurements, see where it
+//! The diagnosis loop of tfs: *compare the model with measurements, see where it
 //! fails, learn which physical effect is missing, add it and watch the error fall.*
 //!
 //! * [`compare()`](compare::compare) — simulate under each record's measured input: R-MSE per

@@ -5,7 +5,7 @@
 //! Architecture invariant: this crate does no regression and no integration; it names terms,
 //! evaluates them on columns, and stores and evaluates fitted equations.
 //!
-//! Term names (DESIGN.md §5): `x`, `x^k`, `x'`, products `x^2*x'`, relative coordinates
+//! Term names: `x`, `x^k`, `x'`, products `x^2*x'`, relative coordinates
 //! `(x2-x1)^k` and `(x2-x1)'`, inputs by column name (`xb_acc`), `abs(v)`, `sign(v)`,
 //! `tanh(v/ε)`, `below(v, c)`, `above(v, c)`, the constant `1`, internal states
 //! `maxwell(v', τ)`, `bouc_wen(v', a, b)`, `dahl(v', κ)` (memory effects, see [`state`]); in

@@ -1,4 +1,4 @@
-//! Recursive-descent parser for term names and library specs (DESIGN.md §5).
+//! Recursive-descent parser for term names and library specs.
 //!
 //! Grammar (whitespace allowed between tokens):
 //! ```text

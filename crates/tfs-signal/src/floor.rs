@@ -52,14 +52,9 @@ pub fn choose_cutoff(p: &[f64], min_bin: usize) -> (usize, f64, f64) {
     // worth less than the noise between them in total, yet each rises clearly above the local
     // floor. Extend the cut-off to the last block of `m` bins whose mean power exceeds the floor
     // by `HARMONIC_EXCESS` *and* by a one-sided test at family-wise level `HARMONIC_LEVEL` over
-    // all the blocks tested. The test's spread combines the block mean's own scatter (a mean of
-    // m χ²₁ bins has a log-spread of √(2/m)) with the standard error of the floor itself there
-    // (a power law fitted to the upper half of the spectrum and extrapolated down: its slope's
-    // uncertainty misplaces it by 20–40 % a decade lower). Without the multiple-test level, one
-    // of the ~40 noise blocks above a sweep's band passed now and then (a falsely kept floor
-    // slope of +0.33 on white noise put a 20 dB record's cut-off at 13.5 Hz instead of 2 Hz).
-    // Noise-dominated bins inside the band are excluded later, in the regression, by the per-bin
-    // noise gate.
+    // all the blocks tested, whose spread combines the block mean's own scatter (a mean of m χ²₁
+    // bins has a log-spread of √(2/m)) with the standard error of the floor extrapolated there.
+    // Noise-dominated bins inside the band are excluded later, in the regression.
     let mut kc = best.0;
     let mut noise = best.2;
     let m = HARMONIC_BLOCK;
@@ -151,16 +146,9 @@ impl NoiseFloor {
             return Self::flat(my, cnt, mx, sxx);
         }
         let b = sxy / sxx;
-        // Keep the slope only if it is clearly significant (|β| > 3 standard errors): over the short
-        // log-frequency lever arm of the upper half, white noise alone gives slopes of ±0.4, and
-        // extrapolating such a slope into the signal band misplaces the floor by a factor of several
-        // (a kept +0.33 on white noise put a 20 dB record's cut-off at 13.5 Hz instead of 2 Hz). The
-        // scatter of the points is at least what sampling gives: the log of the median of n χ²₁ bins
-        // has a standard deviation of about 2.33/√n (asymptotic variance of a sample median,
-        // 1/(4n·f(ξ)²) at the χ²₁ median ξ = 0.4549), while the residual scatter of 16 points, on
-        // 14 degrees of freedom, often comes out smaller by chance (the former 2-standard-error
-        // rule kept a slope on 4 of the 12 white-noise records of the peers cases checked, and on 1
-        // of 40 synthetic ones).
+        // Keep the slope only if it is clearly significant (|β| > 3 standard errors), the scatter
+        // of the points being at least what sampling gives: the log of the median of n χ²₁ bins
+        // has a standard deviation of about 2.33/√n (see `docs/DECISIONS.md`).
         let rss: f64 = pts
             .iter()
             .map(|p| (p.1 - my - b * (p.0 - mx)).powi(2))
@@ -208,5 +196,37 @@ impl NoiseFloor {
         }
         let d = (k.max(1) as f64).ln() - self.mx;
         self.s * (1.0 / self.n + d * d / self.sxx).sqrt()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// With one sub-band and unit median the floor is the median of the upper half itself (the
+    /// amplitude floor `tfs-diagnose` reads); with the defaults on white noise it is flat and
+    /// near the bins' mean power.
+    #[test]
+    fn one_subband_is_the_median_of_the_upper_half() {
+        let p: Vec<f64> = (0..101).map(|k| ((k * 37) % 101) as f64 + 1.0).collect();
+        let mut upper = p[50..].to_vec();
+        upper.sort_by(f64::total_cmp);
+        let median = upper[upper.len() / 2];
+        let f = NoiseFloor::fit_with(&p, 1, 1.0);
+        assert_eq!(f.beta, 0.0);
+        assert!(
+            (f.at(7) / median - 1.0).abs() < 1e-15,
+            "{} vs {median}",
+            f.at(7)
+        );
+        assert_eq!(NoiseFloor::fit_with(&[0.0; 8], 1, 1.0).at(1), 0.0);
+        assert_eq!(NoiseFloor::fit(&[1.0]).log_a, f64::NEG_INFINITY);
+        let white: Vec<f64> = crate::noise::standard_normal(4000, 3)
+            .iter()
+            .map(|v| v * v)
+            .collect();
+        let w = NoiseFloor::fit(&white);
+        assert_eq!(w.beta, 0.0);
+        assert!((w.at(100) - 1.0).abs() < 0.2, "{}", w.at(100));
     }
 }

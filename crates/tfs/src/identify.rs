@@ -322,7 +322,7 @@ pub fn plan(opts: &IdentifyOptions, columns: &[String], source: &str) -> Result<
         if !(th.is_finite() && th >= 0.0) {
             invalid!("--threshold {th}: must be a finite number ≥ 0");
         }
-        spec.tfs.threshold = Some(th);
+        spec.tfs.fit.threshold = Some(th);
         spec.sindy.threshold = Some(th);
     }
     // Every column the libraries name must be present in every record.
@@ -443,9 +443,7 @@ pub fn identify(
     let mut identified = match (opts.method, opts.tie) {
         (Method::Tfs, false) => identify_tfs(&records, spec)?,
         (Method::Tfs, true) => {
-            let tie = TieOptions {
-                masses: parse_masses(&opts.masses, plan.dofs.len())?,
-            };
+            let tie = TieOptions::new(parse_masses(&opts.masses, plan.dofs.len())?);
             if tfs_criteria::chain_ties(spec)?.is_empty() {
                 invalid!(
                     "--tie: no term of a relative coordinate between two DOFs (e.g. '(x2-x1)^3') is in both DOFs' libraries, so nothing can be tied; put the coupling terms in both libraries or drop --tie"
@@ -458,6 +456,8 @@ pub fn identify(
             invalid!("--tie works with --method tfs only (the tied fit is a T-F-S regression)")
         }
     };
+    // The model file carries the criteria trace (the offsets are added below).
+    identified.model.trace = identified.trace.to_json();
     let mut refine = Value::Null;
     if opts.refine {
         let refined = tfs_refine::refine(

@@ -1,8 +1,9 @@
 //! tfs: sparse, interpretable equations of motion for nonlinear, multi-stable structures, identified
 //! from noisy vibration measurements with T-F-S SINDy (and classical SINDy as the baseline).
 //!
-//! This facade re-exports every layer so that a downstream crate needs one dependency; the `tfs`
-//! binary (the CLI) is built on it. See `docs/ARCHITECTURE.md` for what each layer owns.
+//! This facade re-exports every layer so that a downstream crate needs one dependency, and
+//! [`prelude`] the few types and functions most programs start from; the `tfs` binary (the CLI)
+//! is built on it. See `docs/ARCHITECTURE.md` for what each layer owns.
 //!
 //! It also holds the workflows that the CLI and the Python package (`crates/tfs-py`) share, so
 //! that both give the same results on the same data: [`records`] (validation, the DOF and input
@@ -44,3 +45,23 @@ pub use tfs_plot as plot;
 pub use tfs_refine as refine;
 pub use tfs_regress as regress;
 pub use tfs_signal as signal;
+
+/// What most programs start from, in one import: records, libraries and models, the
+/// identification pipelines with their options and trace, and simulation of a model.
+///
+/// ```
+/// use tfs::prelude::*;
+/// // A spec with the default T-F-S options: the library of every DOF, checked when it runs.
+/// let mut spec = IdentifySpec::new(&["x"], "x^1..7, x', xb_acc");
+/// spec.tfs.criterion3.window_counts = vec![3];
+/// assert_eq!(Library::parse(&spec.library, &spec.dofs).unwrap().len(), 9);
+/// ```
+pub mod prelude {
+    pub use tfs_criteria::{
+        Identified, IdentifySpec, MassChoice, TfsOptions, TieOptions, Trace, identify_sindy,
+        identify_tfs, identify_tfs_tied,
+    };
+    pub use tfs_data::{Record, read_csv};
+    pub use tfs_dynamics::{SimulateOptions, simulate_model_on_record};
+    pub use tfs_library::{Library, Model, Term};
+}

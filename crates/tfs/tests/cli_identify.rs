@@ -162,3 +162,55 @@ fn table1_polynomial_model_is_recovered_by_both_methods() {
     check(&truth, lib, "sindy", &train, &test, 0.005);
     check(&truth, lib, "tfs", &train, &test, 0.005);
 }
+
+/// Without `--json`, every stage of the trace is printed for people: Criteria 1–4 in order
+/// (Criterion 2 too, when it was not run), the settings and assembly tables, the verdict, and no
+/// raw JSON; the model file carries the whole trace with the offsets.
+#[test]
+fn the_trace_is_printed_stage_by_stage_without_raw_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let truth = model(&[("x'", -0.3), ("x", 1.0), ("x^3", -1.0), ("xb_acc", -1.0)]);
+    let train = [
+        record(&truth, dir.path(), "p1.csv", (0.05, 0.6, 80.0, 0.8), 1.0),
+        record(&truth, dir.path(), "p2.csv", (0.05, 0.5, 60.0, 1.2), 1.0),
+    ];
+    let model_path = dir.path().join("p.json");
+    let out = Command::new(env!("CARGO_BIN_EXE_tfs"))
+        .args(["identify", "--library", "x^1..5, x', xb_acc", "--out"])
+        .arg(&model_path)
+        .args(&train)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    let mut at = 0;
+    for stage in [
+        "criterion 1: κ = ",
+        "criterion 2: not run",
+        "criterion 3 (Weak form)",
+        "held-out (terms)",
+        "← used",
+        "criterion 4 (held out:",
+        "assembly: ",
+        "verdict: supported",
+        "time (ms):",
+        "offsets:",
+    ] {
+        let i = text[at..]
+            .find(stage)
+            .unwrap_or_else(|| panic!("'{stage}' missing or out of order in:\n{text}"));
+        at += i;
+    }
+    assert!(
+        !text.contains("{\""),
+        "raw JSON in the human output:\n{text}"
+    );
+    let m = Model::from_path(&model_path).unwrap();
+    assert_eq!(m.trace["method"], "tfs-sindy");
+    assert!(m.trace["dofs"][0]["criterion1"]["supported"].is_boolean());
+    assert!(m.trace["offsets"]["mode"].is_string(), "{}", m.trace);
+}

@@ -1,8 +1,10 @@
-//! Shared helpers: the surrogate truth (paper Table 1, the brief's test system), data sets and
+//! Shared helpers: the surrogate truth (paper Table 1), data sets and
 //! the error measures of the issue.
 #![allow(dead_code)]
 
-use tfs_criteria::synthetic::{NoiseSpec, Surrogate, SweepSpec, surrogate_record};
+pub mod synthetic;
+
+use synthetic::{NoiseSpec, Surrogate, SweepSpec, surrogate_record};
 use tfs_data::Record;
 use tfs_library::{Model, Term};
 use tfs_signal::NoiseKind;

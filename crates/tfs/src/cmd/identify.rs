@@ -6,6 +6,7 @@ use anyhow::{Result, bail};
 pub use tfs::identify::Method;
 use tfs::identify::{IdentifyOptions, identify, plan};
 
+use super::trace_view::print_trace;
 use super::{
     DataArgs, Offsets, prepare_output, print_json, read_records, records_from, with_spinner,
     write_model,
@@ -227,54 +228,6 @@ fn print_offsets(report: &serde_json::Value) {
             r["record"].as_str().unwrap_or(""),
             list.join(", ")
         );
-    }
-}
-
-/// Prints the criteria trace in a few readable lines.
-pub fn print_trace(trace: &tfs::criteria::Trace) {
-    let v = serde_json::to_value(trace).unwrap_or_default();
-    println!("method: {}", trace.method);
-    for d in &trace.dofs {
-        let dv = serde_json::to_value(d).unwrap_or_default();
-        println!("dof {}:", d.dof);
-        if let Some(c1) = dv.get("criterion1") {
-            println!("  criterion 1: {}", compact(c1));
-        }
-        if let Some(c2) = dv.get("pruning") {
-            println!("  criterion 2: {}", compact(c2));
-        }
-        for b in &d.bins {
-            println!(
-                "  criterion 3: {}: {} bins kept, band {:.3}–{:.3} Hz",
-                b.record, b.kept_bins, b.band_hz[0], b.band_hz[1]
-            );
-        }
-        println!(
-            "  settings: delta = {}, windows = {}, threshold = {:.3e}",
-            d.settings.delta, d.settings.windows, d.settings.threshold
-        );
-        for why in &d.settings.why {
-            println!("    {why}");
-        }
-        for s in &d.assembly {
-            println!(
-                "  criterion 4: after {:?}: mu = {:.3e}, sigma = {:.3e} ({} terms)",
-                s.records, s.mu, s.sigma, s.n_terms
-            );
-        }
-        println!("  assembly: {}", d.assembly_verdict);
-    }
-    if let Some(t) = v.get("timing_ms") {
-        println!("timing (ms): {}", compact(t));
-    }
-}
-
-fn compact(v: &serde_json::Value) -> String {
-    let s = v.to_string();
-    if s.chars().count() > 300 {
-        format!("{}…", s.chars().take(300).collect::<String>())
-    } else {
-        s
     }
 }
 

@@ -9,6 +9,7 @@ pub mod med;
 pub mod plots;
 pub mod refit;
 pub mod simulate;
+pub mod trace_view;
 
 use std::path::{Path, PathBuf};
 

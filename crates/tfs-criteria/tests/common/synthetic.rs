@@ -3,13 +3,16 @@
 //! integrated with [`tfs_dynamics::rk4_step`], with optional measurement noise on `x` and `xb_acc`.
 //!
 //! The coefficients are passed in by the caller ([`Surrogate`]); tfs-origami derives them from the
-//! truss model, tests here use the paper's Table 1 row.
+//! truss model, tests here use the paper's Table 1 row. Test support only (the tests, the
+//! benchmark and the examples include this file); not part of the library.
+#![allow(dead_code)]
 
 use tfs_data::Record;
 use tfs_dynamics::{Rk4Scratch, SecondOrderSystem, rk4_step};
 use tfs_signal::{Excitation, NoiseKind, Sweep, SweepKind};
 
-use crate::error::{Result, invalid};
+/// Errors of the generator (a bad sweep, a signal error, a record error).
+pub type Result<T> = std::result::Result<T, Box<dyn std::error::Error>>;
 
 /// The surrogate single-cell system `x'' = −c x' − (a5 x⁵ + a6 x⁶ + a7 x⁷) − xb_acc`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -72,10 +75,11 @@ pub fn surrogate_record(
     noise: Option<NoiseSpec>,
 ) -> Result<Record> {
     if !(fs > 0.0 && sweep.duration > 4.0) {
-        return invalid(format!(
+        return Err(format!(
             "synthetic record '{name}': need fs > 0 and a sweep longer than its two 2 s ramps (fs = {fs}, duration = {})",
             sweep.duration
-        ));
+        )
+        .into());
     }
     let ex = Sweep::new(
         SweepKind::Linear,

@@ -5,13 +5,17 @@
 //! the singular values (and κ) of every candidate library come from `R'` alone.
 
 use faer::MatRef;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 
+use crate::criterion1::Criterion1Out;
+use crate::criterion1::kappa::{
+    KappaVariant, centre, column_norms, kappa_of_columns, small_factor,
+};
 use crate::error::{Result, invalid};
-use crate::kappa::{KappaVariant, centre, kappa_of_columns, small_factor};
+use crate::options::TfsOptions;
 
 /// One step of the elimination.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PruneStep {
     /// Index (into the original library) of the column removed.
     pub removed: usize,
@@ -22,7 +26,7 @@ pub struct PruneStep {
 }
 
 /// The outcome of Criterion 2.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Criterion2 {
     /// κ of the full matrix before any removal.
     pub kappa_start: f64,
@@ -31,9 +35,75 @@ pub struct Criterion2 {
     /// The threshold κ1: the κ just before the largest single drop of the trace.
     pub kappa1: f64,
     /// How κ1 was chosen.
-    pub kappa1_reason: String,
+    pub kappa1_reason: Kappa1Reason,
     /// Library columns kept (indices into the original library, in original order).
     pub kept: Vec<usize>,
+}
+
+/// How κ1 was chosen.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Kappa1Reason {
+    /// Given by the user: columns removed while κ ≥ κ1.
+    Given {
+        /// κ1.
+        kappa1: f64,
+    },
+    /// The library had no column to remove.
+    NothingToRemove,
+    /// The value before the largest drop, at removing `term`.
+    AbruptDrop {
+        /// κ1.
+        kappa1: f64,
+        /// The drop (decades).
+        drop: f64,
+        /// The term whose removal dropped κ.
+        term: String,
+        /// The median drop.
+        median: f64,
+    },
+    /// No drop is abrupt enough: nothing pruned.
+    NoAbruptDrop {
+        /// The largest drop (decades).
+        largest: f64,
+        /// The smallest drop that counts.
+        min_drop: f64,
+        /// The median drop.
+        median: f64,
+    },
+}
+
+impl std::fmt::Display for Kappa1Reason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Kappa1Reason::Given { kappa1 } => {
+                write!(f, "given by the user: remove while κ ≥ {kappa1:.3}")
+            }
+            Kappa1Reason::NothingToRemove => f.write_str("nothing to remove"),
+            Kappa1Reason::AbruptDrop {
+                kappa1,
+                drop,
+                term,
+                median,
+            } => write!(
+                f,
+                "κ1 = {kappa1:.3}: the value before the largest drop ({drop:.2} decades, at removing '{term}'; median drop {median:.2})"
+            ),
+            Kappa1Reason::NoAbruptDrop {
+                largest,
+                min_drop,
+                median,
+            } => write!(
+                f,
+                "no abrupt drop (largest {largest:.2} decades, needs ≥ {min_drop:.2} and ≥ 3× the median {median:.2}): nothing pruned"
+            ),
+        }
+    }
+}
+
+impl Serialize for Kappa1Reason {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.serialize_str(&self.to_string())
+    }
 }
 
 /// Criterion 2 on `b` (m×(n+1), columns = library then the target `x''` last).
@@ -112,11 +182,7 @@ pub fn prune_factor(
     let (kappa1, reason, n_removed) = match kappa1 {
         Some(k1) => {
             let n = trace.iter().take_while(|s| s.kappa_after >= k1).count();
-            (
-                k1,
-                format!("given by the user: remove while κ ≥ {k1:.3}"),
-                n,
-            )
+            (k1, Kappa1Reason::Given { kappa1: k1 }, n)
         }
         None => choose_kappa1(kappa_start, &trace, min_drop),
     };
@@ -132,12 +198,16 @@ pub fn prune_factor(
 }
 
 /// The automatic κ1 rule (see [`prune_library`]); returns (κ1, reason, number of removals).
-fn choose_kappa1(kappa_start: f64, trace: &[PruneStep], min_drop: f64) -> (f64, String, usize) {
+fn choose_kappa1(
+    kappa_start: f64,
+    trace: &[PruneStep],
+    min_drop: f64,
+) -> (f64, Kappa1Reason, usize) {
     let mut seq = vec![kappa_start];
     seq.extend(trace.iter().map(|s| s.kappa_after));
     let drops: Vec<f64> = seq.windows(2).map(|w| w[0] - w[1]).collect();
     if drops.is_empty() {
-        return (kappa_start, "nothing to remove".into(), 0);
+        return (kappa_start, Kappa1Reason::NothingToRemove, 0);
     }
     let (imax, dmax) =
         drops.iter().enumerate().fold(
@@ -150,21 +220,57 @@ fn choose_kappa1(kappa_start: f64, trace: &[PruneStep], min_drop: f64) -> (f64, 
     if dmax >= min_drop && dmax >= 3.0 * median {
         (
             seq[imax],
-            format!(
-                "κ1 = {:.3}: the value before the largest drop ({dmax:.2} decades, at removing '{}'; median drop {median:.2})",
-                seq[imax], trace[imax].name
-            ),
+            Kappa1Reason::AbruptDrop {
+                kappa1: seq[imax],
+                drop: dmax,
+                term: trace[imax].name.clone(),
+                median,
+            },
             imax,
         )
     } else {
         (
             kappa_start,
-            format!(
-                "no abrupt drop (largest {dmax:.2} decades, needs ≥ {min_drop:.2} and ≥ 3× the median {median:.2}): nothing pruned"
-            ),
+            Kappa1Reason::NoAbruptDrop {
+                largest: dmax,
+                min_drop,
+                median,
+            },
             0,
         )
     }
+}
+
+/// Criterion 2 as the pipeline runs it: when pruning is asked for, Criterion 1 says the SNR is
+/// high and there is more than one non-constant term, backward elimination on the centred factor
+/// of Criterion 1 (`c1`). Returns the library columns the regression keeps (constant terms are
+/// never pruned) and the elimination, if it ran.
+pub(crate) fn criterion2_stage(
+    c1: &Criterion1Out,
+    names: &[String],
+    opt: &TfsOptions,
+) -> Result<(Vec<usize>, Option<Criterion2>)> {
+    let all: Vec<usize> = (0..names.len()).collect();
+    let nonconst = &c1.nonconst;
+    if !(opt.criterion2.prune && c1.verdict.high_snr && nonconst.len() > 1) {
+        return Ok((all, None));
+    }
+    let sd = column_norms(c1.factor.as_ref());
+    let nn: Vec<String> = nonconst.iter().map(|&j| names[j].clone()).collect();
+    let res = prune_factor(
+        c1.factor.as_ref(),
+        &sd,
+        &nn,
+        opt.criterion1.kappa_variant,
+        opt.criterion2.kappa1,
+        opt.criterion2.min_abrupt_drop,
+    )?;
+    let kept_nc: Vec<usize> = res.kept.iter().map(|&k| nonconst[k]).collect();
+    let keep = all
+        .into_iter()
+        .filter(|j| !nonconst.contains(j) || kept_nc.contains(j))
+        .collect();
+    Ok((keep, Some(res)))
 }
 
 #[cfg(test)]
@@ -201,7 +307,9 @@ mod tests {
             let mut cols = active.clone();
             cols.push(n);
             let sub = Mat::<f64>::from_fn(m, cols.len(), |i, k| b[(i, cols[k])]);
-            let k = crate::kappa::noise_level_index(sub.as_ref()).unwrap().raw;
+            let k = crate::criterion1::kappa::noise_level_index(sub.as_ref())
+                .unwrap()
+                .raw;
             assert!(
                 (k - st.kappa_after).abs() < 1e-7,
                 "{k} vs {}",

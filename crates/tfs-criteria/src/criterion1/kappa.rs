@@ -360,8 +360,58 @@ pub struct CalibrationPoint {
     pub kappa: Kappa,
 }
 
-/// The outcome of Criterion 1.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// How κ0 was obtained.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Kappa0Source {
+    /// Given by the user.
+    Given,
+    /// Calibrated, but κ fell by only `drop` decades down to the weakest added SNR: the data are
+    /// already about that noisy (low SNR), and κ0 sits a margin above the data's κ.
+    LowSnr {
+        /// κ's fall (decades).
+        drop: f64,
+        /// The weakest added SNR (dB).
+        weakest_db: f64,
+    },
+    /// Calibrated: κ at the knee of κ(added SNR) plus a margin.
+    Knee {
+        /// The knee's added SNR (dB).
+        snr_db: f64,
+        /// κ there.
+        kappa: f64,
+    },
+    /// Calibrated, but κ never dropped: κ0 is the lowest κ seen.
+    NeverDropped,
+}
+
+impl std::fmt::Display for Kappa0Source {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        use super::calibration::MIN_CALIBRATION_DROP as M;
+        match self {
+            Kappa0Source::Given => f.write_str("given by the user"),
+            Kappa0Source::LowSnr { drop, weakest_db } => write!(
+                f,
+                "calibrated: κ fell by only {drop:.2} decades when noise down to {weakest_db} dB SNR was added, so the data are already about as noisy as that (low SNR); κ0 set {M} decades above the data's κ"
+            ),
+            Kappa0Source::Knee { snr_db, kappa } => write!(
+                f,
+                "calibrated: κ at the knee of κ vs added-noise SNR (knee at {snr_db} dB, κ there {kappa:.3}) plus a {M}-decade margin"
+            ),
+            Kappa0Source::NeverDropped => {
+                f.write_str("calibrated: κ never dropped with added noise, κ0 = lowest κ seen")
+            }
+        }
+    }
+}
+
+impl Serialize for Kappa0Source {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.serialize_str(&self.to_string())
+    }
+}
+
+/// The outcome of Criterion 1, and the support verdict of the identified model.
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Criterion1 {
     /// κ of the data as given.
     pub kappa: Kappa,
@@ -370,7 +420,7 @@ pub struct Criterion1 {
     /// The threshold.
     pub kappa0: f64,
     /// How κ0 was obtained.
-    pub kappa0_source: String,
+    pub kappa0_source: Kappa0Source,
     /// True if κ ≥ κ0 (high SNR: time-domain library selection is allowed).
     pub high_snr: bool,
     /// The calibration curve, if κ0 was calibrated.
@@ -378,19 +428,11 @@ pub struct Criterion1 {
     /// The added-noise SNR at the knee of the curve, if calibrated.
     pub knee_snr_db: Option<f64>,
     /// SNR (dB) of the displacement estimated from the fitted noise floors of the records.
-    #[serde(default)]
     pub estimated_snr_db: Option<f64>,
-    /// False when the identified model shows the data cannot support the library (no terms, no
-    /// term in the DOF's own motion, or terms whose intervals include zero).
-    #[serde(default = "yes")]
-    pub supported: bool,
-    /// Why the data do or do not support the library, and what to do when they do not.
-    #[serde(default)]
-    pub support_note: String,
-}
-
-fn yes() -> bool {
-    true
+    /// Does the identified model show that the data support the library (in JSON:
+    /// `supported` and `support_note`)?
+    #[serde(flatten)]
+    pub support: crate::trace::Support,
 }
 
 /// The knee of a κ-versus-added-SNR curve: `snr` strictly decreasing, `kappa` the matching κ, and

@@ -1,0 +1,310 @@
+//! Records as the stages see them: cut into blocks of fast transform lengths (a single record
+//! into two halves, so there is always held-out data), checked, every DOF reconstructed in its
+//! data-chosen band, and the time-domain blocks `(Θ, x'')` the held-out checks score on.
+
+use faer::Mat;
+use rayon::prelude::*;
+use tfs_data::{Columns, Record};
+use tfs_library::{ColumnSet, Library};
+use tfs_signal::Smoothed;
+use tfs_signal::band::reconstruct_guarded;
+
+use crate::error::{CriteriaError, Result, invalid};
+use crate::options::Checked;
+
+/// The first `len` samples of a record.
+fn head(r: &Record, len: usize, name: String) -> Result<Record> {
+    let cols = r
+        .names()
+        .iter()
+        .map(|nm| {
+            (
+                nm.clone(),
+                r.column(nm).expect("own column")[..len].to_vec(),
+            )
+        })
+        .collect();
+    Ok(Record::new(name, r.t()[..len].to_vec(), cols)?)
+}
+
+/// Records cut to a fast FFT length (at most a fraction of a percent of the samples dropped at
+/// the end); a single record is split into two halves so there is always held-out data.
+pub(crate) fn blocks_of(records: &[Record]) -> Result<Vec<Record>> {
+    if records.is_empty() {
+        return invalid("no records given; pass at least one measurement record");
+    }
+    if records.len() > 1 {
+        return records
+            .par_iter()
+            .map(|r| {
+                let m = tfs_signal::smooth_len(r.len());
+                if m == r.len() {
+                    Ok(r.clone())
+                } else {
+                    head(r, m, r.source().to_string())
+                }
+            })
+            .collect();
+    }
+    let r = &records[0];
+    let n = r.len();
+    let h = tfs_signal::smooth_len(n / 2);
+    let mut out = Vec::new();
+    for (k, (a, b)) in [(0, h), (h, h + tfs_signal::smooth_len(n - h))]
+        .into_iter()
+        .enumerate()
+    {
+        let cols = r
+            .names()
+            .iter()
+            .map(|nm| (nm.clone(), r.column(nm).expect("own column")[a..b].to_vec()))
+            .collect();
+        out.push(Record::new(
+            format!("{}#{}", r.source(), k + 1),
+            r.t()[a..b].to_vec(),
+            cols,
+        )?);
+    }
+    Ok(out)
+}
+
+/// Every block checked and its DOFs reconstructed (see [`prepare`]), the blocks in parallel; the
+/// error reported is the first block's.
+pub(crate) fn prepare_all<'a>(
+    blocks: &'a [Record],
+    spec: &Checked<'_>,
+) -> Result<Vec<Prepared<'a>>> {
+    blocks
+        .par_iter()
+        .with_max_len(1)
+        .map(|r| {
+            prepare(
+                r,
+                &spec.dofs,
+                spec.tfs.criterion3.cutoff_hz,
+                spec.tfs.reconstruction_guard(),
+            )
+        })
+        // Collected in order so the error reported is the first record's (rayon's own
+        // collection into a `Result` keeps whichever failed first in time).
+        .collect::<Vec<_>>()
+        .into_iter()
+        .collect()
+}
+
+/// Checks a record has the DOF columns, enough samples and a usable time step.
+pub(crate) fn check_record(rec: &Record, dofs: &[String]) -> Result<f64> {
+    let dt = rec.dt();
+    if rec.len() < 64 {
+        return invalid(format!(
+            "record '{}' has {} samples; at least 64 are needed",
+            rec.source(),
+            rec.len()
+        ));
+    }
+    if !(dt.is_finite() && dt > 0.0) {
+        return invalid(format!(
+            "record '{}': the time column 't' must increase uniformly (dt = {dt})",
+            rec.source()
+        ));
+    }
+    for d in dofs {
+        let Some(c) = rec.column(d) else {
+            return invalid(format!(
+                "record '{}' has no column '{d}' for DOF '{d}'; columns are {:?}",
+                rec.source(),
+                rec.names()
+            ));
+        };
+        if let Some(i) = c.iter().position(|v| !v.is_finite()) {
+            return invalid(format!(
+                "record '{}', column '{d}', row {}: value {} is not finite",
+                rec.source(),
+                i + 1,
+                c[i]
+            ));
+        }
+    }
+    Ok(dt)
+}
+
+/// A record with every DOF reconstructed in its data-chosen band.
+pub(crate) struct Prepared<'a> {
+    pub rec: &'a Record,
+    pub dt: f64,
+    pub smooth: Vec<Smoothed>,
+}
+
+/// Validates a record and reconstructs every DOF: band-limited at `cutoff_hz`, or at the
+/// data-chosen cut-off raised by `guard_octaves` (see [`reconstruct_guarded`]).
+pub(crate) fn prepare<'a>(
+    rec: &'a Record,
+    dofs: &[String],
+    cutoff_hz: Option<f64>,
+    guard_octaves: f64,
+) -> Result<Prepared<'a>> {
+    let dt = check_record(rec, dofs)?;
+    let smooth = dofs
+        .iter()
+        .map(|d| {
+            reconstruct_guarded(
+                rec.column(d).expect("checked"),
+                dt,
+                cutoff_hz,
+                guard_octaves,
+            )
+        })
+        .collect();
+    Ok(Prepared { rec, dt, smooth })
+}
+
+/// Columns of a prepared record: the DOFs and their velocities replaced by the reconstruction.
+pub(crate) fn smoothed_columns<'a>(p: &'a Prepared<'_>, dofs: &[String]) -> Result<ColumnSet<'a>> {
+    let mut cs = ColumnSet::new(p.rec as &dyn Columns);
+    for (d, s) in dofs.iter().zip(&p.smooth) {
+        cs.insert(d.clone(), s.x.clone())?;
+        cs.insert(format!("{d}'"), s.v.clone())?;
+    }
+    Ok(cs)
+}
+
+/// Raw columns with Savitzky–Golay velocities, and the SG acceleration of DOF `dof`.
+pub(crate) fn raw_columns_sg<'a>(
+    rec: &'a Record,
+    dofs: &[String],
+    dof: usize,
+    dt: f64,
+    sg: (usize, usize),
+) -> Result<(ColumnSet<'a>, Vec<f64>)> {
+    let mut cs = ColumnSet::new(rec as &dyn Columns);
+    let mut acc = Vec::new();
+    for (i, d) in dofs.iter().enumerate() {
+        let x = rec.column(d).expect("checked");
+        let v = tfs_signal::savitzky_golay(x, dt, sg.0, sg.1, 1)?;
+        cs.insert(format!("{d}'"), v)?;
+        if i == dof {
+            acc = tfs_signal::savitzky_golay(x, dt, sg.0, sg.1, 2)?;
+        }
+    }
+    Ok((cs, acc))
+}
+
+/// Owned columns of equal length (a strided subsample of a [`ColumnSet`]).
+pub(crate) struct OwnedColumns {
+    /// Row count.
+    pub rows: usize,
+    /// The columns by name.
+    pub cols: Vec<(String, Vec<f64>)>,
+}
+
+impl OwnedColumns {
+    /// These columns plus `s` times the column of the same name in `other` (a column `other`
+    /// lacks is kept as it is).
+    pub(crate) fn plus_scaled(&self, s: f64, other: &OwnedColumns) -> OwnedColumns {
+        OwnedColumns {
+            rows: self.rows,
+            cols: self
+                .cols
+                .iter()
+                .map(|(name, v)| {
+                    let v = match other.column(name) {
+                        Some(o) => v.iter().zip(o).map(|(a, b)| a + s * b).collect(),
+                        None => v.clone(),
+                    };
+                    (name.clone(), v)
+                })
+                .collect(),
+        }
+    }
+}
+
+impl Columns for OwnedColumns {
+    fn column(&self, name: &str) -> Option<&[f64]> {
+        self.cols
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.as_slice())
+    }
+    fn rows(&self) -> usize {
+        self.rows
+    }
+}
+
+/// Time-domain library matrix and target on the band-limited reconstruction (ends trimmed, every
+/// `stride`-th sample). Only the sampled rows are evaluated.
+pub(crate) fn time_domain(
+    p: &Prepared<'_>,
+    dofs: &[String],
+    dof: usize,
+    lib: &Library,
+    trim: usize,
+    stride: usize,
+) -> Result<(Mat<f64>, Vec<f64>)> {
+    let cs = smoothed_columns(p, dofs)?;
+    let n = p.rec.len();
+    if n <= 2 * trim + lib.len() + 2 {
+        return Err(CriteriaError::Invalid(format!(
+            "record '{}' is too short ({n} samples) for a library of {} terms",
+            p.rec.source(),
+            lib.len()
+        )));
+    }
+    let stride = stride.max(1);
+    let sub =
+        |v: &[f64]| -> Vec<f64> { v[trim..n - trim].iter().step_by(stride).copied().collect() };
+    let rows = (n - 2 * trim).div_ceil(stride);
+    // Columns the library needs; a missing one is left out so the evaluation names it.
+    let cols = lib
+        .required_columns()
+        .into_iter()
+        .filter_map(|c| cs.column(&c).map(|v| (c.clone(), sub(v))))
+        .collect();
+    let a = lib.evaluate(&OwnedColumns { rows, cols })?;
+    let y = sub(&p.smooth[dof].a);
+    Ok((a, y))
+}
+
+/// Ends trimmed from a record's time-domain block (2 %, at least 4 samples: the reconstruction's
+/// end effects).
+pub(crate) fn td_trim(len: usize) -> usize {
+    (len / 50).max(4)
+}
+
+/// Stride of a record's time-domain block: at most ~4000 rows per record (a subsample; κ and
+/// residual statistics do not need every sample).
+pub(crate) fn td_stride(len: usize) -> usize {
+    (len / 4000).max(1)
+}
+
+/// The time-domain block `(Θ, x'')` of DOF `d` of every prepared record (see [`time_domain`]),
+/// trimmed by [`td_trim`] and subsampled by [`td_stride`], the records in parallel.
+pub(crate) fn time_domain_blocks(
+    preps: &[Prepared<'_>],
+    dofs: &[String],
+    d: usize,
+    lib: &Library,
+) -> Result<Vec<(Mat<f64>, Vec<f64>)>> {
+    preps
+        .par_iter()
+        .with_max_len(1)
+        .map(|p| {
+            time_domain(
+                p,
+                dofs,
+                d,
+                lib,
+                td_trim(p.rec.len()),
+                td_stride(p.rec.len()),
+            )
+        })
+        .collect()
+}
+
+/// The columns `cols` of `a` (in that order), copied a whole column at a time.
+pub(crate) fn columns_of(a: &Mat<f64>, cols: &[usize]) -> Mat<f64> {
+    let mut out = Mat::<f64>::zeros(a.nrows(), cols.len());
+    for (k, &j) in cols.iter().enumerate() {
+        out.col_as_slice_mut(k).copy_from_slice(a.col_as_slice(j));
+    }
+    out
+}

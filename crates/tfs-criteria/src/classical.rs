@@ -1,0 +1,128 @@
+//! The classical SINDy baseline (Appendix B): numerical derivatives of the raw data, the library
+//! in the time domain, STLSQ with the threshold chosen on the last record held out (or given).
+
+use std::time::Instant;
+
+use tfs_data::Record;
+use tfs_library::{Equation, ModelTerm};
+use tfs_regress::{Compressed, Regressor, Stlsq, lambda_path, lstsq_support};
+
+use crate::blocks::{blocks_of, check_record, raw_columns_sg};
+use crate::criterion3::TransformForm;
+use crate::error::Result;
+use crate::fit::path_opts;
+use crate::options::IdentifySpec;
+use crate::pipeline::{finish, ms};
+use crate::trace::{
+    AssemblyVerdict, ChosenSettings, Criterion4Outcome, DofTrace, Identified, Method,
+};
+
+/// Classical SINDy (Appendix B): numerical derivatives of the raw data, the library in the time
+/// domain, STLSQ with the threshold chosen on the last record held out (or given).
+pub fn identify_sindy(records: &[Record], spec: &IdentifySpec) -> Result<Identified> {
+    let t_all = Instant::now();
+    let libs = spec.libraries()?;
+    let blocks = blocks_of(records)?;
+    let opt = &spec.sindy;
+    let mut equations = Vec::new();
+    let mut dof_traces = Vec::new();
+    let mut timing = Vec::new();
+    for (d, lib) in libs.iter().enumerate() {
+        let t0 = Instant::now();
+        let mut comps = Vec::new();
+        for r in &blocks {
+            let dt = check_record(r, &spec.dofs)?;
+            let (cs, acc) = match opt.savitzky_golay {
+                Some(sg) => raw_columns_sg(r, &spec.dofs, d, dt, sg)?,
+                None => {
+                    let mut cs = tfs_library::ColumnSet::new(r as &dyn tfs_data::Columns);
+                    let mut acc = Vec::new();
+                    for (i, dn) in spec.dofs.iter().enumerate() {
+                        let x = r.column(dn).expect("checked");
+                        cs.insert(format!("{dn}'"), tfs_signal::central_difference(x, dt, 1)?)?;
+                        if i == d {
+                            acc = tfs_signal::central_difference(x, dt, 2)?;
+                        }
+                    }
+                    (cs, acc)
+                }
+            };
+            let a = lib.evaluate(&cs)?;
+            let trim = opt.savitzky_golay.map_or(1, |s| s.0);
+            let m = a.nrows() - 2 * trim;
+            let at = a.as_ref().subrows(trim, m);
+            comps.push(Compressed::from_rows(at, &acc[trim..trim + m])?);
+        }
+        timing.push((format!("{}: library and compression", spec.dofs[d]), ms(t0)));
+        let t0 = Instant::now();
+        let nb = comps.len();
+        let (coef, thr, why) = match opt.threshold {
+            Some(t) => {
+                let all = Compressed::merge(&comps)?;
+                let f = Stlsq {
+                    threshold: t,
+                    ..Stlsq::default()
+                }
+                .fit_compressed(&all)?;
+                (f.coef, t, "STLSQ threshold given by the user".to_string())
+            }
+            None => {
+                let train = Compressed::merge(&comps[..nb - 1])?;
+                let path = lambda_path(&train, &comps[nb - 1], &path_opts(opt.n_thresholds))?;
+                let b = path.best();
+                let all = Compressed::merge(&comps)?;
+                let f = lstsq_support(&all, &b.support)?;
+                (
+                    f.coef,
+                    b.threshold,
+                    format!(
+                        "STLSQ threshold {:.4} (scaled): BIC on held-out '{}', coefficients refit on all records",
+                        b.threshold,
+                        blocks[nb - 1].source()
+                    ),
+                )
+            }
+        };
+        timing.push((format!("{}: regression", spec.dofs[d]), ms(t0)));
+        let terms = lib
+            .terms()
+            .iter()
+            .zip(&coef)
+            .filter(|(_, c)| **c != 0.0)
+            .map(|(t, c)| ModelTerm::new(t.clone(), *c))
+            .collect();
+        equations.push(Equation {
+            dof: spec.dofs[d].clone(),
+            terms,
+        });
+        dof_traces.push(DofTrace {
+            dof: spec.dofs[d].clone(),
+            library: lib.names(),
+            criterion1: None,
+            criterion2: None,
+            regression_library: lib.names(),
+            bins: Vec::new(),
+            settings: ChosenSettings {
+                form: TransformForm::PlainSavitzkyGolay,
+                delta: 0.0,
+                windows: 0,
+                threshold: thr,
+                candidates: Vec::new(),
+                coefficient_candidates: Vec::new(),
+                why: vec![why],
+            },
+            assembly: Vec::new(),
+            assembly_verdict: AssemblyVerdict::new(Criterion4Outcome::NotUsed),
+            held_out_record: blocks[nb - 1].source().to_string(),
+            term_test: None,
+        });
+    }
+    finish(
+        Method::Sindy,
+        &spec.dofs,
+        equations,
+        dof_traces,
+        timing,
+        t_all,
+    )
+}

@@ -1,0 +1,188 @@
+//! Criterion 3's settings: the frequency-domain rows of every (window count, δ) compressed per
+//! record, and each setting's mean held-out error with each record left out in turn; the setting
+//! with the lowest is chosen.
+
+use faer::Mat;
+use rayon::prelude::*;
+use tfs_regress::Compressed;
+
+use super::Transforms;
+use super::rows::{WindowTransform, rows_for_band};
+use crate::error::Result;
+use crate::fit::{fill_constant, held_out_relative_rss};
+use crate::options::TfsOptions;
+use crate::trace::SettingScore;
+
+/// One block's frequency-domain rows at one setting.
+#[derive(Clone)]
+pub(crate) struct BlockRows {
+    /// The rows, compressed.
+    pub rows: Compressed,
+    /// How many rows.
+    pub count: usize,
+    /// The kept bins' frequencies (Hz).
+    pub freqs: Vec<f64>,
+}
+
+/// The settings `(window count index, δ index)` in grid order (window counts outer).
+pub(crate) fn grid(opt: &TfsOptions) -> Vec<(usize, usize)> {
+    (0..opt.criterion3.window_counts.len())
+        .flat_map(|wi| (0..opt.criterion3.deltas.len()).map(move |di| (wi, di)))
+        .collect()
+}
+
+/// The compressed rows of `blocks` merged into one problem (by reference, no copies).
+pub(crate) fn merged<'a>(blocks: impl IntoIterator<Item = &'a BlockRows>) -> Result<Compressed> {
+    let parts: Vec<(&Compressed, usize)> = blocks.into_iter().map(|b| (&b.rows, 1)).collect();
+    Ok(Compressed::merge_counted(&parts)?)
+}
+
+/// The frequency-domain rows of every window count, δ and record (`transforms[wi][record]`)
+/// over the columns `keep`, compressed: `out[wi][di][record]`. The bins kept at a smaller δ
+/// include those kept at a larger one, so each window is compressed once, from the largest δ
+/// down, appending only the rows each smaller δ adds.
+pub(crate) fn compress_settings(
+    transforms: &Transforms,
+    opt: &TfsOptions,
+    keep: &[usize],
+    nb: usize,
+) -> Result<Vec<Vec<Vec<BlockRows>>>> {
+    let mut order: Vec<usize> = (0..opt.criterion3.deltas.len()).collect();
+    order.sort_by(|&a, &b| opt.criterion3.deltas[b].total_cmp(&opt.criterion3.deltas[a]));
+    // One window layout of one block, compressed at every δ (indexed like `opt.criterion3.deltas`): one
+    // factor per block, to which each smaller δ appends the rows it adds in every window.
+    let compress_block = |wins: &[WindowTransform]| -> Result<Vec<BlockRows>> {
+        let mut out: Vec<Option<BlockRows>> = vec![None; opt.criterion3.deltas.len()];
+        let mut state = Compressed::empty(keep.len());
+        let mut rows = 0;
+        let mut freqs = Vec::new();
+        let mut hi = f64::INFINITY;
+        for &di in &order {
+            let lo = opt.criterion3.deltas[di];
+            for w in wins {
+                let (a, y, f) = rows_for_band(w, lo, hi, keep);
+                if a.nrows() == 0 {
+                    continue;
+                }
+                rows += a.nrows();
+                freqs.extend(f);
+                state.append(a.as_ref(), &y)?;
+            }
+            hi = lo;
+            out[di] = Some(BlockRows {
+                rows: state.clone(),
+                count: rows,
+                freqs: freqs.clone(),
+            });
+        }
+        Ok(out
+            .into_iter()
+            .map(|o| o.expect("every δ visited"))
+            .collect())
+    };
+    let pairs: Vec<(usize, usize)> = (0..opt.criterion3.window_counts.len())
+        .flat_map(|wi| (0..nb).map(move |b| (wi, b)))
+        .collect();
+    let mut per_pair: Vec<Vec<BlockRows>> = pairs
+        .par_iter()
+        .with_max_len(1)
+        .map(|&(wi, b)| compress_block(&transforms[wi][b]))
+        .collect::<Result<_>>()?;
+    let mut compressed: Vec<Vec<Vec<BlockRows>>> =
+        vec![
+            vec![Vec::with_capacity(nb); opt.criterion3.deltas.len()];
+            opt.criterion3.window_counts.len()
+        ];
+    for (&(wi, _), by_delta) in pairs.iter().zip(per_pair.iter_mut()) {
+        for (di, br) in std::mem::take(by_delta).into_iter().enumerate() {
+            compressed[wi][di].push(br);
+        }
+    }
+    Ok(compressed)
+}
+
+/// Leave-one-record-out errors of `settings` settings over `nb` records: for every setting `g`
+/// and held-out record `f`, `fit` makes coefficients from the other records' rows
+/// (`rows(g, k)`, merged) and the held-out rows, and `score(g, f, coef)` scores them; returns
+/// each setting's mean over `f`. Every (setting, held-out record) pair is its own task: a
+/// setting's folds differ in cost, and whole settings as tasks left one thread idle at the end.
+pub(crate) fn loo_errors<'r>(
+    settings: usize,
+    nb: usize,
+    rows: &(dyn Fn(usize, usize) -> &'r Compressed + Sync),
+    fit: &(dyn Fn(&Compressed, &Compressed) -> Result<Vec<f64>> + Sync),
+    score: &(dyn Fn(usize, usize, Vec<f64>) -> Result<f64> + Sync),
+) -> Result<Vec<f64>> {
+    if nb == 0 {
+        return Ok(vec![f64::NAN; settings]);
+    }
+    let jobs: Vec<(usize, usize)> = (0..settings)
+        .flat_map(|g| (0..nb).map(move |f| (g, f)))
+        .collect();
+    let errs: Vec<f64> = jobs
+        .par_iter()
+        .with_max_len(1)
+        .map(|&(g, f)| -> Result<f64> {
+            let train: Vec<(&Compressed, usize)> = (0..nb)
+                .filter(|&k| k != f)
+                .map(|k| (rows(g, k), 1))
+                .collect();
+            let train = Compressed::merge_counted(&train)?;
+            let coef = fit(&train, rows(g, f))?;
+            score(g, f, coef)
+        })
+        .collect::<Result<_>>()?;
+    Ok(errs
+        .chunks(nb)
+        .map(|e| e.iter().fold(0.0, |a, v| a + v) / nb as f64)
+        .collect())
+}
+
+/// Mean relative time-domain residual on each record in turn (its block of `td`), of the model
+/// `fit` makes from the other records' compressed rows (training rows, held-out rows), at every
+/// setting `(wi, di)` of `grid`; `const_j` is the constant's position in `keep`, if offered.
+pub(crate) fn held_out_scores(
+    compressed: &[Vec<Vec<BlockRows>>],
+    grid: &[(usize, usize)],
+    td: &[(Mat<f64>, Vec<f64>)],
+    keep: &[usize],
+    const_j: Option<usize>,
+    fit: &(dyn Fn(&Compressed, &Compressed) -> Result<Vec<f64>> + Sync),
+) -> Result<Vec<f64>> {
+    let nb = td.len();
+    let rows = |g: usize, k: usize| {
+        let (wi, di) = grid[g];
+        &compressed[wi][di][k].rows
+    };
+    let score = |_: usize, f: usize, mut coef: Vec<f64>| {
+        if let Some(cj) = const_j {
+            let rest = (0..nb).filter(|&k| k != f).map(|k| &td[k]);
+            fill_constant(&mut coef, cj, rest, keep);
+        }
+        held_out_relative_rss(&td[f], keep, &coef)
+    };
+    loo_errors(grid.len(), nb, &rows, fit, &score)
+}
+
+/// The candidate settings with their held-out scores (grid order), and the best: its error and
+/// `(window count index, δ index)` (the first of equal scores).
+pub(crate) fn choose_setting(
+    grid: &[(usize, usize)],
+    scores: &[f64],
+    opt: &TfsOptions,
+) -> (Vec<SettingScore>, f64, (usize, usize)) {
+    let mut candidates = Vec::new();
+    let mut best: Option<(f64, usize, usize)> = None;
+    for (&(wi, di), &err) in grid.iter().zip(scores) {
+        candidates.push(SettingScore {
+            delta: opt.criterion3.deltas[di],
+            windows: opt.criterion3.window_counts[wi],
+            held_out_error: err,
+        });
+        if best.is_none_or(|b| err < b.0) {
+            best = Some((err, wi, di));
+        }
+    }
+    let (err, wi, di) = best.expect("at least one setting");
+    (candidates, err, (wi, di))
+}
