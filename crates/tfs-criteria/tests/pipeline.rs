@@ -274,3 +274,19 @@ fn coefficients_are_refit_on_every_record_once_criterion4_is_met() {
     let gm = (ratios.iter().map(|r| r.ln()).sum::<f64>() / ratios.len() as f64).exp();
     assert!(gm < 0.75, "width ratios {ratios:?}");
 }
+
+/// Two terms of one input (`xb_acc` and `xb_acc^2`) name the same column: the κ0 calibration
+/// adds noise to that column once, and the fit runs (it failed with "column 'xb_acc' appears
+/// twice", blaming the data).
+#[test]
+fn an_input_named_by_two_terms_is_calibrated_once() {
+    let recs = train(Some((40.0, tfs_signal::NoiseKind::White)), 0.2, 2);
+    let mut spec = IdentifySpec::new(&["x"], "x^5..7, x', xb_acc, xb_acc^2");
+    spec.tfs.criterion3.window_counts = vec![3];
+    let id = identify_tfs(&recs, &spec).unwrap();
+    let c1 = id.trace.dofs[0]
+        .criterion1
+        .as_ref()
+        .expect("criterion 1 ran");
+    assert!(c1.kappa0.is_finite() && c1.kappa0 > 0.0, "{}", c1.kappa0);
+}

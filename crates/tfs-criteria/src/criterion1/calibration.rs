@@ -32,17 +32,20 @@ pub(crate) fn calibration_points(
     nonconst: &[usize],
 ) -> Result<(Kappa, Vec<CalibrationPoint>)> {
     let opt = &spec.tfs;
-    let noisy_cols: Vec<String> = spec
-        .dofs
-        .iter()
-        .cloned()
-        .chain(
-            lib.terms()
-                .iter()
-                .filter(|t| t.uses_input() && t.factors().len() == 1)
-                .flat_map(|t| t.required_columns()),
-        )
-        .collect();
+    // Each column once, in order of first mention: several terms of one input (`xb_acc`,
+    // `xb_acc^2`) name the same column, and a record holds each column once.
+    let mut noisy_cols: Vec<String> = Vec::new();
+    let named = spec.dofs.iter().cloned().chain(
+        lib.terms()
+            .iter()
+            .filter(|t| t.uses_input() && t.factors().len() == 1)
+            .flat_map(|t| t.required_columns()),
+    );
+    for c in named {
+        if !noisy_cols.contains(&c) {
+            noisy_cols.push(c);
+        }
+    }
     // The central ≤ 20,000 samples of the longest record are enough to see where κ starts to fall.
     let longest = (0..blocks.len())
         .max_by_key(|&i| blocks[i].len())
