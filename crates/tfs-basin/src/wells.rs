@@ -26,9 +26,11 @@ const BARRIER_MARGIN: f64 = 1e-6;
 pub struct Well {
     /// The stable equilibrium at the bottom of the well.
     pub bottom: f64,
-    /// Left wall: an unstable equilibrium or the lower end of the search range.
+    /// Left wall: an unstable equilibrium, or where no saddle lies to the left in the search
+    /// range, a point at or below its lower end out to which the potential keeps rising.
     pub lo: f64,
-    /// Right wall: an unstable equilibrium or the upper end of the search range.
+    /// Right wall: an unstable equilibrium, or at or above the search range's upper end where
+    /// the potential keeps rising out to it.
     pub hi: f64,
     /// `min(V(lo), V(hi))` minus a tiny safety margin: a trajectory inside `(lo, hi)` with
     /// energy below this can never leave (for non-negative damping).
@@ -110,7 +112,7 @@ impl WellInfo {
         if stable.is_empty() {
             return Err(BasinError::NoStableEquilibrium { lo, hi });
         }
-        let wells = build_wells(&stable, &unstable, search, &*potential);
+        let wells = build_wells(&stable, &unstable, search, &*force, &*potential);
         Ok(Self {
             stable,
             unstable,
@@ -308,6 +310,7 @@ fn build_wells(
     stable: &[f64],
     unstable: &[f64],
     (lo, hi): (f64, f64),
+    force: &dyn Fn(f64) -> f64,
     potential: &dyn Fn(f64) -> f64,
 ) -> Vec<Well> {
     stable
@@ -323,6 +326,25 @@ fn build_wells(
                 .copied()
                 .filter(|&u| u > s)
                 .fold(hi, f64::min);
+            // A wall at an end of the search range is moved out while the potential keeps
+            // rising, up to the other wall's height when that one is a saddle.
+            let cap = |w: f64, end: f64| {
+                if w == end {
+                    f64::INFINITY
+                } else {
+                    potential(w)
+                }
+            };
+            let left = if left == lo {
+                rising_wall(lo, -1.0, hi - lo, cap(right, hi), force, potential)
+            } else {
+                left
+            };
+            let right = if right == hi {
+                rising_wall(hi, 1.0, hi - lo, cap(left, lo), force, potential)
+            } else {
+                right
+            };
             let wall = potential(left).min(potential(right));
             let depth = (wall - potential(s)).abs();
             Well {
@@ -333,6 +355,39 @@ fn build_wells(
             }
         })
         .collect()
+}
+
+/// Walks a well's wall at a search-range end `end` outwards (`dir` −1 left, +1 right) in steps of
+/// `width / SCAN_SAMPLES` (the equilibrium scan's resolution) while the force keeps pushing back
+/// towards the well, so the potential keeps rising and no equilibrium is passed; stops once the
+/// potential reaches `target` or after one `width`. A trajectory inside the walls with energy
+/// below both walls' potential can then never leave, as between two saddles; with the end itself
+/// as the wall, a well whose bottom sits near the end (the double well's −1 searched on [−1, 3])
+/// had a barrier barely above its bottom and its starts were proven trapped only after decaying
+/// almost to rest.
+fn rising_wall(
+    end: f64,
+    dir: f64,
+    width: f64,
+    target: f64,
+    force: &dyn Fn(f64) -> f64,
+    potential: &dyn Fn(f64) -> f64,
+) -> f64 {
+    let dx = width / SCAN_SAMPLES as f64;
+    let mut wall = end;
+    for k in 1..=SCAN_SAMPLES {
+        let x = end + dir * dx * k as f64;
+        // Moving left the potential rises where V' = f < 0; moving right where f > 0.
+        let pushes_back = dir * force(x) > 0.0;
+        if !pushes_back || !potential(x).is_finite() {
+            break;
+        }
+        wall = x;
+        if potential(x) >= target {
+            break;
+        }
+    }
+    wall
 }
 
 /// The polynomial 1-DOF oscillator `x'' + ζ x' + Σ_k c_k x^k = 0` (unit mass), e.g. the paper's

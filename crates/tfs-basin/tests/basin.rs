@@ -46,6 +46,39 @@ fn table1_equilibria_match_closed_form() {
     assert!(w.wells()[0].barrier < v(u) && w.wells()[0].barrier > v(u) - 1e-6);
 }
 
+/// A wall at an end of the search range moves out while the potential rises: the double well's
+/// −1 searched on [−1, 3] gets the saddle's height as its barrier (V = 0 is reached at −√2), not
+/// V just past −1, barely above the bottom; so a start at −1 with v = 0.6 (E = −0.07) is trapped.
+#[test]
+fn a_well_at_a_search_end_gets_the_saddle_as_its_barrier() {
+    let w = WellInfo::from_polynomial(&duffing(0.4), (-1.0, 3.0)).unwrap();
+    assert_eq!(w.stable().len(), 2);
+    let left = w.wells()[0];
+    assert_eq!(left.hi, 0.0);
+    assert!((left.lo + 2f64.sqrt()).abs() < 1e-3, "{left:?}");
+    assert!(left.barrier < 0.0 && left.barrier > -1e-6, "{left:?}");
+    assert_eq!(w.trapped(-1.0, 0.6), Some(0));
+    // Energy above the saddle is not trapped.
+    assert_eq!(w.trapped(-1.0, 0.8), None);
+}
+
+/// The walk out of the search range stops before an equilibrium it finds there: wells at 0 and
+/// ±2, saddles at ±1 (f = x⁵ − 5x³ + 4x) searched on [−0.5, 3]: the 0-well's left wall ends just
+/// inside −1, the saddle beyond the range, and its barrier stays below V(±1).
+#[test]
+fn a_wall_moved_out_stops_at_an_equilibrium_beyond_the_range() {
+    let m = Polynomial1Dof::new(0.4, vec![0.0, 4.0, 0.0, -5.0, 0.0, 1.0]).unwrap();
+    let w = WellInfo::from_polynomial(&m, (-0.5, 3.0)).unwrap();
+    assert_eq!(w.stable().len(), 2);
+    assert_eq!(w.unstable().len(), 1);
+    let v1 = w.potential(1.0);
+    let zero = w.wells()[0];
+    assert!(zero.lo > -1.0 && zero.lo < -1.0 + 1e-3, "{zero:?}");
+    assert!(zero.barrier < v1 && zero.barrier > v1 - 1e-4, "{zero:?}");
+    // Beyond x = −1 the start would fall into the −2 well, so it must not be trapped at 0.
+    assert_eq!(w.trapped(-1.05, 0.0), None);
+}
+
 /// Independent reference: a plain scalar RK4 loop (written here, not the library's), run to a
 /// long horizon; label by the side of the saddle, and require energy below the barrier.
 fn reference_label(x0: f64, v0: f64, dt: f64, t: f64, u: f64, barrier: f64) -> Label {
