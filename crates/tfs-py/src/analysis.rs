@@ -45,7 +45,7 @@ pub fn diagnose<'py>(
                     "verdict": d.verdict, "ranked": d.ranked,
                     "residual_summary": d.residual_summary, "records": d.records,
                     "localisation": d.localisation, "tests": d.tests,
-                    "cutoff_hz": d.cutoff_hz, "offsets": report,
+                    "cutoff_hz": d.cutoff_hz, "offsets": report.to_json(),
                 }),
                 w,
             ))

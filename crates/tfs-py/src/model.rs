@@ -11,6 +11,7 @@ use serde_json::Value;
 use tfs::data::Record;
 use tfs::library::Model;
 use tfs::records::{Clipped, Offsets, check_records, measured_columns};
+use tfs::report::{OffsetsReport, RefineReport};
 
 use crate::convert::{columns, json_to_py, records_arg, to_array2, warn_all};
 use crate::errors::{OrRaise, PyResult, input_error};
@@ -43,7 +44,7 @@ pub fn prepare_for_model(
     records: Vec<Record>,
     offsets: Offsets,
     clipped: Clipped,
-) -> tfs::Result<(Vec<Record>, Value, Vec<String>)> {
+) -> tfs::Result<(Vec<Record>, OffsetsReport, Vec<String>)> {
     let required = measured_columns(model);
     let (mut recs, mut warnings) = check_records(records, &required, clipped)?;
     let (report, w) = tfs::records::offsets_for_model(&mut recs, model, &required, offsets)?;
@@ -103,7 +104,8 @@ pub fn identify(
     warn_all(py, &warnings)?;
     Ok(PyModel {
         inner: id.model,
-        report: serde_json::json!({"refine": id.refine, "offsets": id.offsets,
+        report: serde_json::json!({"refine": id.refine.as_ref().map(RefineReport::to_json),
+            "offsets": id.offsets.to_json(),
             "library_seconds": library_seconds}),
     })
 }
@@ -385,8 +387,9 @@ impl PyModel {
         Ok(PyModel {
             inner: r.model,
             report: serde_json::json!({
-                "ladder": r.ladder, "warnings": r.warnings, "refine": r.refine,
-                "offsets": offsets_report,
+                "ladder": r.ladder, "warnings": r.warnings,
+                "refine": r.refine.as_ref().map(RefineReport::to_json),
+                "offsets": offsets_report.to_json(),
             }),
         })
     }

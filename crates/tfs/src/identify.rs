@@ -6,7 +6,7 @@
 //! Every option of the criteria layer that a caller can set is set here (in [`plan`]), so a change
 //! of that layer's options touches this module only.
 
-use serde_json::{Value, json};
+use serde_json::json;
 use tfs_criteria::{
     IdentifySpec, MassChoice, TieOptions, Trace, identify_sindy, identify_tfs, identify_tfs_tied,
 };
@@ -16,6 +16,7 @@ use tfs_library::{Library, Model};
 use crate::error::Result;
 use crate::invalid;
 use crate::records::{Offsets, apply_offsets, guess_dofs, guess_inputs};
+use crate::report::{OffsetsReport, RefineReport, ValidationReport};
 
 /// Identification method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
@@ -390,36 +391,12 @@ pub struct Identification {
     /// The criteria trace.
     pub trace: Trace,
     /// What was done with the channel offsets (mode, why, per record).
-    pub offsets: Value,
-    /// The simulation-error refinement (`null` without `refine`).
-    pub refine: Value,
+    pub offsets: OffsetsReport,
+    /// The simulation-error refinement (`None` without `refine`).
+    pub refine: Option<RefineReport>,
     /// What the user must know about the result: the criteria trace's warnings and a DOF whose
     /// equation kept no term.
     pub warnings: Vec<String>,
-}
-
-/// The refinement's report as JSON (the CLI's `refine` key).
-pub fn refine_report(refined: &tfs_refine::Refined) -> Value {
-    json!({
-        "initial_cost": refined.initial_cost,
-        "final_cost": refined.final_cost,
-        "iterations": refined.iterations,
-        "converged": refined.converged,
-        "message": refined.message,
-        "per_record": refined.per_record,
-        "noise_dominated": refined.noise_dominated,
-    })
-}
-
-/// The validation's report as JSON (the `validation` key of the refinement report).
-pub fn validation_report(scores: &tfs_refine::ValidationScores) -> Value {
-    json!({
-        "equation_error_fit": scores.eq_score,
-        "simulation_error_fit": scores.refined_score,
-        "chose_refined": scores.chose_refined,
-        "per_record": scores.per_record,
-        "noise_dominated": scores.noise_dominated,
-    })
 }
 
 /// Identifies a model from validated records (holding `plan.required`): applies the offsets
@@ -433,10 +410,10 @@ pub fn identify(
 ) -> Result<Identification> {
     let data_mode = plan.data_mode();
     let mut offsets = apply_offsets(&mut records, &plan.channels, data_mode, &plan.why)?;
-    offsets["requested"] = json!(opts.offsets.name());
+    offsets.requested = Some(opts.offsets);
     if plan.mode == Offsets::ConstantTerm {
-        offsets["mode"] = json!(plan.mode.name());
-        offsets["constant_term_added"] = json!(plan.added_constant);
+        offsets.mode = plan.mode;
+        offsets.constant_term_added = Some(plan.added_constant);
     }
     let spec = &plan.spec;
     check_terms_finite(spec, &records)?;
@@ -458,23 +435,24 @@ pub fn identify(
     };
     // The model file carries the criteria trace (the offsets are added below).
     identified.model.trace = identified.trace.to_json();
-    let mut refine = Value::Null;
+    let mut refine = None;
     if opts.refine {
         let refined = tfs_refine::refine(
             &identified.model,
             &records,
             &tfs_refine::RefineOptions::default(),
         )?;
-        refine = refine_report(&refined);
+        let mut report = RefineReport::from(&refined);
         if held_out.is_empty() {
             identified.model = refined.model;
         } else {
             apply_offsets(&mut held_out, &plan.channels, data_mode, &plan.why)?;
             let (chosen, scores) =
                 tfs_refine::choose_by_validation(&identified.model, &refined.model, &held_out)?;
-            refine["validation"] = validation_report(&scores);
+            report.validation = Some(ValidationReport::from(&scores));
             identified.model = chosen;
         }
+        refine = Some(report);
     } else if !held_out.is_empty() {
         invalid!("--validate needs --refine (the held-out records choose the refined fit or not)");
     }
@@ -492,10 +470,11 @@ pub fn identify(
 
 /// Records in the model's trace how the offsets of the records it was fitted on were treated,
 /// so that `compare`, `diagnose` and `refit` treat theirs the same.
-pub fn set_offsets(model: &mut Model, offsets: &Value) {
+pub fn set_offsets(model: &mut Model, offsets: &OffsetsReport) {
+    let value = offsets.to_json();
     if let Some(obj) = model.trace.as_object_mut() {
-        obj.insert("offsets".into(), offsets.clone());
+        obj.insert("offsets".into(), value);
     } else {
-        model.trace = json!({"offsets": offsets.clone()});
+        model.trace = json!({ "offsets": value });
     }
 }

@@ -29,6 +29,7 @@ mod error;
 pub mod identify;
 pub mod records;
 pub mod refit;
+pub mod report;
 pub mod sdof;
 pub mod simulate;
 

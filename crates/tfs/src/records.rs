@@ -3,12 +3,13 @@
 
 use std::path::{Path, PathBuf};
 
-use serde_json::{Value, json};
+use serde::{Deserialize, Serialize};
 use tfs_data::{CsvOptions, CsvTable, Record, Saturation};
 use tfs_library::Model;
 
 use crate::error::{Context, Result};
 use crate::invalid;
+use crate::report::{OffsetsReport, RecordOffsets};
 
 /// What to do with a channel that looks clipped (a run of samples stuck at its maximum or minimum).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
@@ -166,7 +167,8 @@ pub fn check_records(
 }
 
 /// How per-channel DC offsets are treated.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum Offsets {
     /// `identify`: `remove` when every input column is a force-like channel (`u`, `force`,
     /// `voltage`, … — a rig recorded in raw units, where DC is a sensor or amplifier offset),
@@ -205,54 +207,67 @@ impl Offsets {
     }
 }
 
-/// Mean of every listed column of every record (for the trace when offsets are kept).
-fn channel_means(records: &[Record], channels: &[String]) -> Vec<Value> {
+/// Mean of every listed column of every record (for the report when offsets are kept).
+fn channel_means(records: &[Record], channels: &[String]) -> Vec<RecordOffsets> {
     records
         .iter()
         .map(|r| {
-            let means: serde_json::Map<String, Value> = channels
+            let mean = channels
                 .iter()
                 .filter_map(|c| {
                     let x = r.column(c)?;
                     let m = x.iter().sum::<f64>() / x.len().max(1) as f64;
-                    Some((c.clone(), json!(m)))
+                    Some((c.clone(), m))
                 })
                 .collect();
-            json!({"record": r.source(), "mean": means})
+            RecordOffsets::Kept {
+                record: r.source().to_string(),
+                mean,
+            }
         })
         .collect()
 }
 
 /// Applies an offsets mode already resolved to `Keep` or `Remove` to the records' `channels`
-/// and returns what was done, as JSON for the trace: the mode, why, and per record either the
-/// offsets removed or the channel means left in place.
+/// and returns what was done: the mode, why, and per record either the offsets removed or the
+/// channel means left in place.
 pub fn apply_offsets(
     records: &mut [Record],
     channels: &[String],
     mode: Offsets,
     why: &str,
-) -> Result<Value> {
+) -> Result<OffsetsReport> {
     let per_record = match mode {
         Offsets::Remove => {
             let mut out = Vec::with_capacity(records.len());
             for r in records.iter_mut() {
                 let present: Vec<&String> =
                     channels.iter().filter(|c| r.column(c).is_some()).collect();
-                let removed = r.remove_offsets(&present)?;
-                let map: serde_json::Map<String, Value> =
-                    removed.into_iter().map(|(c, v)| (c, json!(v))).collect();
-                out.push(json!({"record": r.source(), "removed": map}));
+                let removed = r.remove_offsets(&present)?.into_iter().collect();
+                out.push(RecordOffsets::Removed {
+                    record: r.source().to_string(),
+                    removed,
+                });
             }
             out
         }
         _ => channel_means(records, channels),
     };
-    Ok(json!({
-        "mode": mode.name(),
-        "why": why,
-        "channels": channels,
-        "per_record": per_record,
-    }))
+    Ok(OffsetsReport {
+        mode,
+        why: why.to_string(),
+        channels: channels.to_vec(),
+        per_record,
+        requested: None,
+        constant_term_added: None,
+    })
+}
+
+/// The offsets mode a model's trace says `identify` used (`None` for a model file that does
+/// not say, or says it in a form this version does not know).
+fn identified_mode(model: &Model) -> Option<Offsets> {
+    let mode = model.trace.get("offsets")?.get("mode")?;
+    serde_json::from_value(mode.clone()).ok()
 }
 
 /// For commands that use a model (`compare`, `diagnose`, `refit`): resolves `requested` against
@@ -264,25 +279,21 @@ pub fn offsets_for_model(
     model: &Model,
     channels: &[String],
     requested: Offsets,
-) -> Result<(Value, Option<String>)> {
-    let identified = model
-        .trace
-        .get("offsets")
-        .and_then(|o| o.get("mode"))
-        .and_then(|m| m.as_str());
+) -> Result<(OffsetsReport, Option<String>)> {
+    let identified = identified_mode(model);
     let (mode, why) = match requested {
         Offsets::ConstantTerm => invalid!(
             "--offsets constant-term applies to `tfs identify` only (it changes the library); use auto, keep or remove here"
         ),
         Offsets::Keep | Offsets::Remove => (requested, "given with --offsets".to_string()),
         Offsets::Auto => match identified {
-            Some("remove") => (
+            Some(Offsets::Remove) => (
                 Offsets::Remove,
                 "the model was identified on records with their offsets removed".to_string(),
             ),
             Some(m) => (
                 Offsets::Keep,
-                format!("the model was identified with offsets '{m}'"),
+                format!("the model was identified with offsets '{}'", m.name()),
             ),
             None => (
                 Offsets::Keep,
@@ -293,11 +304,12 @@ pub fn offsets_for_model(
     };
     let mut warning = None;
     if let (Some(m), true) = (identified, requested != Offsets::Auto) {
-        let same = (m == "remove") == (mode == Offsets::Remove);
+        let same = (m == Offsets::Remove) == (mode == Offsets::Remove);
         if !same {
             warning = Some(format!(
-                "--offsets {} differs from how the model was identified (offsets '{m}'); its simulation will be shifted",
-                mode.name()
+                "--offsets {} differs from how the model was identified (offsets '{}'); its simulation will be shifted",
+                mode.name(),
+                m.name()
             ));
         }
     }

@@ -4,7 +4,6 @@
 //! what it warns about.
 
 use serde::Serialize;
-use serde_json::Value;
 use tfs_data::Record;
 use tfs_diagnose::{
     Catalogue, DiagnoseOptions, LadderStep, add_effect_with, error_ladder, explain,
@@ -12,8 +11,9 @@ use tfs_diagnose::{
 use tfs_library::Model;
 
 use crate::error::{Context, Result};
-use crate::identify::{refine_report, set_offsets, validation_report};
+use crate::identify::set_offsets;
 use crate::invalid;
+use crate::report::{OffsetsReport, RefineReport, ValidationReport};
 
 /// A refitted model with its history.
 #[derive(Debug, Clone)]
@@ -24,8 +24,8 @@ pub struct Refitted {
     pub ladder: Vec<LadderStep>,
     /// What the ladder says against the steps taken (see [`ladder_warnings`]).
     pub warnings: Vec<String>,
-    /// The simulation-error refinement (`null` without `refine`).
-    pub refine: Value,
+    /// The simulation-error refinement (`None` without `refine`).
+    pub refine: Option<RefineReport>,
     /// The rounds of the diagnosis loop (empty without `until_clean`).
     pub rounds: Vec<LoopRound>,
 }
@@ -147,7 +147,7 @@ pub fn refit(
     records: &[Record],
     refine: bool,
     held_out: Vec<Record>,
-    offsets: &Value,
+    offsets: &OffsetsReport,
 ) -> Result<Refitted> {
     let req = RefitRequest {
         add: add.to_vec(),
@@ -164,7 +164,7 @@ pub fn refit_with(
     model: &Model,
     records: &[Record],
     req: &RefitRequest,
-    offsets: &Value,
+    offsets: &OffsetsReport,
 ) -> Result<Refitted> {
     if req.add.is_empty() && req.until_clean.is_none() {
         invalid!("--add: give at least one effect name (or --until-clean)");
@@ -184,13 +184,13 @@ pub fn refit_with(
         (model, rounds) = until_clean(&model, records, max, &opts)?;
     }
     let (refine, mut held_out) = (req.refine, req.held_out.clone());
-    let mut report = Value::Null;
+    let mut report = None;
     if refine {
         let mut train = records.to_vec();
         with_computed_inputs(&model, &mut train)?;
         let refined = tfs_refine::refine(&model, &train, &tfs_refine::RefineOptions::default())
             .context("--refine")?;
-        report = refine_report(&refined);
+        let mut r = RefineReport::from(&refined);
         if held_out.is_empty() {
             model = refined.model;
         } else {
@@ -198,9 +198,10 @@ pub fn refit_with(
             let (chosen, scores) =
                 tfs_refine::choose_by_validation(&model, &refined.model, &held_out)
                     .context("--validate")?;
-            report["validation"] = validation_report(&scores);
+            r.validation = Some(ValidationReport::from(&scores));
             model = chosen;
         }
+        report = Some(r);
     } else if !held_out.is_empty() {
         invalid!("--validate needs --refine (the held-out records choose the refined fit or not)");
     }

@@ -243,7 +243,7 @@ fn round(
     model: &Model,
     train: &[Record],
     heldout: &Record,
-    offsets: &Value,
+    offsets: &tfs::report::OffsetsReport,
 ) -> Result<(Round, Option<Model>)> {
     let t0 = Instant::now();
     // The ranking `tfs diagnose` prints (its comparison and residual maps are not scored).

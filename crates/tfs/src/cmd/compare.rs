@@ -62,15 +62,15 @@ pub fn run(args: Args) -> Result<()> {
         print_json(&json!({
             "model": args.model.display().to_string(),
             "files": files,
-            "offsets": offsets_report,
+            "offsets": offsets_report.to_json(),
             "r_mse_definition": tfs::compare::R_MSE_DEFINITION,
             "r_mse_mean_square_definition": tfs::compare::R_MSE_MEAN_SQUARE_DEFINITION,
         }))?;
     } else {
         println!(
             "offsets: {} ({})",
-            offsets_report["mode"].as_str().unwrap_or("?"),
-            offsets_report["why"].as_str().unwrap_or("")
+            offsets_report.mode.name(),
+            offsets_report.why
         );
         println!(
             "{:<40} {:>12} {:>14} {:>14} {:>14}",

@@ -87,14 +87,14 @@ pub fn run(args: Args) -> Result<()> {
             "localisation": d.localisation,
             "tests": d.tests,
             "cutoff_hz": d.cutoff_hz,
-            "offsets": offsets_report,
+            "offsets": offsets_report.to_json(),
         }))?;
     } else {
         println!("{}", d.verdict);
         println!(
             "offsets: {} ({})",
-            offsets_report["mode"].as_str().unwrap_or("?"),
-            offsets_report["why"].as_str().unwrap_or("")
+            offsets_report.mode.name(),
+            offsets_report.why
         );
         for s in &d.residual_summary {
             println!("residual: {s}");

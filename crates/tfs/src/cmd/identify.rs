@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use anyhow::{Result, bail};
 pub use tfs::identify::Method;
 use tfs::identify::{IdentifyOptions, identify, plan};
+use tfs::report::{OffsetsReport, RecordOffsets, RefineReport};
 
 use super::trace_view::print_trace;
 use super::{
@@ -162,8 +163,8 @@ pub fn run(args: Args) -> Result<()> {
         print_json(&serde_json::json!({
             "model": identified.model.to_json_value()?,
             "trace": serde_json::to_value(&identified.trace)?,
-            "refine": refine_report,
-            "offsets": offsets_report,
+            "refine": refine_report.as_ref().map(RefineReport::to_json),
+            "offsets": offsets_report.to_json(),
             "warnings": identified.warnings,
         }))?;
     } else {
@@ -189,10 +190,8 @@ pub fn run(args: Args) -> Result<()> {
         }
         print_trace(&identified.trace);
         print_offsets(offsets_report);
-        if !refine_report.is_null() {
-            for line in super::refine_lines(refine_report) {
-                println!("{line}");
-            }
+        for line in refine_report.iter().flat_map(RefineReport::lines) {
+            println!("{line}");
         }
         if let Some(out) = &args.out {
             println!("model written to {}", out.display());
@@ -202,32 +201,18 @@ pub fn run(args: Args) -> Result<()> {
 }
 
 /// Prints what was done with the channel offsets, one line per record.
-fn print_offsets(report: &serde_json::Value) {
-    println!(
-        "offsets: {} ({})",
-        report["mode"].as_str().unwrap_or("?"),
-        report["why"].as_str().unwrap_or("")
-    );
-    if report["constant_term_added"] == serde_json::json!(true) {
+fn print_offsets(report: &OffsetsReport) {
+    println!("offsets: {} ({})", report.mode.name(), report.why);
+    if report.constant_term_added == Some(true) {
         println!("  constant term 1 added to the library");
     }
-    for r in report["per_record"].as_array().into_iter().flatten() {
-        let (label, map) = match (r.get("removed"), r.get("mean")) {
-            (Some(m), _) => ("removed", m),
-            (_, Some(m)) => ("means kept", m),
-            _ => continue,
+    for r in &report.per_record {
+        let (label, map) = match r {
+            RecordOffsets::Removed { removed, .. } => ("removed", removed),
+            RecordOffsets::Kept { mean, .. } => ("means kept", mean),
         };
-        let list: Vec<String> = map
-            .as_object()
-            .into_iter()
-            .flatten()
-            .map(|(c, v)| format!("{c} = {:.4e}", v.as_f64().unwrap_or(f64::NAN)))
-            .collect();
-        println!(
-            "  {}: {label}: {}",
-            r["record"].as_str().unwrap_or(""),
-            list.join(", ")
-        );
+        let list: Vec<String> = map.iter().map(|(c, v)| format!("{c} = {v:.4e}")).collect();
+        println!("  {}: {label}: {}", r.record(), list.join(", "));
     }
 }
 

@@ -54,49 +54,6 @@ pub fn print_warnings(warnings: &[String]) {
     }
 }
 
-/// The simulation-error refinement report (`refine` of `identify`/`refit`) in a few sentences:
-/// cost before and after, iterations, convergence, and which fit validation kept.
-pub fn refine_lines(report: &serde_json::Value) -> Vec<String> {
-    let num = |v: &serde_json::Value| v.as_f64().map_or("—".to_string(), |x| format!("{x:.4e}"));
-    let mut out = vec![format!(
-        "refinement by simulation error: cost {} -> {} in {} iteration(s), {}{}",
-        num(&report["initial_cost"]),
-        num(&report["final_cost"]),
-        report["iterations"].as_u64().unwrap_or(0),
-        if report["converged"].as_bool() == Some(true) {
-            "converged"
-        } else {
-            "not converged"
-        },
-        report["message"]
-            .as_str()
-            .filter(|m| !m.is_empty())
-            .map_or(String::new(), |m| format!(" ({m})"))
-    )];
-    let skipped = report["noise_dominated"].as_array().map_or(0, |a| {
-        a.iter().filter(|v| v.as_bool() == Some(true)).count()
-    });
-    if skipped > 0 {
-        out.push(format!(
-            "  {skipped} record(s) left out: their error is about the measured input's own noise"
-        ));
-    }
-    let v = &report["validation"];
-    if !v.is_null() {
-        out.push(format!(
-            "  held-out records: equation-error fit {}, simulation-error fit {}; kept the {}",
-            num(&v["equation_error_fit"]),
-            num(&v["simulation_error_fit"]),
-            if v["chose_refined"].as_bool() == Some(true) {
-                "simulation-error fit"
-            } else {
-                "equation-error fit"
-            }
-        ));
-    }
-    out
-}
-
 /// Options shared by every command that reads measurement records.
 #[derive(Debug, Clone, clap::Args)]
 pub struct DataArgs {
@@ -208,7 +165,7 @@ pub fn offsets_for_model(
     model: &Model,
     channels: &[String],
     requested: Offsets,
-) -> Result<serde_json::Value> {
+) -> Result<tfs::report::OffsetsReport> {
     let (report, warning) = tfs::records::offsets_for_model(records, model, channels, requested)?;
     if let Some(w) = warning {
         eprintln!("warning: {w}");

@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use serde_json::json;
 use tfs::diagnose::ladder_table;
+use tfs::report::RefineReport;
 
 use tfs::records::{measured_columns, read_model};
 
@@ -113,8 +114,8 @@ pub fn run(args: Args) -> Result<()> {
             "out": args.out.display().to_string(),
             "ladder": ladder,
             "model": model.to_json_value()?,
-            "offsets": offsets_report,
-            "refine": refine_report,
+            "offsets": offsets_report.to_json(),
+            "refine": refine_report.as_ref().map(RefineReport::to_json),
             "rounds": rounds,
             "warnings": warnings,
         }))?;
@@ -133,10 +134,8 @@ pub fn run(args: Args) -> Result<()> {
         }
         println!("{}", model.equation_string());
         print!("{}", ladder_table(&ladder));
-        if !refine_report.is_null() {
-            for line in super::refine_lines(&refine_report) {
-                println!("{line}");
-            }
+        for line in refine_report.iter().flat_map(RefineReport::lines) {
+            println!("{line}");
         }
         println!("wrote {}", args.out.display());
     }
