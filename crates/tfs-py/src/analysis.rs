@@ -334,16 +334,18 @@ pub fn simulate_kresling(
 }
 
 /// Simulates a serial chain of Kresling cells (base cell first; DOFs `x1..xN`) under base
-/// excitation (as `tfs simulate chain`); the truss force law by default.
+/// excitation (as `tfs simulate chain`); the truss force law by default, and by default the
+/// four sweeps of `tfs simulate chain` (50 s each), which stay off the folded stop but for
+/// brief touches.
 #[pyfunction]
-#[pyo3(signature = (*, gamma0=vec![20.0, 28.5], excitations=vec!["sweep:0.05:1.5:4".to_string()],
-    duration=100.0, dt=0.005, ramp=2.0, snr_db=None, pink=false, seed=1, truth=None))]
+#[pyo3(signature = (*, gamma0=vec![20.0, 28.5], excitations=None,
+    duration=None, dt=0.005, ramp=2.0, snr_db=None, pink=false, seed=1, truth=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn simulate_chain(
     py: Python<'_>,
     gamma0: Vec<f64>,
-    excitations: Vec<String>,
-    duration: f64,
+    excitations: Option<Vec<String>>,
+    duration: Option<f64>,
     dt: f64,
     ramp: f64,
     snr_db: Option<f64>,
@@ -356,8 +358,13 @@ pub fn simulate_chain(
         gamma0,
         true,
         truth,
-        excitations,
-        duration,
+        excitations.unwrap_or_else(|| {
+            tfs::simulate::CHAIN_EXCITATIONS
+                .iter()
+                .map(|e| e.to_string())
+                .collect()
+        }),
+        duration.unwrap_or(tfs::simulate::CHAIN_DURATION),
         dt,
         ramp,
         snr_db,

@@ -56,7 +56,7 @@ pub fn prepare_for_model(
 /// them, stacked), with the options and defaults of `tfs identify`.
 #[pyfunction]
 #[pyo3(signature = (records, library=None, *, method="tfs", dofs=None, threshold=None,
-    refine=false, validate=None, tie=false, masses="equal", offsets="auto", clipped="error"))]
+    refine=false, validate=None, tie=None, masses="equal", offsets="auto", clipped="error"))]
 #[allow(clippy::too_many_arguments)]
 pub fn identify(
     py: Python<'_>,
@@ -67,7 +67,7 @@ pub fn identify(
     threshold: Option<f64>,
     refine: bool,
     validate: Option<&Bound<'_, PyAny>>,
-    tie: bool,
+    tie: Option<bool>,
     masses: &str,
     offsets: &str,
     clipped: &str,

@@ -2,7 +2,7 @@
 //! (keyword names and defaults are the CLI's flags), so that a change of the library's options
 //! is adapted here only.
 
-use tfs::identify::{IdentifyOptions, Method};
+use tfs::identify::{IdentifyOptions, Method, Tie};
 use tfs::records::{Clipped, Offsets};
 
 use crate::errors::{OrRaise, PyResult};
@@ -15,7 +15,7 @@ pub fn identify_options(
     dofs: Option<Vec<String>>,
     threshold: Option<f64>,
     refine: bool,
-    tie: bool,
+    tie: Option<bool>,
     masses: &str,
     offsets: &str,
 ) -> PyResult<IdentifyOptions> {
@@ -25,7 +25,11 @@ pub fn identify_options(
         dofs: dofs.unwrap_or_default(),
         threshold,
         refine,
-        tie,
+        tie: match tie {
+            None => Tie::Auto,
+            Some(true) => Tie::On,
+            Some(false) => Tie::Off,
+        },
         masses: masses.to_string(),
         offsets: offsets_mode(offsets)?,
     })

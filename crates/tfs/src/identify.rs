@@ -39,6 +39,20 @@ impl Method {
     }
 }
 
+/// Whether the T-F-S fit ties a chain element's force law between the two DOFs it connects
+/// (Newton's third law; `tfs_criteria::identify_tfs_tied`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Tie {
+    /// Tie when the method is T-F-S and a term of a relative coordinate is in both DOFs'
+    /// libraries (a chain with the default libraries); fit each DOF on its own otherwise.
+    #[default]
+    Auto,
+    /// Always tie (an error when nothing can be tied or the method is classical SINDy).
+    On,
+    /// Fit each DOF's equation on its own.
+    Off,
+}
+
 /// What `tfs identify` can be asked, with its defaults.
 #[derive(Debug, Clone, PartialEq)]
 pub struct IdentifyOptions {
@@ -52,8 +66,8 @@ pub struct IdentifyOptions {
     pub threshold: Option<f64>,
     /// Re-estimate the chosen structure's coefficients by simulation error.
     pub refine: bool,
-    /// Chains: tie each element's force law between the two DOFs it connects.
-    pub tie: bool,
+    /// Chains: whether each element's force law is tied between the two DOFs it connects.
+    pub tie: Tie,
     /// With `tie`: `equal`, `estimate` or one positive mass per DOF (`1,0.5`).
     pub masses: String,
     /// DC offsets of the DOF and input channels.
@@ -68,7 +82,7 @@ impl Default for IdentifyOptions {
             dofs: Vec::new(),
             threshold: None,
             refine: false,
-            tie: false,
+            tie: Tie::Auto,
             masses: "equal".into(),
             offsets: Offsets::Auto,
         }
@@ -417,21 +431,13 @@ pub fn identify(
     }
     let spec = &plan.spec;
     check_terms_finite(spec, &records)?;
-    let mut identified = match (opts.method, opts.tie) {
+    let mut identified = match (opts.method, tied(opts, plan)?) {
         (Method::Tfs, false) => identify_tfs(&records, spec)?,
         (Method::Tfs, true) => {
             let tie = TieOptions::new(parse_masses(&opts.masses, plan.dofs.len())?);
-            if tfs_criteria::chain_ties(spec)?.is_empty() {
-                invalid!(
-                    "--tie: no term of a relative coordinate between two DOFs (e.g. '(x2-x1)^3') is in both DOFs' libraries, so nothing can be tied; put the coupling terms in both libraries or drop --tie"
-                );
-            }
             identify_tfs_tied(&records, spec, &tie)?
         }
-        (Method::Sindy, false) => identify_sindy(&records, spec)?,
-        (Method::Sindy, true) => {
-            invalid!("--tie works with --method tfs only (the tied fit is a T-F-S regression)")
-        }
+        (Method::Sindy, _) => identify_sindy(&records, spec)?,
     };
     // The model file carries the criteria trace (the offsets are added below).
     identified.model.trace = identified.trace.to_json();
@@ -466,6 +472,36 @@ pub fn identify(
         refine,
         warnings,
     })
+}
+
+/// Whether the fit ties the chain's element laws: [`Tie::Auto`] ties when the method is T-F-S
+/// and some relative-coordinate term is in two DOFs' libraries; [`Tie::On`] is refused when
+/// nothing can be tied or the method is classical SINDy.
+pub fn tied(opts: &IdentifyOptions, plan: &Plan) -> Result<bool> {
+    let can_tie = plan.dofs.len() > 1 && !tfs_criteria::chain_ties(&plan.spec)?.is_empty();
+    let tie = match (opts.tie, opts.method) {
+        (Tie::Off, _) | (Tie::Auto, Method::Sindy) => false,
+        (Tie::Auto, Method::Tfs) => can_tie,
+        (Tie::On, Method::Sindy) => {
+            invalid!("--tie works with --method tfs only (the tied fit is a T-F-S regression)")
+        }
+        (Tie::On, Method::Tfs) if !can_tie => invalid!(
+            "--tie: no term of a relative coordinate between two DOFs (e.g. '(x2-x1)^3') is in both DOFs' libraries, so nothing can be tied; put the coupling terms in both libraries or drop --tie"
+        ),
+        (Tie::On, Method::Tfs) => true,
+    };
+    if !tie && opts.masses.trim() != "equal" {
+        invalid!(
+            "--masses {}: the masses enter the tied chain fit only, and this fit is not tied ({}); drop --masses or fit a chain with ties",
+            opts.masses,
+            if can_tie {
+                "untied by request or by the method"
+            } else {
+                "no relative-coordinate term is in two DOFs' libraries"
+            }
+        );
+    }
+    Ok(tie)
 }
 
 /// Records in the model's trace how the offsets of the records it was fitted on were treated,

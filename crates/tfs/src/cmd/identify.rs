@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{Result, bail};
 pub use tfs::identify::Method;
-use tfs::identify::{IdentifyOptions, identify, plan};
+use tfs::identify::{IdentifyOptions, Tie, identify, plan};
 use tfs::report::{OffsetsReport, RecordOffsets, RefineReport};
 
 use super::trace_view::print_trace;
@@ -44,13 +44,18 @@ pub struct Args {
     /// law, the paper's Eq. 18): a term of a relative coordinate `(x2-x1)` in both DOFs'
     /// libraries gets one unknown, entering x1'' with −m2/m1 times its coefficient in x2''. The
     /// partner equation then need not find the coupling on its own among collinear columns.
-    /// Coefficient intervals as usual; no term test (see the trace).
-    #[arg(long)]
+    /// This is the default for chains (the default libraries put each coupling in both
+    /// equations); `--tie` insists on it. Coefficient intervals as usual; no term test.
+    #[arg(long, conflicts_with = "no_tie")]
     pub tie: bool,
-    /// With --tie: the masses in the tie factors — `equal` (default, identical cells),
+    /// Chains: fit each DOF's equation on its own (the partner equation must then find the
+    /// coupling among collinear columns, which needs far cleaner and richer records).
+    #[arg(long)]
+    pub no_tie: bool,
+    /// Tied chains: the masses in the tie factors — `equal` (default, identical cells),
     /// `estimate` (each DOF's mass relative to the first, scanned on held-out records), or one
     /// positive number per DOF (`1,0.5`; only ratios matter).
-    #[arg(long, requires = "tie", default_value = "equal")]
+    #[arg(long, conflicts_with = "no_tie", default_value = "equal")]
     pub masses: String,
     /// Where to write the model (tfs-model/1 JSON).
     #[arg(long)]
@@ -78,7 +83,11 @@ impl Args {
             dofs: self.dofs.clone(),
             threshold: self.threshold,
             refine: self.refine,
-            tie: self.tie,
+            tie: match (self.tie, self.no_tie) {
+                (true, _) => Tie::On,
+                (_, true) => Tie::Off,
+                _ => Tie::Auto,
+            },
             masses: self.masses.clone(),
             offsets: self.offsets,
         }
@@ -187,6 +196,11 @@ pub fn run(args: Args) -> Result<()> {
                     );
                 }
             }
+        }
+        if opts.tie == Tie::Auto && identified.trace.tied.is_some() {
+            println!(
+                "chain: each element's force law is tied between the two equations it enters (the default for a chain; --no-tie fits each equation on its own)"
+            );
         }
         print_trace(&identified.trace);
         print_offsets(offsets_report);

@@ -7,7 +7,10 @@ use anyhow::{Context, Result};
 use clap::{Subcommand, ValueEnum};
 use serde_json::json;
 use tfs::origami::Truth;
-use tfs::simulate::{DatasetRequest, dataset};
+use tfs::simulate::{
+    CELL_DURATION, CELL_EXCITATIONS, CHAIN_DURATION, CHAIN_EXCITATIONS, DatasetRequest, dataset,
+    stop_contacts,
+};
 
 use super::print_json;
 
@@ -65,12 +68,13 @@ pub struct Common {
     #[arg(long, value_enum)]
     pub truth: Option<TruthArg>,
     /// Excitation: sweep:F0:F1:AMP (linear sweep, Hz, acceleration) or sine:F:AMP; repeat for
-    /// several records.
-    #[arg(long = "excitation", default_values_t = ["sweep:0.05:1.5:4".to_string()])]
+    /// several records [default: one cell sweep:0.05:1.5:4; a chain four sweeps
+    /// sweep:0.05:1.5:1.5, :2, :2.5 and :3, which stay off its folded stop but for brief touches].
+    #[arg(long = "excitation")]
     pub excitations: Vec<String>,
-    /// Record length (s).
-    #[arg(long, default_value_t = 100.0)]
-    pub duration: f64,
+    /// Record length (s) [default: 100 for one cell, 50 for a chain].
+    #[arg(long)]
+    pub duration: Option<f64>,
     /// Sampling interval (s).
     #[arg(long, default_value_t = 0.005)]
     pub dt: f64,
@@ -101,6 +105,10 @@ pub fn run(args: Args) -> Result<()> {
         Structure::Kresling { gamma0, common } => (vec![*gamma0], common),
         Structure::Chain { gamma0, common } => (gamma0.clone(), common),
     };
+    let (default_excitations, default_duration): (&[&str], f64) = match args.structure {
+        Structure::Kresling { .. } => (&CELL_EXCITATIONS, CELL_DURATION),
+        Structure::Chain { .. } => (&CHAIN_EXCITATIONS, CHAIN_DURATION),
+    };
     let req = DatasetRequest {
         gamma0: cells,
         chain: matches!(args.structure, Structure::Chain { .. }),
@@ -108,8 +116,12 @@ pub fn run(args: Args) -> Result<()> {
             TruthArg::Surrogate => Truth::Surrogate,
             TruthArg::Truss => Truth::Truss,
         }),
-        excitations: common.excitations.clone(),
-        duration: common.duration,
+        excitations: if common.excitations.is_empty() {
+            default_excitations.iter().map(|e| e.to_string()).collect()
+        } else {
+            common.excitations.clone()
+        },
+        duration: common.duration.unwrap_or(default_duration),
         dt: common.dt,
         ramp: common.ramp,
         snr_db: common.snr_db,
@@ -139,9 +151,14 @@ pub fn run(args: Args) -> Result<()> {
     let meta_path = common.out.with_extension("meta.json");
     tfs::data::write_atomic(&meta_path, serde_json::to_string_pretty(&data.meta)?)
         .with_context(|| format!("writing {}", meta_path.display()))?;
+    let contacts = stop_contacts(&data);
     if common.json {
+        let stops: Vec<_> = contacts
+            .iter()
+            .map(|c| json!({"record": files.get(data.records.iter().position(|r| r.source() == c.record).unwrap_or(0)), "cell": c.cell, "share": c.share, "min_h": c.min_h}))
+            .collect();
         print_json(
-            &json!({"files": files, "meta": data.meta, "meta_file": meta_path.display().to_string()}),
+            &json!({"files": files, "meta": data.meta, "meta_file": meta_path.display().to_string(), "stop_contacts": stops}),
         )?;
     } else {
         if let Some(snr) = common.snr_db.filter(|v| *v < 0.0) {
@@ -155,6 +172,39 @@ pub fn run(args: Args) -> Result<()> {
             println!("written: {f}");
         }
         println!("metadata: {}", meta_path.display());
+        print_contacts(&contacts, &data, &files);
     }
     Ok(())
+}
+
+/// The folded-stop contacts per record and cell, as a table, when any cell went below h = 0.
+fn print_contacts(
+    contacts: &[tfs::simulate::StopContact],
+    data: &tfs::origami::Dataset,
+    files: &[String],
+) {
+    if !contacts.iter().any(|c| c.share > 0.0) {
+        return;
+    }
+    println!(
+        "folded stop (cell height h < 0: the cell pressed flat, a contact no polynomial force law represents):"
+    );
+    println!(
+        "  {:<30} {:>5} {:>12} {:>10}",
+        "file", "cell", "time at h<0", "lowest h"
+    );
+    for c in contacts {
+        let k = data
+            .records
+            .iter()
+            .position(|r| r.source() == c.record)
+            .unwrap_or(0);
+        println!(
+            "  {:<30} {:>5} {:>11.3}% {:>10.4}",
+            files.get(k).map(String::as_str).unwrap_or(&c.record),
+            c.cell,
+            100.0 * c.share,
+            c.min_h.min(0.0)
+        );
+    }
 }
