@@ -5,7 +5,8 @@
 //!    reconstructed in its data-chosen band (`tfs_signal::band`).
 //! 2. `criterion1`: the noise level index κ of `B = [Θ | x'']` on the measured data
 //!    ([`noise_level_index`]) and its threshold κ0, calibrated by adding known noise to the user's
-//!    own data ([`knee_index`]): high or low SNR.
+//!    own data ([`knee_index`]): high SNR, or below κ0 the cause the records' own noise
+//!    estimate names ([`SnrVerdict`]: noise, model error, or the block's derivatives).
 //! 3. `criterion2`: library pruning by backward elimination on κ ([`prune_library`]).
 //! 4. `criterion3`: the frequency-domain (weak-form) rows — windowed transforms of every library
 //!    column, bins kept where `|ẍ̂| ≥ δ·max` and above the estimated noise, weighted by feasible
@@ -66,6 +67,7 @@ mod uncertainty;
 mod verdict;
 
 pub use classical::identify_sindy;
+pub use criterion1::cause::SnrVerdict;
 pub use criterion1::kappa::{
     CalibrationPoint, Criterion1, KAPPA_CAP, Kappa, Kappa0Source, KappaVariant, kappa0_from_curve,
     knee_index, noise_level_index, noise_level_index_factor,

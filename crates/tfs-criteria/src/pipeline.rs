@@ -759,7 +759,16 @@ fn why_lines(
         ));
     }
     why.push(eiv_why(&fitted.fit.eiv, &ctx.names, &reg.keep));
-    if !c1.high_snr && unc.intervals.iter().any(Option::is_some) {
+    if let (crate::SnrVerdict::ModelError { .. }, true) =
+        (c1.snr, unc.intervals.iter().any(Option::is_some))
+    {
+        why.push(format!(
+            "Criterion 1: κ {:.2} < κ0 {:.2} from model error, not noise: the intervals cover the scatter of the residual, not the bias a law missing from the library leaves in the coefficients",
+            c1.kappa.get(c1.variant),
+            c1.kappa0
+        ));
+    }
+    if c1.snr.is_low_snr() && unc.intervals.iter().any(Option::is_some) {
         // The jackknife sees the scatter the noise causes, not the bias of powers of a noisy
         // displacement (errors in variables), which grows as the SNR falls.
         let bias = if matches!(

@@ -82,6 +82,8 @@ fn kappa_falls_with_noise_and_the_verdict_follows() {
             "{snr} dB: κ {k}, κ0 {}",
             c1.kappa0
         );
+        // Below κ0 on these noisy records, the noise estimate names noise as the cause.
+        assert_eq!(c1.snr.is_low_snr(), snr < 60.0, "{snr} dB: {}", c1.snr);
         // At low SNR the trace says what the intervals do not cover.
         let why = id.trace.dofs[0].settings.why.join(" | ");
         assert_eq!(

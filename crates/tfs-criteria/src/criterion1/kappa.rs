@@ -365,8 +365,10 @@ pub struct CalibrationPoint {
 pub enum Kappa0Source {
     /// Given by the user.
     Given,
-    /// Calibrated, but κ fell by only `drop` decades down to the weakest added SNR: the data are
-    /// already about that noisy (low SNR), and κ0 sits a margin above the data's κ.
+    /// Calibrated, but κ fell by only `drop` decades down to the weakest added SNR: `x''` is
+    /// already about as far off the library's span as that noise would put it (noise or model
+    /// error: [`SnrVerdict`](super::cause::SnrVerdict) says which), and κ0 sits a margin above
+    /// the data's κ.
     LowSnr {
         /// κ's fall (decades).
         drop: f64,
@@ -391,7 +393,7 @@ impl std::fmt::Display for Kappa0Source {
             Kappa0Source::Given => f.write_str("given by the user"),
             Kappa0Source::LowSnr { drop, weakest_db } => write!(
                 f,
-                "calibrated: κ fell by only {drop:.2} decades when noise down to {weakest_db} dB SNR was added, so the data are already about as noisy as that (low SNR); κ0 set {M} decades above the data's κ"
+                "calibrated: κ fell by only {drop:.2} decades when noise down to {weakest_db} dB SNR was added, so x'' is already about as far off the library's span as that noise would put it; κ0 set {M} decades above the data's κ"
             ),
             Kappa0Source::Knee { snr_db, kappa } => write!(
                 f,
@@ -423,6 +425,10 @@ pub struct Criterion1 {
     pub kappa0_source: Kappa0Source,
     /// True if κ ≥ κ0 (high SNR: time-domain library selection is allowed).
     pub high_snr: bool,
+    /// The verdict: high SNR, or below κ0 whether noise or model error is the cause (from the
+    /// records' own noise estimate; in JSON `snr_verdict`).
+    #[serde(rename = "snr_verdict")]
+    pub snr: super::cause::SnrVerdict,
     /// The calibration curve, if κ0 was calibrated.
     pub curve: Vec<CalibrationPoint>,
     /// The added-noise SNR at the knee of the curve, if calibrated.

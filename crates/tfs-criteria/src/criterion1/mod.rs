@@ -3,6 +3,7 @@
 //! verdict high/low SNR. κ numerics in [`kappa`], the κ0 calibration in [`calibration`].
 
 pub(crate) mod calibration;
+pub(crate) mod cause;
 pub(crate) mod kappa;
 
 use faer::Mat;
@@ -187,12 +188,29 @@ pub(crate) fn criterion1_dof(
     };
     let kappa0 = cal.kappa0;
     let kv = kappa.get(opt.criterion1.kappa_variant);
+    let high_snr = kv >= kappa0;
+    // Below κ0, the records' own noise estimate says whether noise or the library is the cause.
+    let snr = if high_snr {
+        cause::SnrVerdict::High
+    } else {
+        cause::low_kappa_cause(
+            &td,
+            &nonconst,
+            preps,
+            (&spec.dofs, d, lib),
+            opt.criterion3.savitzky_golay,
+        )
+        .unwrap_or(cause::SnrVerdict::Undetermined {
+            reason: "the least-squares residual or the band-limited blocks failed",
+        })
+    };
     let c1 = Criterion1 {
         kappa,
         variant: opt.criterion1.kappa_variant,
         kappa0,
         kappa0_source: cal.source,
-        high_snr: kv >= kappa0,
+        high_snr,
+        snr,
         curve: cal.curve,
         knee_snr_db: cal.knee_snr_db,
         estimated_snr_db: estimated_snr_db(preps, &spec.dofs[d], d),

@@ -88,11 +88,11 @@ fn print_criterion1(c1: &Criterion1) {
         format!("; estimated displacement SNR {} dB", sig(v))
     });
     println!(
-        "  criterion 1: κ = {} ({:?}) against κ0 = {}: {} SNR{snr}",
+        "  criterion 1: κ = {} ({:?}) against κ0 = {}: {}{snr}",
         sig(c1.kappa.get(c1.variant)),
         c1.variant,
         sig(c1.kappa0),
-        if c1.high_snr { "high" } else { "low" },
+        c1.snr,
     );
     println!("    κ0 {}", c1.kappa0_source);
 }

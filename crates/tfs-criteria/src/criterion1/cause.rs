@@ -1,0 +1,430 @@
+//! Why κ is below κ0: noise or model error. κ of `[Θ | x'']` is low whenever `x''` lies off the
+//! span of the library's columns, and two things put it there: measurement noise (amplified by
+//! the differentiation) and a law the library cannot express (a missing term, a memory effect).
+//! The calibration cannot tell them apart, since both look alike to κ. The records' own noise
+//! estimate can: the fitted floor of each channel's spectrum (the one `tfs_signal::band` fits) is
+//! carried through Criterion 1's Savitzky–Golay derivatives and the library's linear terms, and
+//! gives the share of `x''` that noise alone would leave unexplained. The verdict says low SNR
+//! only when the library's residual is about that size; otherwise the library does not explain
+//! the data.
+
+use faer::Mat;
+use rayon::prelude::*;
+use serde::Serialize;
+use tfs_library::{Factor, Library, Var};
+use tfs_regress::{Compressed, lstsq_support};
+
+use crate::blocks::{Prepared, time_domain_blocks};
+use crate::error::Result;
+
+/// The residual counts as noise when it is at most this many times the RMS the noise estimate
+/// says noise alone would leave (then at least ~45 % of its power is noise); the diagnosis' residual
+/// verdict uses the same rule.
+pub(crate) const NOISE_FACTOR: f64 = 1.5;
+
+/// Criterion 1's verdict on the data: κ against κ0 and, below κ0, which of noise and model
+/// error put `x''` off the library's span, from the records' own noise estimate.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum SnrVerdict {
+    /// κ ≥ κ0: `x''` lies in the library's span to within a little noise.
+    High,
+    /// κ < κ0 and the library's residual is about the size measurement noise alone would leave.
+    LowSnr {
+        /// RMS of the least-squares residual of `x''` on the library, over the RMS of `x''`.
+        residual_share: f64,
+        /// The same share that the estimated measurement noise alone would leave.
+        noise_share: f64,
+    },
+    /// κ < κ0, the residual is well above what the estimated noise would leave, and the library
+    /// leaves a material part of it on the band-limited reconstruction too: the data are clean
+    /// enough, and the library does not explain them (a missing term, a memory effect).
+    ModelError {
+        /// RMS of the least-squares residual of the band-limited `x''` on the library, over its RMS.
+        residual_share: f64,
+        /// The same share that the estimated measurement noise alone would leave there.
+        noise_share: f64,
+        /// True when every floor was fitted on noise alone; otherwise some channel's band reaches
+        /// into the half of the spectrum the floor is fitted on and `noise_share` is an upper bound.
+        noise_only: bool,
+        /// RMS of Criterion 1's Savitzky–Golay `x''` error on the noise-free reconstruction, same
+        /// scale (shown when it is a cause too).
+        derivative_share: f64,
+    },
+    /// κ < κ0, and the noise estimate could not be carried through the blocks (the reason given):
+    /// noise and model error are not told apart.
+    Undetermined {
+        /// Why.
+        reason: &'static str,
+    },
+    /// κ < κ0, but neither noise nor the library is the cause: Criterion 1's Savitzky–Golay
+    /// derivatives err on the signal itself (too few samples per period of its fastest
+    /// components), while the library explains the band-limited reconstruction.
+    Derivatives {
+        /// RMS of the library's residual on Criterion 1's block, over the RMS of `x''`.
+        residual_share: f64,
+        /// RMS of the Savitzky–Golay `x''` error on the noise-free reconstruction, same scale.
+        derivative_share: f64,
+        /// The library's residual on the band-limited reconstruction, same scale.
+        band_residual_share: f64,
+        /// What the estimated noise alone would leave there.
+        band_noise_share: f64,
+    },
+}
+
+impl SnrVerdict {
+    /// True for [`SnrVerdict::High`].
+    pub fn is_high(&self) -> bool {
+        matches!(self, SnrVerdict::High)
+    }
+
+    /// True for [`SnrVerdict::LowSnr`]: the data are too noisy for κ to reach κ0.
+    pub fn is_low_snr(&self) -> bool {
+        matches!(self, SnrVerdict::LowSnr { .. })
+    }
+}
+
+impl std::fmt::Display for SnrVerdict {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        // Four significant digits, whatever the size.
+        let pct = |v: f64| {
+            let p = 100.0 * v;
+            let digits = if p > 0.0 {
+                (3 - p.log10().floor() as i32).clamp(0, 12) as usize
+            } else {
+                0
+            };
+            format!("{p:.digits$} %")
+        };
+        match *self {
+            SnrVerdict::High => f.write_str("high SNR"),
+            SnrVerdict::LowSnr {
+                residual_share,
+                noise_share,
+            } => write!(
+                f,
+                "low SNR: the library leaves {} of x'' unexplained and measurement noise alone would leave {} (noise estimate: the fitted floor of the records' spectra through the derivatives)",
+                pct(residual_share),
+                pct(noise_share)
+            ),
+            SnrVerdict::ModelError {
+                residual_share,
+                noise_share,
+                noise_only,
+                derivative_share,
+            } => {
+                write!(
+                    f,
+                    "κ below κ0 from model error, not noise: the library leaves {} of the band-limited x'' unexplained, while measurement noise alone would leave {}{} (noise estimate: the fitted floor of the records' spectra through the derivatives), so the data are clean enough and the library misses part of the law (a term or a memory effect; `tfs diagnose` ranks candidates)",
+                    pct(residual_share),
+                    if noise_only { "" } else { "at most " },
+                    pct(noise_share)
+                )?;
+                if derivative_share > residual_share {
+                    write!(
+                        f,
+                        "; Criterion 1's Savitzky–Golay x'' is also off by {} on the noise-free signal (few samples per period of its fastest components), which holds κ down too",
+                        pct(derivative_share)
+                    )?;
+                }
+                Ok(())
+            }
+            SnrVerdict::Undetermined { reason } => write!(
+                f,
+                "κ below κ0 from noise or model error (not told apart: {reason})"
+            ),
+            SnrVerdict::Derivatives {
+                residual_share,
+                derivative_share,
+                band_residual_share,
+                band_noise_share,
+            } => write!(
+                f,
+                "κ below κ0 mostly from the derivatives, not noise: the library leaves {} of x'' unexplained in Criterion 1's block, whose Savitzky–Golay x'' is itself off by {} on the band-limited signal (too few samples per period of its fastest components); on the band-limited reconstruction it leaves {} (measurement noise alone would leave {})",
+                pct(residual_share),
+                pct(derivative_share),
+                pct(band_residual_share),
+                pct(band_noise_share)
+            ),
+        }
+    }
+}
+
+/// A library column that is one channel to the first power: which channel and through which
+/// filter Criterion 1's block sees it (0: as sampled, 1: Savitzky–Golay first derivative).
+fn linear_channel(lib: &Library, j: usize) -> Option<(&str, usize)> {
+    match lib.terms()[j].factors() {
+        [Factor::Pow(Var::Disp(n), 1)] | [Factor::Pow(Var::Input(n), 1)] => Some((n.as_str(), 0)),
+        [Factor::Pow(Var::Vel(n), 1)] => Some((n.as_str(), 1)),
+        _ => None,
+    }
+}
+
+/// How a block sees a channel's noise at one frequency: through Criterion 1's Savitzky–Golay
+/// derivatives of the raw samples, or through the band-limited reconstruction's spectral
+/// derivatives (the displacements cut at the band's cut-off, the inputs raw).
+#[derive(Clone, Copy)]
+enum Filters<'a> {
+    /// Savitzky–Golay weights of the first and second derivative.
+    SavitzkyGolay([&'a [f64]; 2]),
+    /// The band-limited reconstruction.
+    Spectral,
+}
+
+impl Filters<'_> {
+    /// Response at `f` (Hz) of derivative `order` (0: the samples), as (re, im); `dof` says
+    /// whether the channel is a displacement (band-limited in the spectral blocks) and `cutoff`
+    /// is its band's cut-off.
+    fn response(&self, order: usize, dt: f64, f: f64, dof: bool, cutoff: f64) -> (f64, f64) {
+        match *self {
+            Filters::SavitzkyGolay(w) => {
+                if order == 0 {
+                    (1.0, 0.0)
+                } else {
+                    sg_response(w[order - 1], order, dt, f)
+                }
+            }
+            Filters::Spectral => {
+                if dof && f > cutoff {
+                    return (0.0, 0.0);
+                }
+                let w = 2.0 * std::f64::consts::PI * f;
+                match order {
+                    0 => (1.0, 0.0),
+                    1 => (0.0, w),
+                    _ => (-w * w, 0.0),
+                }
+            }
+        }
+    }
+}
+
+/// Frequency response at `f` (Hz) of centred Savitzky–Golay derivative weights `w` of
+/// derivative `order` at sample step `dt`: `Σ_m w_m·e^{i2πf(m−h)dt} / dt^order`, as (re, im).
+fn sg_response(w: &[f64], order: usize, dt: f64, f: f64) -> (f64, f64) {
+    let h = (w.len() / 2) as f64;
+    let step = 2.0 * std::f64::consts::PI * f * dt;
+    // e^{iθ(m−h)} by rotation from m = 0: one sine and cosine per frequency.
+    let (s0, c0) = (-h * step).sin_cos();
+    let (ds, dc) = step.sin_cos();
+    let (mut c, mut s) = (c0, s0);
+    let (mut re, mut im) = (0.0, 0.0);
+    for &wm in w {
+        re += wm * c;
+        im += wm * s;
+        (c, s) = (c * dc - s * ds, s * dc + c * ds);
+    }
+    let scale = dt.powi(order as i32);
+    (re / scale, im / scale)
+}
+
+/// The variance of one channel's estimated noise (floor `band`) through the filter
+/// `own·H₂ − Σ c·H_k` (H₂ the second derivative when the channel is the DOF's own displacement,
+/// `H_k` the filter each linear term of the channel sees, with its coefficient `c`): the noise
+/// of one channel enters `x''` and the library's columns coherently.
+fn channel_noise_var(
+    band: &tfs_signal::Band,
+    dt: f64,
+    (own, dof): (bool, bool),
+    terms: &[(usize, f64)],
+    filters: Filters<'_>,
+) -> f64 {
+    if band.bin_hz <= 0.0 || band.mirror_len < 2 {
+        return 0.0;
+    }
+    let cutoff = band.cutoff_hz;
+    (1..=band.mirror_len / 2)
+        .map(|k| {
+            let f = k as f64 * band.bin_hz;
+            let (mut re, mut im) = if own {
+                filters.response(2, dt, f, dof, cutoff)
+            } else {
+                (0.0, 0.0)
+            };
+            for &(order, c) in terms {
+                let (r, i) = filters.response(order, dt, f, dof, cutoff);
+                re -= c * r;
+                im -= c * i;
+            }
+            band.noise_psd(f, dt) * (re * re + im * im)
+        })
+        .sum::<f64>()
+        * 2.0
+        * band.bin_hz
+}
+
+/// The residual of `x''` on the library over blocks `td` (columns `nonconst`, with a constant)
+/// as a share of `x''`'s RMS, and the share the records' estimated noise would leave through the
+/// blocks' `filters` and the fitted linear terms (noise through nonlinear terms is neglected: it
+/// is second to the twice-differentiated displacement noise). Also says whether every floor was
+/// fitted on noise alone.
+fn shares(
+    td: &[(Mat<f64>, Vec<f64>)],
+    nonconst: &[usize],
+    preps: &[Prepared<'_>],
+    (dofs, d, lib): (&[String], usize, &Library),
+    filters: Filters<'_>,
+) -> Result<(f64, f64, bool)> {
+    let comps = td
+        .iter()
+        .map(|(a, y)| {
+            let aa = Mat::<f64>::from_fn(a.nrows(), nonconst.len() + 1, |i, j| {
+                if j == 0 { 1.0 } else { a[(i, nonconst[j - 1])] }
+            });
+            Compressed::from_rows(aa.as_ref(), y)
+        })
+        .collect::<std::result::Result<Vec<_>, _>>()?;
+    let merged = Compressed::merge(&comps)?;
+    let fit = lstsq_support(&merged, &vec![true; nonconst.len() + 1])?;
+    let rows: usize = td.iter().map(|(_, y)| y.len()).sum();
+    let mean = td.iter().flat_map(|(_, y)| y).sum::<f64>() / rows.max(1) as f64;
+    let var_acc = td
+        .iter()
+        .flat_map(|(_, y)| y)
+        .map(|v| (v - mean).powi(2))
+        .sum::<f64>();
+    let residual_share = (fit.rss.max(0.0) / var_acc.max(f64::MIN_POSITIVE)).sqrt();
+    // The linear terms of each channel with their fitted coefficients.
+    let mut channels: Vec<(String, Vec<(usize, f64)>)> =
+        dofs.iter().map(|n| (n.clone(), Vec::new())).collect();
+    for (jj, &j) in nonconst.iter().enumerate() {
+        if let Some((name, order)) = linear_channel(lib, j) {
+            let c = fit.coef[jj + 1];
+            match channels.iter_mut().find(|(n, _)| n == name) {
+                Some((_, t)) => t.push((order, c)),
+                None => channels.push((name.to_string(), vec![(order, c)])),
+            }
+        }
+    }
+    // Per record (in parallel, summed in order): the noise variance left in x'' and whether every
+    // floor was fitted on noise alone.
+    let per_record: Vec<(f64, bool)> = preps
+        .par_iter()
+        .with_max_len(1)
+        .map(|p| {
+            let dt = p.dt;
+            let (mut var, mut noise_only) = (0.0, true);
+            for (name, terms) in &channels {
+                let own = *name == dofs[d];
+                if !own && terms.is_empty() {
+                    continue;
+                }
+                let dof = dofs.iter().position(|n| n == name);
+                let band = match dof {
+                    Some(k) => p.smooth[k].band,
+                    None => match p.rec.column(name) {
+                        Some(u) => tfs_signal::band::reconstruct(u, dt, None).band,
+                        None => continue,
+                    },
+                };
+                noise_only &= band.floor_is_noise_only();
+                var += channel_noise_var(&band, dt, (own, dof.is_some()), terms, filters);
+            }
+            (var, noise_only)
+        })
+        .collect();
+    let noise_only = per_record.iter().all(|r| r.1);
+    let (noise_sum, weight) = per_record
+        .iter()
+        .zip(td)
+        .fold((0.0, 0.0), |(s, n), ((v, _), (_, y))| {
+            (s + v * y.len() as f64, n + y.len() as f64)
+        });
+    let noise_share = if weight > 0.0 && var_acc > 0.0 {
+        (noise_sum / weight / (var_acc / rows as f64)).sqrt()
+    } else {
+        0.0
+    };
+    Ok((residual_share, noise_share, noise_only))
+}
+
+/// The error of Criterion 1's Savitzky–Golay second derivative on the records' band-limited
+/// reconstructions (noise-free for clean records) against their spectral second derivative, as a
+/// share of the latter's RMS: how far the block's `x''` is off for want of samples per period,
+/// whatever the noise.
+fn derivative_share(preps: &[Prepared<'_>], d: usize, w2: &[f64]) -> f64 {
+    let h = w2.len() / 2;
+    let (mut err, mut sum, mut sum2, mut rows) = (0.0, 0.0, 0.0, 0usize);
+    for p in preps {
+        let s = &p.smooth[d];
+        let n = s.x.len();
+        let trim = (n / 50).max(h + 1);
+        let scale = p.dt * p.dt;
+        for i in trim..n.saturating_sub(trim) {
+            let sg = w2
+                .iter()
+                .zip(&s.x[i - h..=i + h])
+                .map(|(a, b)| a * b)
+                .sum::<f64>()
+                / scale;
+            err += (sg - s.a[i]).powi(2);
+            sum += s.a[i];
+            sum2 += s.a[i] * s.a[i];
+            rows += 1;
+        }
+    }
+    if rows == 0 {
+        return 0.0;
+    }
+    let var = sum2 - sum * sum / rows as f64;
+    if var > 0.0 { (err / var).sqrt() } else { 0.0 }
+}
+
+/// Least share of the power of Criterion 1's residual (beyond its noise) that the library's
+/// band-limited residual must reach to be named a cause: below a tenth, the model error is too
+/// small a part of what holds κ down.
+const MODEL_SHARE: f64 = 0.1;
+
+/// Why κ is below κ0 (see the module docs): `td` is Criterion 1's own block (columns
+/// `nonconst`), `sg` its Savitzky–Golay half window and order. Low SNR when noise explains the
+/// residual of the block (it leaves at least 1/[`NOISE_FACTOR`]² of its power). Otherwise model
+/// error when the library leaves more of the band-limited reconstruction's `x''` than its noise
+/// would, beyond that noise at least [`MODEL_SHARE`] of the block's residual power; otherwise the
+/// block's derivatives are the cause.
+pub(crate) fn low_kappa_cause(
+    td: &[(Mat<f64>, Vec<f64>)],
+    nonconst: &[usize],
+    preps: &[Prepared<'_>],
+    (dofs, d, lib): (&[String], usize, &Library),
+    sg: (usize, usize),
+) -> Result<SnrVerdict> {
+    let (h, order) = sg;
+    let w1 = tfs_signal::savitzky_golay_weights(h, order, 1, h)?;
+    let w2 = tfs_signal::savitzky_golay_weights(h, order, 2, h)?;
+    let (residual_share, noise_share, _) = shares(
+        td,
+        nonconst,
+        preps,
+        (dofs, d, lib),
+        Filters::SavitzkyGolay([&w1, &w2]),
+    )?;
+    if residual_share <= NOISE_FACTOR * noise_share {
+        return Ok(SnrVerdict::LowSnr {
+            residual_share,
+            noise_share,
+        });
+    }
+    let bl = time_domain_blocks(preps, dofs, d, lib)?;
+    let (band_residual, band_noise, noise_only) =
+        shares(&bl, nonconst, preps, (dofs, d, lib), Filters::Spectral)?;
+    let derivative = derivative_share(preps, d, &w2);
+    let model_power = band_residual.powi(2) - band_noise.powi(2);
+    let block_power = residual_share.powi(2) - noise_share.powi(2);
+    Ok(
+        if band_residual > NOISE_FACTOR * band_noise && model_power >= MODEL_SHARE * block_power {
+            SnrVerdict::ModelError {
+                residual_share: band_residual,
+                noise_share: band_noise,
+                noise_only,
+                derivative_share: derivative,
+            }
+        } else {
+            SnrVerdict::Derivatives {
+                residual_share,
+                derivative_share: derivative,
+                band_residual_share: band_residual,
+                band_noise_share: band_noise,
+            }
+        },
+    )
+}
