@@ -768,7 +768,11 @@ fn why_lines(
             c1.kappa0
         ));
     }
-    if c1.snr.is_low_snr() && unc.intervals.iter().any(Option::is_some) {
+    let noise_possible = matches!(
+        c1.snr,
+        crate::SnrVerdict::LowSnr { .. } | crate::SnrVerdict::Undetermined { .. }
+    );
+    if noise_possible && unc.intervals.iter().any(Option::is_some) {
         // The jackknife sees the scatter the noise causes, not the bias of powers of a noisy
         // displacement (errors in variables), which grows as the SNR falls.
         let bias = if matches!(
