@@ -316,6 +316,49 @@ pub fn offsets_for_model(
     Ok((apply_offsets(records, channels, mode, &why)?, warning))
 }
 
+/// A note for when removing each record's mean may have removed motion: `report` is what
+/// [`offsets_for_model`] or [`apply_offsets`] did to `records` (after the removal), `dofs` the
+/// displacement columns, and `memory` names what has memory (the model's internal state, or an
+/// effect found to be missing). A structure with memory (hysteresis, a Maxwell element, Dahl
+/// friction) comes to rest at a mean position that depends on its history, so a record's mean
+/// displacement is motion the model must reproduce, not necessarily a sensor offset. `None`
+/// unless the means were removed and a displacement's mean was at least 0.01 % of its RMS.
+pub fn memory_offsets_note(
+    report: &OffsetsReport,
+    records: &[Record],
+    dofs: &[String],
+    memory: &str,
+) -> Option<String> {
+    if report.mode != Offsets::Remove {
+        return None;
+    }
+    let mut worst: Vec<String> = Vec::new();
+    for d in dofs {
+        let share = records
+            .iter()
+            .zip(&report.per_record)
+            .filter_map(|(r, p)| {
+                let RecordOffsets::Removed { removed, .. } = p else {
+                    return None;
+                };
+                let (x, m) = (r.column(d)?, removed.get(d)?);
+                let rms = (x.iter().map(|v| v * v).sum::<f64>() / x.len().max(1) as f64).sqrt();
+                (rms > 0.0).then(|| m.abs() / rms)
+            })
+            .fold(0.0, f64::max);
+        // Below 0.01 % of the RMS a mean is rounding, not motion.
+        if share >= 1e-4 {
+            worst.push(format!("{d} up to {:.3} % of its RMS", 100.0 * share));
+        }
+    }
+    (!worst.is_empty()).then(|| {
+        format!(
+            "{memory}: a structure with memory comes to rest at a mean position that depends on its history, so the means removed from the records ({}) may be motion rather than sensor offsets; if the sensors have no offset, use --offsets keep",
+            worst.join(", ")
+        )
+    })
+}
+
 /// Reads only the header-level facts of a file: its column names (for guessing DOFs and inputs).
 /// A caller that reads the records too should use [`read_tables`] instead (one read per file).
 pub fn peek_columns(path: &Path) -> Result<Vec<String>> {
@@ -370,4 +413,36 @@ pub fn read_model(path: &Path) -> Result<Model> {
     let m = Model::from_path(path).with_context(|| format!("reading model {}", path.display()))?;
     tfs_diagnose::effects::upgrade_legacy(&m)
         .with_context(|| format!("reading model {}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The note names the removed displacement mean as a share of its RMS when the means were
+    /// removed, and says nothing when they were kept or when no displacement mean was removed.
+    #[test]
+    fn memory_note_only_when_a_displacement_mean_was_removed() {
+        let t: Vec<f64> = (0..400).map(|k| k as f64 * 0.01).collect();
+        let x: Vec<f64> = t.iter().map(|t| (3.0 * t).sin() + 0.05).collect();
+        let u: Vec<f64> = t.iter().map(|t| (3.0 * t).cos()).collect();
+        let rec = Record::new("r", t, vec![("x".into(), x), ("u".into(), u)]).unwrap();
+        let channels = vec!["x".to_string(), "u".to_string()];
+        let dofs = vec!["x".to_string()];
+        let mut kept = vec![rec.clone()];
+        let report = apply_offsets(&mut kept, &channels, Offsets::Keep, "test").unwrap();
+        assert!(memory_offsets_note(&report, &kept, &dofs, "m").is_none());
+        let mut removed = vec![rec];
+        let report = apply_offsets(&mut removed, &channels, Offsets::Remove, "test").unwrap();
+        let note = memory_offsets_note(&report, &removed, &dofs, "the model has memory").unwrap();
+        let x = removed[0].column("x").unwrap();
+        let rms = (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt();
+        let mean = kept[0].column("x").unwrap().iter().sum::<f64>() / x.len() as f64;
+        let want = format!("x up to {:.3} % of its RMS", 100.0 * mean / rms);
+        assert!(note.contains(&want), "{note} / {want}");
+        assert!(note.contains("--offsets keep"), "{note}");
+        let mut centred = removed.clone();
+        let report = apply_offsets(&mut centred, &channels, Offsets::Remove, "test").unwrap();
+        assert!(memory_offsets_note(&report, &centred, &dofs, "m").is_none());
+    }
 }

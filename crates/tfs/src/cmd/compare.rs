@@ -72,6 +72,9 @@ pub fn run(args: Args) -> Result<()> {
             offsets_report.mode.name(),
             offsets_report.why
         );
+        if let Some(note) = super::state_offsets_note(&model, &offsets_report, &records) {
+            println!("note: {note}");
+        }
         println!(
             "{:<40} {:>12} {:>14} {:>14} {:>14}",
             "file", "R-MSE", "R-MSE (App. B)", "RMS error", "input-noise spread"

@@ -43,6 +43,35 @@ pub struct Args {
     pub data_args: DataArgs,
 }
 
+/// Says when the records' means were removed from a structure with memory: the model has an
+/// internal state, or the top significant effect adds one (see
+/// [`tfs::records::memory_offsets_note`]).
+fn memory_note(
+    model: &tfs::library::Model,
+    d: &tfs::diagnose::Diagnosis,
+    offsets: &tfs::report::OffsetsReport,
+    records: &[tfs::data::Record],
+) -> Option<String> {
+    if !model.internal_states().is_empty() {
+        return super::state_offsets_note(model, offsets, records);
+    }
+    let memory = {
+        let top = d.ranked.iter().find(|r| r.significant)?;
+        let adds_state = top.terms.iter().any(|t| {
+            tfs::library::Library::parse(
+                t,
+                &model.dofs.iter().map(String::as_str).collect::<Vec<_>>(),
+            )
+            .is_ok_and(|l| l.terms().iter().any(|t| !t.states().is_empty()))
+        });
+        if !adds_state {
+            return None;
+        }
+        format!("the missing effect {} has memory", top.name)
+    };
+    tfs::records::memory_offsets_note(offsets, records, &model.dofs, &memory)
+}
+
 /// Runs `tfs diagnose`.
 pub fn run(args: Args) -> Result<()> {
     let model = read_model(&args.model)?;
@@ -96,6 +125,9 @@ pub fn run(args: Args) -> Result<()> {
             offsets_report.mode.name(),
             offsets_report.why
         );
+        if let Some(note) = memory_note(&model, &d, &offsets_report, &records) {
+            println!("note: {note}");
+        }
         for s in &d.residual_summary {
             println!("residual: {s}");
         }

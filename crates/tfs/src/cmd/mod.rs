@@ -173,6 +173,18 @@ pub fn offsets_for_model(
     Ok(report)
 }
 
+/// The note [`tfs::records::memory_offsets_note`] gives for a `model` with an internal state on
+/// `records` treated as `offsets` says; `None` for a model without memory.
+pub fn state_offsets_note(
+    model: &Model,
+    offsets: &tfs::report::OffsetsReport,
+    records: &[Record],
+) -> Option<String> {
+    let (v, law) = model.internal_states().into_iter().next()?;
+    let memory = format!("the model has a {} state of {v}", law.name());
+    tfs::records::memory_offsets_note(offsets, records, &model.dofs, &memory)
+}
+
 /// Prints a value as pretty JSON on stdout.
 pub fn print_json(value: &serde_json::Value) -> Result<()> {
     use std::io::Write;

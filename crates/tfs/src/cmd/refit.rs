@@ -93,6 +93,11 @@ pub fn run(args: Args) -> Result<()> {
     for w in &warnings {
         eprintln!("warning: {w}");
     }
+    if !args.json
+        && let Some(note) = super::state_offsets_note(&model, &offsets_report, &records)
+    {
+        eprintln!("note: {note}");
+    }
     if let Some(dir) = &args.plots {
         let chart = tfs::plot::BarChart {
             title: "Error ladder: mean R-MSE of the records after each step".into(),
