@@ -639,7 +639,7 @@ pub fn explain(
             })
             .collect()
     };
-    // Significant first; among equals, the lower held-out prediction error (failed simulations
+    // Significant first; among equals, the lower held-out free-run error (failed simulations
     // last), then the larger held-out equation-error drop.
     let sim_key = |r: &RankedEffect| r.r_mse_after.unwrap_or(f64::INFINITY);
     ranked.sort_by(|a, b| {
@@ -649,7 +649,12 @@ pub fn explain(
             .then(b.0.delta_heldout.total_cmp(&a.0.delta_heldout))
     });
     let mut ranked: Vec<RankedEffect> = ranked.into_iter().map(|(r, _)| r).collect();
-    if !opts.simulate {
+    // Where the free run cannot rank, the short-horizon prediction only vetoes (a candidate that
+    // predicts worse is not significant): over two dominant periods of chaotic motion its error
+    // is mostly divergence, too coarse to order candidates that all predict better, so the
+    // significant ones are ordered by the held-out equation error, the evidence that did not
+    // need a simulation.
+    if !opts.simulate || judges.iter().any(|(_, j, _)| *j != Judge::FreeRun) {
         ranked.sort_by(|a, b| {
             b.significant
                 .cmp(&a.significant)
@@ -679,7 +684,12 @@ fn verdict(
             let judged = judges
                 .iter()
                 .find(|(d, j, _)| *d == top.dof && *j != Judge::FreeRun)
-                .map(|(_, j, why)| format!("; ranked by {} ({why})", j.describe()))
+                .map(|(_, j, why)| {
+                    format!(
+                        "; ranked by held-out equation error, judged by {} ({why}; a candidate that predicts worse is not reported)",
+                        j.describe()
+                    )
+                })
                 .unwrap_or_default();
             format!(
                 "missing effect: {} ({}){judged}; add it with --add {}",

@@ -8,6 +8,9 @@
 //! prediction**: held-out data cut into pieces of two dominant periods, each simulated from the
 //! smoothed measured state at its start (internal states from the record), the squared error
 //! summed over the pieces — the model's error over a horizon the input noise cannot take over.
+//! That judge vetoes a candidate that predicts worse; the significant ones are then ordered by
+//! their held-out equation error (`explain`), as chaotic divergence over the pieces is too coarse
+//! to order candidates that all predict better.
 //! When neither can be simulated the equation error alone decides.
 
 use rayon::prelude::*;
