@@ -345,7 +345,9 @@ fn staircase_lstsq(
     x.iter().all(|v| v.is_finite()).then_some(x)
 }
 
-/// Ordinary least squares on all columns (column-pivoted QR of the small factor).
+/// Ordinary least squares on all columns (QR of the small factor, column-pivoted where the rank
+/// is in doubt), with every column scaled to unit norm for the solve: the answer maps exactly
+/// when a column is measured in other units.
 ///
 /// Rank deficiency is not an error: numerically dependent columns get coefficient 0 and are
 /// listed in [`Fit::dependent`] (a basic solution).
@@ -354,11 +356,29 @@ pub struct LeastSquares;
 
 impl Regressor for LeastSquares {
     fn fit_compressed(&self, p: &Compressed) -> Result<Fit> {
-        let n = p.ncols();
-        let cols: Vec<usize> = (0..n).collect();
-        let (x, dep) = subset_solve(p, &cols, &vec![1.0; n], 1.0, 0.0);
+        let (x, dep) = equilibrated_solve(p, &vec![true; p.ncols()]);
         Fit::from_coef(p, x, dep, 1, true)
     }
+}
+
+/// Least squares on the columns of `support`, solved with every column and the target scaled
+/// to unit norm and mapped back: the rank test then compares each column with its own size, so
+/// the columns found dependent (and so the answer) do not change when a column is measured in
+/// other units. Unscaled, a column 10¹⁵ times smaller than the largest (`x^7` of a displacement
+/// in metres beside an acceleration in m/s²) fell below the rank tolerance and was dropped.
+/// Zero columns are dependent.
+fn equilibrated_solve(p: &Compressed, support: &[bool]) -> (Vec<f64>, Vec<usize>) {
+    let (cs, bs) = crate::stlsq::scales(p, true);
+    let cols: Vec<usize> = (0..p.ncols())
+        .filter(|&j| support[j] && cs[j] != 0.0)
+        .collect();
+    let (mut x, mut dep) = subset_solve(p, &cols, &cs, bs, 0.0);
+    for (j, v) in x.iter_mut().enumerate() {
+        *v *= cs[j] / bs;
+    }
+    dep.extend((0..p.ncols()).filter(|&j| support[j] && cs[j] == 0.0));
+    dep.sort_unstable();
+    (x, dep)
 }
 
 /// Least squares on raw rows: `LeastSquares.fit(a, b)`.
@@ -366,7 +386,8 @@ pub fn lstsq(a: MatRef<'_, f64>, b: &[f64]) -> Result<Fit> {
     LeastSquares.fit(a, b)
 }
 
-/// Least squares restricted to a support (columns outside get 0), on a compressed problem.
+/// Least squares restricted to a support (columns outside get 0), on a compressed problem, with
+/// the columns scaled to unit norm for the solve (as [`LeastSquares`]).
 pub fn lstsq_support(p: &Compressed, support: &[bool]) -> Result<Fit> {
     if support.len() != p.ncols() {
         return Err(crate::RegressError::DimensionMismatch {
@@ -375,8 +396,7 @@ pub fn lstsq_support(p: &Compressed, support: &[bool]) -> Result<Fit> {
             found: support.len(),
         });
     }
-    let cols: Vec<usize> = (0..p.ncols()).filter(|&j| support[j]).collect();
-    let (x, dep) = subset_solve(p, &cols, &vec![1.0; p.ncols()], 1.0, 0.0);
+    let (x, dep) = equilibrated_solve(p, support);
     Fit::from_coef(p, x, dep, 1, true)
 }
 
@@ -449,6 +469,42 @@ mod tests {
             for (a, b) in x.iter().zip(&want) {
                 prop_assert!((a - b).abs() <= 1e-9 * (1.0 + size), "{a} vs {b}");
             }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(32))]
+
+        /// Least squares maps exactly when the columns and the target are measured in other
+        /// units: a column scaled by `k_j` gets coefficient `ξ_j·g/k_j` with the target scaled
+        /// by `g`, however far apart the scales (a column 10⁻²¹ the size of the others is not
+        /// dependent). Scales outside 10^±40 would take the sums of squares out of range.
+        #[test]
+        fn least_squares_maps_exactly_under_column_scaling(
+            seed in 0u64..10_000, n in 1usize..8, logk in proptest::collection::vec(-25.0f64..25.0, 8),
+            logg in -10.0f64..10.0
+        ) {
+            let m = 4 * n + 10;
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let a = Mat::<f64>::from_fn(m, n, |_, _| rng.random_range(-1.0..1.0));
+            let b: Vec<f64> = (0..m).map(|_| rng.random_range(-1.0..1.0)).collect();
+            let k: Vec<f64> = logk[..n].iter().map(|l| 10f64.powf(*l)).collect();
+            let g = 10f64.powf(logg);
+            let scaled = Mat::<f64>::from_fn(m, n, |i, j| a[(i, j)] * k[j]);
+            let bs: Vec<f64> = b.iter().map(|v| v * g).collect();
+            let want = lstsq(a.as_ref(), &b).unwrap();
+            let got = lstsq(scaled.as_ref(), &bs).unwrap();
+            prop_assert!(got.dependent.is_empty(), "dependent {:?}", got.dependent);
+            for (j, (c, w)) in got.coef.iter().zip(&want.coef).enumerate() {
+                let back = c * k[j] / g;
+                prop_assert!(
+                    (back - w).abs() <= 1e-10 * w.abs().max(1e-3),
+                    "column {j}: {back} vs {w}"
+                );
+            }
+            let sup = vec![true; n];
+            let c = Compressed::from_rows(scaled.as_ref(), &bs).unwrap();
+            prop_assert_eq!(lstsq_support(&c, &sup).unwrap().coef, got.coef);
         }
     }
 

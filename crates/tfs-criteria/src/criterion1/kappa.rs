@@ -17,7 +17,9 @@ pub const KAPPA_CAP: f64 = 30.0;
 /// κ of a matrix in both variants.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Kappa {
-    /// κ of the centred columns as they are.
+    /// κ of the centred columns as they are. It depends on the units of every column (a
+    /// displacement in millimetres instead of metres moves it, up to the cap [`KAPPA_CAP`]):
+    /// reported for comparison with the paper; the criteria use `standardised` by default.
     pub raw: f64,
     /// κ after scaling every centred column to unit standard deviation.
     pub standardised: f64,
@@ -334,7 +336,8 @@ pub(crate) fn column_norms(r: MatRef<'_, f64>) -> Vec<f64> {
 /// Which κ variant drives the criteria.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 pub enum KappaVariant {
-    /// κ of the centred columns as they are (the paper's definition).
+    /// κ of the centred columns as they are (the paper's definition); it depends on the units
+    /// the record is written in, so a decision taken on it does too.
     Raw,
     /// κ of unit-variance columns (insensitive to the units of each term).
     #[default]
