@@ -17,7 +17,7 @@ use crate::criterion1::kappa::Criterion1;
 use crate::criterion1::{Criterion1Out, criterion1_stage};
 use crate::criterion2::criterion2_stage;
 use crate::criterion3::settings::{
-    BlockRows, choose_setting, compress_settings, grid, held_out_scores, merged,
+    BlockRows, choose_setting, close_calls, compress_settings, grid, held_out_scores, merged,
 };
 use crate::criterion3::{Transforms, transforms_for};
 use crate::criterion4::{StepResult, StopRule, assemble, residual_stats};
@@ -489,7 +489,7 @@ fn report(
         ctx,
         reg,
         &c1,
-        fitted,
+        (found, fitted),
         &Chosen {
             best_err,
             first,
@@ -707,7 +707,7 @@ fn why_lines(
     ctx: &DofContext<'_>,
     reg: &Regression,
     c1: &Criterion1,
-    fitted: &Fitted,
+    (found, fitted): (&Search, &Fitted),
     chosen: &Chosen<'_>,
 ) -> Vec<String> {
     let opt = &ctx.spec.tfs;
@@ -751,6 +751,12 @@ fn why_lines(
             None => "no per-bin noise gate".to_string(),
         },
     ];
+    why.extend(close_calls(
+        &ctx.grid,
+        opt,
+        (&found.scores, chosen.first),
+        chosen.reselected.map(|r| (&r.scores[..], r.setting)),
+    ));
     why.push(unc.note.clone());
     if let Some(t) = &unc.term_test {
         why.push(format!(

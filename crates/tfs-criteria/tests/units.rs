@@ -225,18 +225,23 @@ proptest! {
     }
 }
 
-/// The record: the 30 dB fixture with `x` and `xb_acc` in thousandths (and the
-/// powers of two around them, where scaling is exact in floating point).
-#[test]
-fn fixture_in_other_units_gives_the_same_model() {
+/// The two training records of the 30 dB Kresling fixture (columns `t`, `x`, `xb_acc`).
+fn fixture() -> Vec<Record> {
     let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures");
-    let recs: Vec<Record> = ["train-1", "train-2"]
+    ["train-1", "train-2"]
         .iter()
         .map(|n| {
             let r = tfs_data::read_csv(format!("{root}/kresling-30db-{n}.csv")).unwrap();
             rescaled(&[r], (1.0, 1.0, 1.0)).remove(0)
         })
-        .collect();
+        .collect()
+}
+
+/// The record: the 30 dB fixture with `x` and `xb_acc` in thousandths (and the
+/// powers of two around them, where scaling is exact in floating point).
+#[test]
+fn fixture_in_other_units_gives_the_same_model() {
+    let recs = fixture();
     let want = kept_in_base_units(&identify(&recs), (1.0, 1.0, 1.0));
     for units in [
         (1.0, 1e-3, 1e-3),
@@ -246,5 +251,21 @@ fn fixture_in_other_units_gives_the_same_model() {
     ] {
         let got = kept_in_base_units(&identify(&rescaled(&recs, units)), units);
         assert_same(&got, &want, &format!("fixture in units {units:?}"));
+    }
+}
+
+/// The fixture's settings search is a near-tie (two settings within 0.004 % of each other): the
+/// trace says the decision was close, and says it in every unit system.
+#[test]
+fn fixture_trace_says_the_settings_choice_was_close() {
+    let recs = fixture();
+    for units in [(1.0, 1.0, 1.0), (1.0, 1e-3, 1e-3)] {
+        let id = identify_tfs(&rescaled(&recs, units), &IdentifySpec::new(&["x"], LIB)).unwrap();
+        let why = &id.trace.dofs[0].settings.why;
+        assert!(
+            why.iter()
+                .any(|w| w.starts_with("close decision") && w.contains("selecting the terms")),
+            "units {units:?}: {why:#?}"
+        );
     }
 }

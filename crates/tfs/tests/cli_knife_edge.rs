@@ -117,12 +117,56 @@ fn last_digits_and_a_time_shift_do_not_change_the_model() {
         });
         let base = equation(&exact);
         assert!(base.contains("x'' = "), "{name}: no equation: {base}");
-        assert_eq!(equation(&p15), base, "{name} reprinted at 15 digits");
-        assert_eq!(equation(&shifted), base, "{name} with t shifted by 1e6 s");
-        assert_eq!(
-            equation(&ulp),
-            base,
-            "{name} with every sample moved by one ulp"
+        same(
+            &equation(&p15),
+            &base,
+            &format!("{name} reprinted at 15 digits"),
+        );
+        same(
+            &equation(&shifted),
+            &base,
+            &format!("{name} with t shifted by 1e6 s"),
+        );
+        same(
+            &equation(&ulp),
+            &base,
+            &format!("{name} with every sample moved by one ulp"),
+        );
+    }
+}
+
+/// The printed output with every interval half-width (`± w`) taken out, and the half-widths.
+fn split_half_widths(out: &str) -> (String, Vec<f64>) {
+    let mut text = String::new();
+    let mut widths = Vec::new();
+    let mut rest = out;
+    while let Some(i) = rest.find("± ") {
+        text.push_str(&rest[..i + "± ".len()]);
+        rest = &rest[i + "± ".len()..];
+        let end = rest
+            .find(|c: char| !(c.is_ascii_digit() || ".e-+".contains(c)))
+            .unwrap_or(rest.len());
+        widths.push(rest[..end].parse().unwrap());
+        rest = &rest[end..];
+    }
+    text.push_str(rest);
+    (text, widths)
+}
+
+/// The same terms, coefficients and warnings as printed, and every interval half-width equal to
+/// 2e-3 relative. The half-widths are compared to a tolerance because a jackknife replicate that
+/// leaves out a dominant cluster is solved at a condition number up to 1e12 (the replicates'
+/// margin): it carries about five significant digits, and the printed fourth digit of a
+/// half-width can round either way (the simulated 60 dB record's `x^7` half-width moved by 4e-5
+/// relative when reprinted at 15 digits). Intervals switching on or off still fail here.
+fn same(got: &str, want: &str, what: &str) {
+    let (gt, gw) = split_half_widths(got);
+    let (wt, ww) = split_half_widths(want);
+    assert_eq!(gt, wt, "{what}");
+    for (g, w) in gw.iter().zip(&ww) {
+        assert!(
+            (g - w).abs() <= 2e-3 * w.abs(),
+            "{what}: half-width {g} vs {w}\n{got}\n{want}"
         );
     }
 }

@@ -186,3 +186,78 @@ pub(crate) fn choose_setting(
     let (err, wi, di) = best.expect("at least one setting");
     (candidates, err, (wi, di))
 }
+
+/// Held-out errors within this relative distance of the lowest are closer than the held-out
+/// records can tell apart: the trace says when the chosen setting won by less.
+pub(crate) const CLOSE_MARGIN: f64 = 1e-3;
+
+/// The best other setting of `scores` (grid order) when its error is within [`CLOSE_MARGIN`]
+/// of the chosen setting `best`'s: its index and how far above it is (relative). Settings with
+/// exactly the chosen error are left out (the same bins at another δ: the same rows).
+pub(crate) fn close_runner_up(scores: &[f64], best: usize) -> Option<(usize, f64)> {
+    let b = *scores.get(best)?;
+    let (k, e) = scores
+        .iter()
+        .enumerate()
+        .filter(|&(k, &e)| k != best && e != b && e.is_finite())
+        .min_by(|x, y| x.1.total_cmp(y.1))?;
+    let gap = (e - b) / b.abs().max(f64::MIN_POSITIVE);
+    (gap.abs() <= CLOSE_MARGIN).then_some((k, gap))
+}
+
+/// The trace's notes on settings chosen by a hair: where another setting's held-out error is
+/// within [`CLOSE_MARGIN`] of the chosen one's, for selecting the terms (`(scores, chosen)`) and
+/// for their coefficients (`reselected`, if any), the choice rests on digits the held-out
+/// records do not resolve and a tiny change to the data could pick the other.
+pub(crate) fn close_calls(
+    grid: &[(usize, usize)],
+    opt: &TfsOptions,
+    (scores, chosen): (&[f64], (usize, usize)),
+    reselected: Option<(&[f64], (usize, usize))>,
+) -> Vec<String> {
+    let name = |g: usize| {
+        let (wi, di) = grid[g];
+        format!(
+            "δ = {} and {} window(s)",
+            opt.criterion3.deltas[di], opt.criterion3.window_counts[wi]
+        )
+    };
+    let runner_up = |scores: &[f64], setting| {
+        let g = grid.iter().position(|&s| s == setting)?;
+        close_runner_up(scores, g)
+    };
+    let mut out = Vec::new();
+    if let Some((k, gap)) = runner_up(scores, chosen) {
+        out.push(format!(
+            "close decision: {} scored only {:.3}% above the chosen setting for selecting the terms, closer than the held-out records can tell apart; it may select other terms",
+            name(k),
+            100.0 * gap
+        ));
+    }
+    if let Some((k, gap)) = reselected.and_then(|(s, at)| runner_up(s, at)) {
+        out.push(format!(
+            "close decision: {} scored only {:.3}% above the setting chosen for the coefficients, closer than the held-out records can tell apart",
+            name(k),
+            100.0 * gap
+        ));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A runner-up within the margin is reported with its gap; one beyond it, an exact tie
+    /// (the same rows at another δ) and a non-finite score are not.
+    #[test]
+    fn close_runner_up_within_the_margin_only() {
+        let s = [0.070, 0.069_01, 0.069, 0.069];
+        let (k, gap) = close_runner_up(&s, 2).expect("0.069 01 is within 0.1 %");
+        assert_eq!(k, 1);
+        assert!((gap - 0.01 / 69.0).abs() < 1e-12, "{gap}");
+        assert_eq!(close_runner_up(&[0.070, 0.069, 0.069], 1), None);
+        assert_eq!(close_runner_up(&[0.0692, 0.069, f64::NAN], 1), None);
+        assert_eq!(close_runner_up(&[0.069], 0), None);
+    }
+}
