@@ -135,7 +135,9 @@ pub(crate) fn run(
         .dofs
         .iter()
         .map(|d| match d.criterion1.as_ref().map(|c| &c.support) {
-            Some(Support::TooNoisy { snr_db, problem }) => Some((*snr_db, problem.clone())),
+            Some(Support::NotSupported {
+                snr_db, problem, ..
+            }) => Some((*snr_db, problem.clone())),
             _ => None,
         })
         .collect();
@@ -210,9 +212,10 @@ pub(crate) fn run(
             && let Some(problem) = why_not
             && let Some(c1) = d.criterion1.as_mut()
         {
-            c1.support = Support::TooNoisy {
+            c1.support = Support::NotSupported {
                 snr_db: None,
                 problem,
+                cause: crate::verdict::noise_cause(c1),
             };
             d.assembly_verdict.qualify(c1.support.clone());
         }

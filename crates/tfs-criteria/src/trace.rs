@@ -104,7 +104,7 @@ pub struct DofTrace {
     /// Held-out record of Criterion 4.
     pub held_out_record: String,
     /// The significance test applied to the kept terms (absent without intervals); a kept term
-    /// that fails it makes the support verdict [`Support::TooNoisy`].
+    /// that fails it makes the support verdict [`Support::NotSupported`].
     pub term_test: Option<TermTest>,
 }
 
@@ -326,18 +326,36 @@ pub enum Support {
     /// The tied fit keeps a restoring-force term in every DOF (it has no term test).
     SupportedTied,
     /// The model is not a reliable identification.
-    TooNoisy {
+    NotSupported {
         /// The estimated displacement SNR (when the verdict states it).
         snr_db: Option<f64>,
         /// Why.
         problem: Problem,
+        /// Whether the records' own noise estimate blames noise (only then does the sentence
+        /// say "too noisy").
+        cause: NoiseCause,
     },
+}
+
+/// What the records' own noise estimate says about a verdict of [`Support::NotSupported`]
+/// (from Criterion 1's [`crate::SnrVerdict`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NoiseCause {
+    /// The library's residual is about what the estimated noise alone would leave: the data
+    /// are too noisy for this library.
+    Noise,
+    /// The residual is well above the noise, or the records are clean: not a noise problem
+    /// (a missing effect, terms the data cannot tell apart, or derivatives that err).
+    NotNoise,
+    /// Criterion 1 did not compare the residual with the noise (κ reached κ0, or the noise could
+    /// not be carried through): the sentence blames neither.
+    Unknown,
 }
 
 impl Support {
     /// False when the data cannot support the library.
     pub fn is_supported(&self) -> bool {
-        !matches!(self, Support::TooNoisy { .. })
+        !matches!(self, Support::NotSupported { .. })
     }
 }
 
@@ -353,9 +371,31 @@ impl fmt::Display for Support {
             Support::SupportedTied => f.write_str(
                 "supported: every DOF keeps a restoring-force term (the tied fit has intervals but no term test, which its shared unknowns would need; check the model against held-out records with `tfs compare`)",
             ),
-            Support::TooNoisy { snr_db, problem } => write!(
+            Support::NotSupported {
+                snr_db,
+                problem,
+                cause: NoiseCause::Noise,
+            } => write!(
                 f,
                 "too noisy for this library{}: {problem}; {NOT_SUPPORTED_ADVICE}",
+                snr_clause(*snr_db)
+            ),
+            Support::NotSupported {
+                snr_db,
+                problem,
+                cause: NoiseCause::NotNoise,
+            } => write!(
+                f,
+                "not supported by these data{}: {problem}; the records' own noise estimate says this is not noise (see criterion 1): the library misses an effect or holds terms the data cannot tell apart. What to do: `tfs diagnose` names missing effects; or use a smaller library",
+                snr_clause(*snr_db)
+            ),
+            Support::NotSupported {
+                snr_db,
+                problem,
+                cause: NoiseCause::Unknown,
+            } => write!(
+                f,
+                "not supported by these data for this library{}: {problem}; {NOT_SUPPORTED_ADVICE}",
                 snr_clause(*snr_db)
             ),
         }
@@ -508,9 +548,10 @@ mod tests {
             t_critical: 3.2,
             candidates: 36,
         };
-        let noisy = Support::TooNoisy {
+        let noisy = Support::NotSupported {
             snr_db: Some(20.42),
             problem: first.clone(),
+            cause: NoiseCause::Noise,
         };
         assert_eq!(
             noisy.to_string(),
@@ -518,12 +559,13 @@ mod tests {
                 "too noisy for this library (estimated displacement SNR 20.4 dB): x1 fails the term test (|coefficient| ≥ 3.20·SE, 36 candidate terms), so the data cannot pin it down; {NOT_SUPPORTED_ADVICE}"
             )
         );
-        let reduced = Support::TooNoisy {
+        let reduced = Support::NotSupported {
             snr_db: None,
             problem: Problem::Reduced {
                 snr_db: Some(20.42),
-                first: Box::new(first),
+                first: Box::new(first.clone()),
             },
+            cause: NoiseCause::Noise,
         }
         .to_string();
         assert!(
@@ -539,6 +581,18 @@ mod tests {
             "{reduced}"
         );
         assert!(Support::SupportedTied.is_supported() && !noisy.is_supported());
+        // Without the noise estimate's word, the sentence does not say "noise".
+        for cause in [NoiseCause::NotNoise, NoiseCause::Unknown] {
+            let clean = Support::NotSupported {
+                snr_db: Some(60.0),
+                problem: first.clone(),
+                cause,
+            };
+            let text = clean.to_string();
+            assert!(!text.contains("noisy"), "{text}");
+            assert!(text.starts_with("not supported by these data"), "{text}");
+            assert!(!clean.is_supported());
+        }
     }
 
     /// The assembly verdict puts the latest caveat first and serialises as one sentence; the
@@ -552,13 +606,15 @@ mod tests {
             held_out: "r4".into(),
             refit_on: Some(4),
         });
-        let first = Support::TooNoisy {
+        let first = Support::NotSupported {
             snr_db: None,
             problem: Problem::NoTermSurvives,
+            cause: NoiseCause::Noise,
         };
-        let second = Support::TooNoisy {
+        let second = Support::NotSupported {
             snr_db: None,
             problem: Problem::NoInputTerm,
+            cause: NoiseCause::Unknown,
         };
         v.qualify(first.clone());
         v.qualify(second.clone());

@@ -5,8 +5,9 @@
 
 use tfs_library::{Coord, Library, Term, Var};
 
+use crate::criterion1::cause::SnrVerdict;
 use crate::criterion1::kappa::Criterion1;
-use crate::trace::{DofTrace, Problem, Support};
+use crate::trace::{DofTrace, NoiseCause, Problem, Support};
 use crate::uncertainty::TermTest;
 
 /// Does term `t` move with DOF `dof` itself (its displacement or velocity, own or relative)?
@@ -95,9 +96,24 @@ pub(crate) fn support_verdict(v: &SupportInput<'_>, c1: &mut Criterion1) {
     };
     let snr_db = c1.estimated_snr_db;
     c1.support = match problem {
-        Some(problem) => Support::TooNoisy { snr_db, problem },
+        Some(problem) => Support::NotSupported {
+            snr_db,
+            problem,
+            cause: noise_cause(c1),
+        },
         None => Support::Supported { snr_db },
     };
+}
+
+/// What Criterion 1's comparison of the library's residual with the records' own noise
+/// estimate says about a verdict that the data do not support the library: noise only when
+/// that estimate says the residual is the size of the noise.
+pub(crate) fn noise_cause(c1: &Criterion1) -> NoiseCause {
+    match c1.snr {
+        SnrVerdict::LowSnr { .. } => NoiseCause::Noise,
+        SnrVerdict::ModelError { .. } | SnrVerdict::Derivatives { .. } => NoiseCause::NotNoise,
+        SnrVerdict::High | SnrVerdict::Undetermined { .. } => NoiseCause::Unknown,
+    }
 }
 
 /// Whether the library offers an input term among `keep`, and whether the model keeps one.
@@ -114,9 +130,10 @@ pub(crate) fn inputs_offered_kept(lib: &Library, keep: &[usize], coef: &[f64]) -
 pub(crate) fn no_input_term(traces: &mut [DofTrace]) {
     for t in traces {
         if let Some(c1) = t.criterion1.as_mut() {
-            let note = Support::TooNoisy {
+            let note = Support::NotSupported {
                 snr_db: None,
                 problem: Problem::NoInputTerm,
+                cause: noise_cause(c1),
             };
             if c1.support.is_supported() {
                 t.assembly_verdict.qualify(note.clone());
@@ -139,17 +156,20 @@ pub(crate) fn tied_support_verdict(dof: &str, lib: &Library, coef: &[f64], c1: &
         .map(|(t, _)| t)
         .collect();
     let disp = |t: &Term| element_displacement(t, dof);
+    let cause = noise_cause(c1);
     c1.support = if kept.is_empty() {
-        Support::TooNoisy {
+        Support::NotSupported {
             snr_db: None,
             problem: Problem::NoTermSurvives,
+            cause,
         }
     } else if lib.terms().iter().any(disp) && !kept.iter().any(|t| disp(t)) {
-        Support::TooNoisy {
+        Support::NotSupported {
             snr_db: None,
             problem: Problem::NoRestoringTerm {
                 dof: dof.to_string(),
             },
+            cause,
         }
     } else {
         Support::SupportedTied
