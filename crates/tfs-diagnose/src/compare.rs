@@ -2,14 +2,16 @@
 //! window, measured vs model amplitude spectra with the drive's harmonics the model misses, and
 //! phase-portrait data.
 
+use rayon::prelude::*;
 use serde::Serialize;
 use tfs_data::Record;
-use tfs_dynamics::{rms_error, rmse_ratio, rmse_variance};
+use tfs_dynamics::{Trajectory, rms_error, rmse_ratio, rmse_variance};
 use tfs_library::Model;
 use tfs_signal::amplitude_spectrum;
 
 use crate::Result;
 use crate::prepare::{DiagnoseOptions, check_records, missing};
+use crate::simulate::BaseRun;
 
 /// R-MSE over one time window.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -117,16 +119,40 @@ pub fn compare(
 ) -> Result<Vec<RecordComparison>> {
     check_records(model, records)?;
     records
-        .iter()
-        .map(|r| compare_one(model, r, opts))
+        .par_iter()
+        .map(|r| compare_one(model, r, opts, None))
         .collect()
 }
 
-fn compare_one(model: &Model, record: &Record, opts: &DiagnoseOptions) -> Result<RecordComparison> {
+/// [`compare`] with the model's own simulations of the records ([`crate::simulate::base_runs`]).
+pub(crate) fn compare_with_runs(
+    model: &Model,
+    records: &[Record],
+    opts: &DiagnoseOptions,
+    runs: &[BaseRun],
+) -> Result<Vec<RecordComparison>> {
+    check_records(model, records)?;
+    records
+        .par_iter()
+        .zip(runs)
+        .map(|(r, run)| compare_one(model, r, opts, run.as_ref()))
+        .collect()
+}
+
+/// The comparison with one record; `run` is the model's simulation of it when already made.
+fn compare_one(
+    model: &Model,
+    record: &Record,
+    opts: &DiagnoseOptions,
+    run: Option<&std::result::Result<Trajectory, String>>,
+) -> Result<RecordComparison> {
     let dt = record.dt();
     let n = record.len();
     let record_aug = crate::simulate::augment_record(model, record, opts)?;
-    let sim = crate::simulate::simulate(model, &record_aug);
+    let sim = match run {
+        Some(run) => run.clone(),
+        None => crate::simulate::simulate(model, &record_aug).map_err(|e| e.to_string()),
+    };
     let mut out = RecordComparison {
         record: record.source().to_string(),
         r_mse: None,
@@ -141,7 +167,7 @@ fn compare_one(model: &Model, record: &Record, opts: &DiagnoseOptions) -> Result
     let tr = match sim {
         Ok(t) => t,
         Err(e) => {
-            out.error = Some(e.to_string());
+            out.error = Some(e);
             return Ok(out);
         }
     };

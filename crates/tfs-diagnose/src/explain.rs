@@ -30,6 +30,7 @@ use tfs_regress::{Compressed, LeastSquares, Regressor};
 use crate::effects::{Catalogue, EffectColumn, EffectContext, Variant};
 use crate::judge::Judge;
 use crate::prepare::{DiagnoseOptions, Layout, RecordStates, rms};
+use crate::simulate::BaseRun;
 use crate::stats::{block_wald_p_value, bootstrap_interval, paired_p_value};
 use crate::{DiagnoseError, Result};
 
@@ -518,12 +519,13 @@ fn judge_candidates(
     layout: &Layout,
     opts: &DiagnoseOptions,
     ranked: &mut [(RankedEffect, Raw)],
+    runs: &[BaseRun],
 ) -> Vec<(String, Judge, String)> {
-    let (judge, why) = crate::judge::choose(model, states, opts);
+    let (judge, why) = crate::judge::choose(model, states, opts, runs);
     let dt = states[0].record.dt();
     let horizon = |d: &DofSetup| ((2.0 * d.scales.period / dt).round() as usize).max(16);
     let before: Vec<Option<f64>> = setups
-        .iter()
+        .par_iter()
         .map(|d| {
             let cols: Vec<EffectColumn> = d
                 .base_terms
@@ -591,6 +593,18 @@ pub fn explain(
     catalogue: &Catalogue,
     opts: &DiagnoseOptions,
 ) -> Result<Explanation> {
+    explain_with_runs(model, records, catalogue, opts, None)
+}
+
+/// [`explain`] with the model's own simulations of the records when the caller has them
+/// ([`crate::simulate::base_runs`]); made here when needed otherwise.
+pub(crate) fn explain_with_runs(
+    model: &Model,
+    records: &[Record],
+    catalogue: &Catalogue,
+    opts: &DiagnoseOptions,
+    runs: Option<&[BaseRun]>,
+) -> Result<Explanation> {
     opts.validate()?;
     crate::prepare::check_records(model, records)?;
     let states: Vec<RecordStates> = records
@@ -626,7 +640,15 @@ pub fn explain(
         .map(|raw| (entry(model, &raw, tests, opts), raw))
         .collect();
     let judges = if opts.simulate {
-        judge_candidates(model, &setups, &states, &layout, opts, &mut ranked)
+        let made;
+        let runs = match runs {
+            Some(r) => r,
+            None => {
+                made = crate::simulate::base_runs(model, records, opts);
+                &made
+            }
+        };
+        judge_candidates(model, &setups, &states, &layout, opts, &mut ranked, runs)
     } else {
         setups
             .iter()

@@ -15,14 +15,13 @@
 
 use rayon::prelude::*;
 use serde::Serialize;
-use tfs_data::Record;
-use tfs_dynamics::{Dopri5, Integrator, SampledInput, SimulateOptions, simulate_model_on_record};
+use tfs_dynamics::{Dopri5, Integrator, SampledInput, SimulateOptions};
 use tfs_library::{Factor, Model, Term, evaluate_term};
 
-use crate::Result;
 use crate::effects::EffectColumn;
 use crate::explain::{Cv, with_equation};
 use crate::prepare::{DiagnoseOptions, Layout, RecordStates};
+use crate::simulate::BaseRun;
 
 /// What ranked the held-out predictions of the candidates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -49,17 +48,20 @@ impl Judge {
 
 /// The judge for `model` on `states`: short-horizon prediction when on most records the free-run
 /// error is dominated by the input's own noise, free-run otherwise; with the reason in words.
+/// `runs` are the model's own simulations of the records ([`crate::simulate::base_runs`]).
 pub(crate) fn choose(
     model: &Model,
     states: &[RecordStates],
     opts: &DiagnoseOptions,
+    runs: &[BaseRun],
 ) -> (Judge, String) {
     let sim = SimulateOptions::default();
     let verdicts: Vec<Option<bool>> = states
         .par_iter()
-        .map(|s| {
+        .zip(runs)
+        .map(|(s, run)| {
             let rec = crate::simulate::augment_record(model, &s.record, opts).ok()?;
-            let tr = simulate_model_on_record(model, &rec, &sim).ok()?;
+            let tr = run.as_ref()?.as_ref().ok()?;
             let err: Vec<f64> = model
                 .dofs
                 .iter()
@@ -70,7 +72,7 @@ pub(crate) fn choose(
                         .unwrap_or(f64::INFINITY)
                 })
                 .collect();
-            let spread = tfs_refine::input_noise_spread(model, &rec, &sim).ok()??;
+            let spread = tfs_refine::input_noise_spread_from(model, &rec, &sim, tr).ok()??;
             let noise = tfs_refine::displacement_noise_var(model, &rec);
             Some(tfs_refine::noise_dominated(&spread, &err, &noise))
         })
@@ -117,6 +119,8 @@ pub(crate) fn heldout_error(
 }
 
 /// Held-out simulation R-MSE of the per-fold models (mean over held-out units; None on failure).
+/// The units are simulated side by side and summed in fold order, so the mean is the same on
+/// any number of threads; the first failure stops the units not yet started.
 fn heldout_r_mse(
     model: &Model,
     dof_idx: usize,
@@ -126,32 +130,42 @@ fn heldout_r_mse(
     layout: &Layout,
     opts: &DiagnoseOptions,
 ) -> Option<f64> {
-    let mut sum = 0.0;
-    let mut count = 0usize;
+    // Per fold its model; per held-out unit (fold, record, rows: the whole record or a segment).
+    let mut models = Vec::with_capacity(layout.folds);
+    let mut units = Vec::new();
     for f in 0..layout.folds {
-        let m = with_equation(model, dof_idx, cols, &cv.coefs[f]).ok()?;
-        let units: Vec<Record> = if layout.by_record {
-            states
-                .iter()
-                .enumerate()
-                .filter(|(r, _)| layout.blocks.iter().any(|b| b.record == *r && b.fold == f))
-                .map(|(_, s)| crate::simulate::augment_record(&m, &s.record, opts))
-                .collect::<Result<_>>()
-                .ok()?
+        models.push(with_equation(model, dof_idx, cols, &cv.coefs[f]).ok()?);
+        if layout.by_record {
+            for r in 0..states.len() {
+                if layout.blocks.iter().any(|b| b.record == r && b.fold == f) {
+                    units.push((f, r, None));
+                }
+            }
         } else {
             let bl: Vec<_> = layout.blocks.iter().filter(|b| b.fold == f).collect();
-            let s = &states[bl.first()?.record];
-            let start = s.margin + bl.first()?.start;
-            let end = s.margin + bl.last()?.start + bl.last()?.len;
-            let full = crate::simulate::augment_record(&m, &s.record, opts).ok()?;
-            vec![full.slice(start..end).ok()?]
-        };
-        for u in units {
-            sum += crate::simulate::r_mse(&m, &u).ok()?;
-            count += 1;
+            let r = bl.first()?.record;
+            let start = states[r].margin + bl.first()?.start;
+            let end = states[r].margin + bl.last()?.start + bl.last()?.len;
+            units.push((f, r, Some(start..end)));
         }
     }
-    (count > 0).then(|| sum / count as f64)
+    let scores: Vec<f64> = units
+        .par_iter()
+        .map(|(f, r, range)| {
+            let m = &models[*f];
+            let full = crate::simulate::augment_record(m, &states[*r].record, opts).ok()?;
+            let u = match range {
+                None => full,
+                Some(range) => full.slice(range.clone()).ok()?,
+            };
+            crate::simulate::r_mse(m, &u).ok()
+        })
+        .collect::<Option<_>>()?;
+    let mut sum = 0.0;
+    for s in &scores {
+        sum += s;
+    }
+    (!scores.is_empty()).then(|| sum / scores.len() as f64)
 }
 
 /// Short-horizon prediction R-MSE of the per-fold models on their held-out blocks (see the

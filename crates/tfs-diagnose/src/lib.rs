@@ -109,9 +109,14 @@ pub fn diagnose_with(
     catalogue: &Catalogue,
     opts: &DiagnoseOptions,
 ) -> Result<Diagnosis> {
-    let ex = explain(model, records, catalogue, opts)?;
+    // The model's own simulation of each record serves the judge's choice, the input-noise
+    // spread and the comparison: made once.
+    opts.validate()?;
+    crate::prepare::check_records(model, records)?;
+    let runs = simulate::base_runs(model, records, opts);
+    let ex = explain::explain_with_runs(model, records, catalogue, opts, Some(&runs))?;
     let localisation = localise(model, records, opts)?;
-    let records = compare(model, records, opts)?;
+    let records = compare::compare_with_runs(model, records, opts, &runs)?;
     let mut verdict = ex.verdict;
     // Nothing missing on clean data: say both.
     if !ex.ranked.iter().any(|r| r.significant) && localisation.iter().all(|l| l.noise.clean()) {

@@ -4,6 +4,7 @@
 //! ([`augment_record`]). Memory effects (`maxwell`, `bouc_wen`, `dahl` terms) are internal
 //! states of the model itself: `tfs_dynamics` integrates them with the motion, started at rest.
 
+use rayon::prelude::*;
 use tfs_data::Record;
 use tfs_dynamics::{SimulateOptions, Trajectory, rmse_variance, simulate_model_on_record};
 use tfs_library::Model;
@@ -55,4 +56,21 @@ pub fn r_mse(model: &Model, record: &Record) -> Result<f64> {
         s += rmse_variance(m, &tr.x[i])?;
     }
     Ok(s / model.dofs.len().max(1) as f64)
+}
+
+/// The model's own simulation of one record under its measured inputs: `None` when the
+/// record's computed columns cannot be made, else the trajectory or the simulation's error in
+/// words. Computed once per record and shared by everything that needs it (the judge's choice,
+/// the input-noise spread, the comparison).
+pub(crate) type BaseRun = Option<std::result::Result<Trajectory, String>>;
+
+/// [`BaseRun`]s of `model` on every record, side by side, in record order.
+pub(crate) fn base_runs(model: &Model, records: &[Record], opts: &DiagnoseOptions) -> Vec<BaseRun> {
+    records
+        .par_iter()
+        .map(|r| {
+            let rec = augment_record(model, r, opts).ok()?;
+            Some(simulate(model, &rec).map_err(|e| e.to_string()))
+        })
+        .collect()
 }

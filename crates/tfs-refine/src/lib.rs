@@ -81,7 +81,10 @@ mod validation;
 
 pub use error::{RefineError, Result};
 pub use refine::{RefineOptions, Refined, refine};
-pub use sensitivity::{NOISE_SHARE, displacement_noise_var, input_noise_spread, noise_dominated};
+pub use sensitivity::{
+    NOISE_SHARE, displacement_noise_var, input_noise_spread, input_noise_spread_from,
+    noise_dominated,
+};
 pub use validation::{ValidationScores, choose_by_validation};
 
 #[cfg(test)]

@@ -10,7 +10,7 @@
 //! with twice its stiffness, because it lowered the free-run error by hedging between wells.
 
 use tfs_data::Record;
-use tfs_dynamics::{SimulateOptions, simulate_model_on_record};
+use tfs_dynamics::{SimulateOptions, Trajectory, simulate_model_on_record};
 use tfs_library::Model;
 use tfs_signal::band::{noise_draw, reconstruct};
 
@@ -46,6 +46,21 @@ pub fn input_noise_spread(
     opts: &SimulateOptions,
 ) -> Result<Option<Vec<f64>>> {
     let base = simulate_model_on_record(model, record, opts)?;
+    input_noise_spread_from(model, record, opts, &base)
+}
+
+/// [`input_noise_spread`] around a simulation of `model` under `record`'s measured inputs that
+/// the caller already has (`base`, from `simulate_model_on_record` with the same `opts`): the
+/// same numbers without simulating the record a second time.
+///
+/// Errors: a perturbed input that cannot be set on the record; a failure under a perturbed
+/// input counts as an infinite spread.
+pub fn input_noise_spread_from(
+    model: &Model,
+    record: &Record,
+    opts: &SimulateOptions,
+    base: &Trajectory,
+) -> Result<Option<Vec<f64>>> {
     let dt = record.dt();
     let mut perturbed_any = false;
     let mut sums = vec![0.0; model.dofs.len()];
