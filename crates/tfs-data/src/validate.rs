@@ -133,6 +133,20 @@ pub(crate) fn suggest<'a>(wanted: &str, available: &'a [String]) -> Option<&'a s
         .map(|(_, n)| n.as_str())
 }
 
+/// The columns named `wanted` followed by a number (`x1`, `x2` for `x`), quoted and listed, if
+/// there are any: a chain's record where one DOF was expected.
+fn numbered(wanted: &str, available: &[String]) -> Option<String> {
+    let list: Vec<String> = available
+        .iter()
+        .filter(|n| {
+            n.strip_prefix(wanted)
+                .is_some_and(|rest| !rest.is_empty() && rest.chars().all(|c| c.is_ascii_digit()))
+        })
+        .map(|n| format!("'{n}'"))
+        .collect();
+    (!list.is_empty()).then(|| list.join(", "))
+}
+
 /// The hint for a missing time column: a header cell that looks like a time axis (`time`,
 /// `Time [s]`, `t_s`, `seconds`, …) is named with how to choose it; else how to name it.
 pub(crate) fn time_hint(wanted: &str, available: &[String]) -> String {
@@ -163,9 +177,12 @@ pub(crate) fn missing_column(
     available: &[String],
     extra_hint: &str,
 ) -> DataError {
-    let hint = match suggest(wanted, available) {
-        Some(s) => format!("; did you mean '{s}'?"),
-        None => extra_hint.to_string(),
+    let hint = match (suggest(wanted, available), numbered(wanted, available)) {
+        (Some(s), _) => format!("; did you mean '{s}'?"),
+        (None, Some(list)) => format!(
+            "; the file has {list} instead: columns of a chain's DOFs, one per mass, while '{wanted}' is one DOF (a model of one DOF cannot be run on a chain's record; identify a chain model from it)"
+        ),
+        (None, None) => extra_hint.to_string(),
     };
     DataError::MissingColumn {
         file: file.to_string(),

@@ -568,3 +568,15 @@ fn records_from_arrays_are_checked_like_files() {
     let e = check_record(make(t, x), &CsvOptions::default().require(["u"])).unwrap_err();
     assert!(matches!(e, DataError::Constant { .. }), "{e}");
 }
+
+#[test]
+fn missing_column_of_one_dof_names_a_chain_s_numbered_columns() {
+    let text = good_csv(20).replacen("t,x,xb_acc", "t,x1,xb_acc", 1);
+    let (_, m) = err(&text, &CsvOptions::default().require(["x", "xb_acc"]));
+    assert!(
+        m.contains("column 'x'") && !m.contains("did you mean"),
+        "{m}"
+    );
+    assert!(m.contains("the file has 'x1' instead"), "{m}");
+    assert!(m.contains("chain"), "{m}");
+}

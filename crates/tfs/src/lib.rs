@@ -24,6 +24,7 @@
 //! assert_eq!(model.restoring_force("x", 0.0).unwrap(), 0.0);
 //! ```
 
+pub mod chain;
 pub mod compare;
 mod error;
 pub mod identify;

@@ -208,9 +208,15 @@ pub struct StopContact {
     pub min_h: f64,
 }
 
-/// The folded-stop contacts of every cell in every record of `data`, from the clean displacement
-/// columns (`x_clean`, or `x1_clean`, `x2_clean`, … whose differences are the cells' heights).
+/// The folded-stop contacts of every truss cell in every record of `data` (a surrogate cell has
+/// no stop), from the clean displacement columns (`x_clean`, or `x1_clean`, `x2_clean`, … whose
+/// differences are the cells' heights).
 pub fn stop_contacts(data: &Dataset) -> Vec<StopContact> {
+    let cells = match &data.meta.config.system {
+        SystemSpec::Kresling(c) => std::slice::from_ref(c),
+        SystemSpec::Chain { cells } => &cells[..],
+    };
+    let has_stop = |cell: usize| cells.get(cell).is_some_and(|c| c.truth == Truth::Truss);
     let mut out = Vec::new();
     for r in &data.records {
         let mut below: Option<Vec<f64>> = None;
@@ -227,12 +233,14 @@ pub fn stop_contacts(data: &Dataset) -> Vec<StopContact> {
                 None => x.to_vec(),
             };
             let n = h.len().max(1) as f64;
-            out.push(StopContact {
-                record: r.source().to_string(),
-                cell: cell + 1,
-                share: h.iter().filter(|v| **v < 0.0).count() as f64 / n,
-                min_h: h.iter().cloned().fold(f64::INFINITY, f64::min),
-            });
+            if has_stop(cell) {
+                out.push(StopContact {
+                    record: r.source().to_string(),
+                    cell: cell + 1,
+                    share: h.iter().filter(|v| **v < 0.0).count() as f64 / n,
+                    min_h: h.iter().cloned().fold(f64::INFINITY, f64::min),
+                });
+            }
             if name == "x_clean" {
                 break;
             }

@@ -1,6 +1,6 @@
 //! A two-cell Kresling chain through the CLI, as README tells a user to run it: `tfs simulate
 //! chain` with its default records (noise-free and at 30 dB), `tfs identify` on them (tied by
-//! default for a chain, and with `--tie`), then `diagnose` finds the folded stop the polynomial
+//! default for a chain, and with `--tie`; `--no-tie` never calls the clean data noisy), then `diagnose` finds the folded stop the polynomial
 //! model lacks and `refit` with it gives a model that `compare` simulates on every record. The
 //! identified cells are judged against the truss truth: cell 1 monostable, cell 2 bistable, each
 //! stable state within 0.05 of the truth's.
@@ -158,6 +158,19 @@ fn the_readme_chain_is_identified_from_the_cli_clean_and_at_30_db() {
     // A chain is tied by default; `--tie` asks for the same fit.
     let model = identify_and_judge(dir.path(), &clean, &[], "clean");
     identify_and_judge(dir.path(), &clean, &["--tie"], "clean-tie");
+    // Each equation on its own: clean data are never called noisy, whatever the verdict.
+    let untied = dir.path().join("untied.json").display().to_string();
+    let mut args = vec!["identify", "--no-tie", "--out", &untied];
+    args.extend(clean.iter().map(String::as_str));
+    let o = tfs(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(text.contains("method: tfs-sindy\n"), "{text}");
+    assert!(!text.contains("too noisy"), "{text}");
     let noisy = simulate(dir.path(), "noisy", &["--snr-db", "30", "--seed", "1"]);
     identify_and_judge(dir.path(), &noisy, &[], "noisy");
 

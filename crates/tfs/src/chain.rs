@@ -1,0 +1,196 @@
+//! A chain model (DOFs `x1..xN`, cell 1 between the base and `x1`, cell `i` between `x(i-1)` and
+//! `xi`) as a system with its wells, for basins and the minimum-energy deployment: each cell's
+//! force law is read from its own DOF's equation, the chain's stable states are the products of
+//! the cells' stable heights, its saddles every other product.
+
+use std::sync::Arc;
+
+use tfs_basin::{ChainWells, WellInfo};
+use tfs_library::{Coord, Model, Var};
+
+use crate::error::{Context, Result};
+use crate::invalid;
+
+/// One cell's equilibria: stable and unstable heights.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CellStates {
+    /// Stable heights, ascending.
+    pub stable: Vec<f64>,
+    /// Unstable heights, ascending.
+    pub unstable: Vec<f64>,
+}
+
+/// A chain model's cells, masses and wells.
+pub struct ChainModel {
+    /// Each cell's equilibria (base cell first).
+    pub cells: Vec<CellStates>,
+    /// The masses the potential weighs the cells' per-unit-mass laws with (the tied fit's, else 1).
+    pub masses: Vec<f64>,
+    /// The chain's stable states (displacements), saddles' lowest energy and potential.
+    pub wells: ChainWells,
+}
+
+/// The model with DOF `i`'s equation reduced to the terms of cell `i` (those not naming the next
+/// cell's coordinate `(x(i+1)-xi)`): its restoring force along `xi` is then the cell's own law.
+fn cell_model(model: &Model, i: usize) -> Model {
+    let dof = &model.dofs[i];
+    let mut m = model.clone();
+    if let Some(eq) = m.equations.iter_mut().find(|e| &e.dof == dof) {
+        eq.terms.retain(|t| {
+            !t.term.vars().iter().any(|v| match v {
+                Var::RelDisp(_, Coord::Dof(b)) | Var::RelVel(_, Coord::Dof(b)) => b == dof,
+                _ => false,
+            })
+        });
+    }
+    m
+}
+
+/// Reads a chain model's cells and wells (`label` names it in messages): each cell's stable and
+/// unstable heights on `search`, the masses from the tied fit's trace (1 each otherwise), and the
+/// chain's stable states ordered by the last DOF's displacement.
+pub fn model_chain(label: &str, model: &Model, search: (f64, f64)) -> Result<ChainModel> {
+    let n = model.dofs.len();
+    if n < 2 {
+        invalid!(
+            "{label}: the model has one DOF ({}); a chain has two or more",
+            model.dofs.join(", ")
+        );
+    }
+    let masses: Vec<f64> = model.trace["tied"]["masses"]
+        .as_array()
+        .map(|a| a.iter().filter_map(|m| m.as_f64()).collect::<Vec<f64>>())
+        .filter(|m| m.len() == n && m.iter().all(|v| v.is_finite() && *v > 0.0))
+        .unwrap_or_else(|| vec![1.0; n]);
+    let mut cells = Vec::with_capacity(n);
+    let mut laws = Vec::with_capacity(n);
+    for i in 0..n {
+        let dof = &model.dofs[i];
+        let r = cell_model(model, i)
+            .restoring(dof)
+            .with_context(|| format!("{label}: restoring force of cell {} ('{dof}')", i + 1))?;
+        let (f, p) = (r.clone(), r.clone());
+        let w = WellInfo::from_force(move |h| f.force(h), move |h| p.potential(h), search, 1.0)
+            .with_context(|| {
+                format!(
+                    "{label}: equilibria of cell {} on heights {search:?} (choose the range with --search)",
+                    i + 1
+                )
+            })?;
+        cells.push(CellStates {
+            stable: w.stable().to_vec(),
+            unstable: w.unstable().to_vec(),
+        });
+        laws.push(r);
+    }
+    let (stable, saddles) = products(&cells);
+    if stable.is_empty() {
+        invalid!(
+            "{label}: no stable state of the chain on cell heights {search:?} (a cell without a stable height there: {}); choose the range with --search",
+            cells
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| c.stable.is_empty())
+                .map(|(i, _)| format!("cell {}", i + 1))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    let m2 = masses.clone();
+    let potential = Arc::new(move |x: &[f64]| {
+        (0..x.len())
+            .map(|i| {
+                let h = if i == 0 { x[0] } else { x[i] - x[i - 1] };
+                m2[i] * laws[i].potential(h)
+            })
+            .sum::<f64>()
+    });
+    let barrier = if saddles.is_empty() {
+        None
+    } else {
+        let p = potential.clone();
+        Some(ChainWells::barrier_from_saddles(|x| p(x), &saddles)?)
+    };
+    let wells = ChainWells::new(stable, masses.clone(), move |x| potential(x), barrier)?;
+    Ok(ChainModel {
+        cells,
+        masses,
+        wells,
+    })
+}
+
+/// Every combination of the cells' equilibria as displacements (cumulative heights): the ones of
+/// stable heights only (ordered by the last displacement), and the others (saddles).
+fn products(cells: &[CellStates]) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let mut combos: Vec<(Vec<f64>, bool)> = vec![(Vec::new(), true)];
+    for c in cells {
+        let all: Vec<(f64, bool)> = c
+            .stable
+            .iter()
+            .map(|h| (*h, true))
+            .chain(c.unstable.iter().map(|h| (*h, false)))
+            .collect();
+        combos = combos
+            .iter()
+            .flat_map(|(x, s)| {
+                all.iter().map(move |(h, sh)| {
+                    let mut y = x.clone();
+                    y.push(x.last().copied().unwrap_or(0.0) + h);
+                    (y, *s && *sh)
+                })
+            })
+            .collect();
+    }
+    let (mut stable, mut saddles) = (Vec::new(), Vec::new());
+    for (x, s) in combos {
+        if s {
+            stable.push(x);
+        } else {
+            saddles.push(x);
+        }
+    }
+    stable.sort_by(|a, b| a[a.len() - 1].total_cmp(&b[b.len() - 1]));
+    (stable, saddles)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two cells with known laws, the coupling in both equations as a tied fit writes it: cell 1
+    /// F1(h) = h − h² (stable at 1), cell 2 F2(h) = −h(h − 0.5)(h − 1)(h − 1.5) (stable at 0.5
+    /// and 1.5, a saddle at 1).
+    #[test]
+    fn cells_are_read_from_their_own_equations() {
+        let f2 = [0.0, 0.75, -2.75, 3.0, -1.0];
+        let mut terms1 = vec![("x1".to_string(), 1.0), ("x1^2".to_string(), -1.0)];
+        let mut terms2 = Vec::new();
+        for (k, c) in f2.iter().enumerate().skip(1) {
+            let name = if k == 1 {
+                "(x2-x1)".to_string()
+            } else {
+                format!("(x2-x1)^{k}")
+            };
+            terms1.push((name.clone(), -c));
+            terms2.push((name, *c));
+        }
+        let eq = |dof: &str, t: &[(String, f64)]| serde_json::json!({"dof": dof, "terms": t.iter().map(|(n, c)| serde_json::json!({"term": n, "coef": c})).collect::<Vec<_>>()});
+        let json = serde_json::json!({"format": "tfs-model/1", "dofs": ["x1", "x2"], "inputs": [],
+            "equations": [eq("x1", &terms1), eq("x2", &terms2)], "method": "test"});
+        let model = Model::from_json_str(&json.to_string()).unwrap();
+        let c = model_chain("test", &model, (0.1, 2.0)).unwrap();
+        let close = |a: &[f64], b: &[f64]| {
+            a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-6)
+        };
+        assert!(close(&c.cells[0].stable, &[1.0]), "{:?}", c.cells);
+        assert!(close(&c.cells[1].stable, &[0.5, 1.5]), "{:?}", c.cells);
+        assert!(close(&c.cells[1].unstable, &[1.0]), "{:?}", c.cells);
+        let s = c.wells.stable();
+        assert_eq!(s.len(), 2);
+        assert!(
+            close(&s[0], &[1.0, 1.5]) && close(&s[1], &[1.0, 2.5]),
+            "{s:?}"
+        );
+        assert!(c.wells.barrier().is_some());
+    }
+}
