@@ -186,19 +186,47 @@ impl Restoring {
     pub fn potential(&self, x: f64) -> f64 {
         let mut v = self.potential_poly.eval(x);
         if !self.other.is_empty() && x != 0.0 {
+            // Integrate piece by piece between the kinks of the stops (a quadrature across a
+            // kink is inaccurate, and its error would move with x), each piece on panels that
+            // are finer at its start.
+            let mut cuts: Vec<f64> = self
+                .kinks()
+                .filter(|k| k.abs() < x.abs() && k * x > 0.0)
+                .collect();
+            cuts.push(0.0);
+            cuts.push(x);
+            cuts.sort_by(|a, b| a.abs().total_cmp(&b.abs()));
             const N: usize = 128;
             let mut sum = 0.0;
-            for i in 0..N {
-                let a = x * (i as f64 / N as f64).powi(2);
-                let b = x * ((i + 1) as f64 / N as f64).powi(2);
-                let (m, h) = (0.5 * (a + b), 0.5 * (b - a));
-                for (t, w) in GL8 {
-                    sum += w * h * self.other_force(m + h * t);
+            for piece in cuts.windows(2) {
+                let (x0, len) = (piece[0], piece[1] - piece[0]);
+                if len == 0.0 {
+                    continue;
+                }
+                for i in 0..N {
+                    let a = x0 + len * (i as f64 / N as f64).powi(2);
+                    let b = x0 + len * ((i + 1) as f64 / N as f64).powi(2);
+                    let (m, h) = (0.5 * (a + b), 0.5 * (b - a));
+                    for (t, w) in GL8 {
+                        sum += w * h * self.other_force(m + h * t);
+                    }
                 }
             }
             v += sum;
         }
         v
+    }
+
+    /// Positions along the DOF where a one-sided stop of the non-polynomial part starts acting.
+    fn kinks(&self) -> impl Iterator<Item = f64> + '_ {
+        self.other.iter().flat_map(|(_, fs)| {
+            fs.iter().filter_map(|(s, k)| match k {
+                SliceKind::Other(Factor::Below(_, c) | Factor::Above(_, c)) if *s != 0.0 => {
+                    Some(c / s)
+                }
+                _ => None,
+            })
+        })
     }
 }
 

@@ -1,7 +1,8 @@
 //! A two-cell Kresling chain through the CLI, as README tells a user to run it: `tfs simulate
 //! chain` with its default records (noise-free and at 30 dB), `tfs identify` on them (tied by
 //! default for a chain, and with `--tie`; `--no-tie` never calls the clean data noisy), then `diagnose` finds the folded stop the polynomial
-//! model lacks and `refit` with it gives a model that `compare` simulates on every record. The
+//! model lacks and `refit` with it gives a model that `compare` simulates on every record and
+//! whose basins and minimum-energy deployment `basin` and `med` map on the paper's slice. The
 //! identified cells are judged against the truss truth: cell 1 monostable, cell 2 bistable, each
 //! stable state within 0.05 of the truth's.
 
@@ -189,4 +190,23 @@ fn the_readme_chain_is_identified_from_the_cli_clean_and_at_30_db() {
     args.extend(clean.iter().map(String::as_str));
     let c = ok(&args);
     assert!(!c.contains("blew up"), "{c}");
+
+    // Basins and the minimum-energy deployment of the chain, on the paper's slice.
+    let png = dir.path().join("basin.png").display().to_string();
+    let b = ok(&["basin", "--model", &refit, "--grid", "30x30", "--out", &png]);
+    assert!(
+        b.contains("cell 1: monostable") && b.contains("cell 2: bistable"),
+        "{b}"
+    );
+    assert!(
+        b.contains("basin of S1") && b.contains("basin of S2"),
+        "{b}"
+    );
+    assert!(!b.contains("diverged"), "{b}");
+    assert!(Path::new(&png).exists());
+    let m = ok(&["med", "--model", &refit, "--grid", "30x30"]);
+    assert!(m.contains("MED from S1") && m.contains("E_in = "), "{m}");
+    // Without the stop, starts that fall through the folded state are counted and explained.
+    let b = ok(&["basin", "--model", &m, "--grid", "20x20"]);
+    assert!(b.contains("cell 2: bistable"), "{b}");
 }

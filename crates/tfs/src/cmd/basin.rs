@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use anyhow::{Result, anyhow};
+use anyhow::{Result, anyhow, bail};
 use serde_json::json;
 use tfs::basin::{
     BasinConfig, BasinError, BasinMap, Label, WellInfo, basin_sdof, compare, step_limit_sdof,
@@ -13,20 +13,23 @@ use tfs::dynamics::SecondOrderSystem;
 use tfs::records::read_model;
 use tfs::sdof::{default_search, model_sdof, truth_sdof};
 
+use super::chain_basin::{DEFAULT_DX, chain_map, report_basin};
 use super::{parse_grid, parse_range, print_json, progress};
 
 /// Arguments of `tfs basin`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The model (tfs-model/1 JSON, 1 DOF).
+    /// The model (tfs-model/1 JSON): one DOF, or a chain (`x1`, `x2`, …; mapped on the slice
+    /// x_i(0) = x_i(S1) + Δx, every velocity v0).
     #[arg(long)]
     pub model: PathBuf,
     /// Grid size NxM (x0 nodes × v0 nodes).
     #[arg(long, default_value = "200x200")]
     pub grid: String,
-    /// Initial-displacement range A:B (the model's displacement unit).
-    #[arg(long, default_value = "0:2", allow_hyphen_values = true)]
-    pub x: String,
+    /// Initial-displacement range A:B (the model's displacement unit) [default: 0:2; for a
+    /// chain the shift Δx of every displacement from S1, -1.2:1].
+    #[arg(long, allow_hyphen_values = true)]
+    pub x: Option<String>,
     /// Initial-velocity range A:B (the model's displacement unit per second).
     #[arg(long, default_value = "-3:3", allow_hyphen_values = true)]
     pub v: String,
@@ -39,7 +42,8 @@ pub struct Args {
     /// Time cap (s); starts not settled by then are labelled unsettled.
     #[arg(long, default_value_t = 100.0)]
     pub t_max: f64,
-    /// Range searched for equilibria A:B (default: the --x range widened by half its width).
+    /// Range searched for equilibria A:B (default: the --x range widened by half its width; for
+    /// a chain, the range of every cell's height, -0.05:2.2).
     #[arg(long, allow_hyphen_values = true)]
     pub search: Option<String>,
     /// Output image (PNG; an SVG is written beside it).
@@ -56,13 +60,32 @@ pub fn run(args: Args) -> Result<()> {
         super::prepare_output(out, &[args.model.as_path()], "--out")?;
     }
     let (nx, ny) = parse_grid(&args.grid)?;
-    let x_range = parse_range(&args.x, "--x")?;
     let v_range = parse_range(&args.v, "--v")?;
+    let model = read_model(&args.model)?;
+    if model.dofs.len() > 1 {
+        if args.truth.is_some() {
+            bail!(
+                "--truth: the truths are single Kresling cells; a chain model's map is not compared with one (drop --truth)"
+            );
+        }
+        let dx = parse_range(args.x.as_deref().unwrap_or(DEFAULT_DX), "--x")?;
+        let mut cfg = BasinConfig::new(nx, ny, dx, v_range);
+        cfg.dt = args.dt;
+        cfg.t_max = args.t_max;
+        let label = args.model.display().to_string();
+        let c = chain_map(&label, &model, args.search.as_deref(), cfg)?;
+        return report_basin(
+            &c,
+            &format!("Basins of attraction: {label}"),
+            args.out.as_deref(),
+            args.json,
+        );
+    }
+    let x_range = parse_range(args.x.as_deref().unwrap_or("0:2"), "--x")?;
     let search = match &args.search {
         Some(s) => parse_range(s, "--search")?,
         None => default_search(x_range),
     };
-    let model = read_model(&args.model)?;
     let sdof = model_sdof(&args.model.display().to_string(), &model, search)?;
     // The concrete compiled model (not the boxed system): its batched evaluation is then
     // inlined into the SIMD blocks that integrate the starts.

@@ -11,12 +11,14 @@ use super::basin::run_map;
 use tfs::records::read_model;
 use tfs::sdof::{check_med_states, default_search, model_sdof, truth_sdof};
 
+use super::chain_basin::{DEFAULT_DX, chain_map, med as chain_med, report_med};
 use super::{parse_grid, parse_range, print_json};
 
 /// Arguments of `tfs med`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The model (tfs-model/1 JSON, 1 DOF, at least two stable states).
+    /// The model (tfs-model/1 JSON with at least two stable states: one DOF, or a chain `x1`,
+    /// `x2`, …).
     #[arg(long, required_unless_present = "truth", conflicts_with = "truth")]
     pub model: Option<PathBuf>,
     /// Compute the MED of a truth instead of a model: kresling, kresling:surrogate or
@@ -26,9 +28,13 @@ pub struct Args {
     /// Grid NxM of the basin map the search starts from.
     #[arg(long, default_value = "200x200")]
     pub grid: String,
-    /// Initial-displacement range A:B of the search.
-    #[arg(long, default_value = "0:2", allow_hyphen_values = true)]
-    pub x: String,
+    /// Initial-displacement range A:B of the search [default: 0:2; for a chain the shift Δx of
+    /// every displacement from S1, -1.2:1].
+    #[arg(long, allow_hyphen_values = true)]
+    pub x: Option<String>,
+    /// A chain: the range of every cell's height searched for equilibria A:B [default: -0.05:2.2].
+    #[arg(long, allow_hyphen_values = true)]
+    pub search: Option<String>,
     /// Initial-velocity range A:B of the search.
     #[arg(long, default_value = "-3:3", allow_hyphen_values = true)]
     pub v: String,
@@ -46,8 +52,23 @@ pub struct Args {
 /// Runs `tfs med`.
 pub fn run(args: Args) -> Result<()> {
     let (nx, ny) = parse_grid(&args.grid)?;
-    let x_range = parse_range(&args.x, "--x")?;
     let v_range = parse_range(&args.v, "--v")?;
+    if let Some(path) = &args.model {
+        let model = read_model(path)?;
+        if model.dofs.len() > 1 {
+            let dx = parse_range(args.x.as_deref().unwrap_or(DEFAULT_DX), "--x")?;
+            let label = path.display().to_string();
+            let cfg = BasinConfig::new(nx, ny, dx, v_range);
+            let c = chain_map(&label, &model, args.search.as_deref(), cfg)?;
+            let m = chain_med(&c, args.from, args.to)
+                .map_err(|e| anyhow!("{label}: minimum-energy deployment: {e:#}"))?;
+            return report_med(&c, &m, args.from, args.to, args.json);
+        }
+    }
+    if args.search.is_some() {
+        bail!("--search: for a chain model only (a 1-DOF search range follows --x)");
+    }
+    let x_range = parse_range(args.x.as_deref().unwrap_or("0:2"), "--x")?;
     let search = default_search(x_range);
     let (sdof, compiled, what) = match (&args.model, &args.truth) {
         (Some(path), _) => {
@@ -77,7 +98,7 @@ pub fn run(args: Args) -> Result<()> {
              the ranges so the boundary lies inside them, or refine the grid",
             args.from,
             args.to,
-            args.x,
+            args.x.as_deref().unwrap_or("0:2"),
             args.v,
             args.grid
         ),

@@ -1,6 +1,7 @@
 //! The subcommands of the `tfs` binary and the helpers they share.
 
 pub mod basin;
+pub mod chain_basin;
 pub mod compare;
 pub mod diagnose;
 pub mod identify;

@@ -19,13 +19,34 @@ pub fn basin_figure(
     disagree: Option<&[bool]>,
     out: &Path,
 ) -> Result<Vec<String>> {
-    let n = map.states.len();
-    let mut class_names: Vec<String> = map
+    let names: Vec<String> = map
         .states
         .iter()
         .enumerate()
         .map(|(k, s)| format!("S{} (x = {:.3})", k + 1, s[0]))
         .collect();
+    // A model carries the units of the record it was fitted on: displacement as recorded,
+    // velocity in that unit per second.
+    let axes = (
+        "initial displacement x0 (record's length unit)",
+        "initial velocity v0 (record's length unit / s)",
+    );
+    basin_figure_on(map, title, axes, &names, disagree, out)
+}
+
+/// [`basin_figure`] with the axes' labels and the states' names given (a chain's slice, where
+/// the axes are a shift Δx and a velocity v0 and a state is a vector); a 1-DOF state is marked
+/// on the axis at its displacement.
+pub fn basin_figure_on(
+    map: &BasinMap,
+    title: &str,
+    axes: (&str, &str),
+    state_names: &[String],
+    disagree: Option<&[bool]>,
+    out: &Path,
+) -> Result<Vec<String>> {
+    let n = map.states.len();
+    let mut class_names: Vec<String> = state_names.to_vec();
     if map.unsettled_count > 0 {
         class_names.push("unsettled".into());
     }
@@ -36,19 +57,20 @@ pub fn basin_figure(
         class_names.push("diverged".into());
     }
     let labels = map.labels.iter().map(|&l| label_index(l, n)).collect();
-    let points = map
-        .states
-        .iter()
-        .enumerate()
-        .filter(|(_, s)| s[0] >= map.x_range.0 && s[0] <= map.x_range.1)
-        .map(|(k, s)| (s[0], 0.0, format!("S{}", k + 1)))
-        .collect();
+    let points = if map.states.iter().all(|s| s.len() == 1) {
+        map.states
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s[0] >= map.x_range.0 && s[0] <= map.x_range.1)
+            .map(|(k, s)| (s[0], 0.0, format!("S{}", k + 1)))
+            .collect()
+    } else {
+        Vec::new()
+    };
     let fig = BasinFigure {
         title: title.to_string(),
-        // A model carries the units of the record it was fitted on: displacement as recorded,
-        // velocity in that unit per second.
-        x_label: "initial displacement x0 (record's length unit)".into(),
-        y_label: "initial velocity v0 (record's length unit / s)".into(),
+        x_label: axes.0.into(),
+        y_label: axes.1.into(),
         x_range: map.x_range,
         y_range: map.y_range,
         nx: map.nx,
