@@ -205,7 +205,10 @@ fn the_readme_chain_is_identified_from_the_cli_clean_and_at_30_db() {
     assert!(!b.contains("diverged"), "{b}");
     assert!(Path::new(&png).exists());
     let med = ok(&["med", "--model", &refit, "--grid", "30x30"]);
-    assert!(med.contains("MED from S1") && med.contains("E_in = "), "{med}");
+    assert!(
+        med.contains("MED from S1") && med.contains("E_in = "),
+        "{med}"
+    );
     // Without the stop, starts that fall through the folded state are counted and explained.
     let b = ok(&["basin", "--model", &m, "--grid", "20x20"]);
     assert!(b.contains("cell 2: bistable"), "{b}");
