@@ -276,14 +276,8 @@ pub(crate) fn criterion2_stage(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_util::lcg;
     use faer::Mat;
-
-    fn lcg(seed: &mut u64) -> f64 {
-        *seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((*seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-    }
 
     /// The κ after each removal equals κ recomputed from scratch on the m-row matrix.
     #[test]

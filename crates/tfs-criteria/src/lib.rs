@@ -87,3 +87,16 @@ pub use trace::{
     NoiseCause, Problem, RecordBins, SettingScore, Support, TieTrace, TiedTrace, Trace,
 };
 pub use uncertainty::TermTest;
+
+/// Helpers shared by the unit tests of several stages.
+#[cfg(test)]
+pub(crate) mod test_util {
+    /// A deterministic uniform draw in [-0.5, 0.5) (a 64-bit linear congruential generator), for
+    /// test matrices that must be the same on every machine.
+    pub(crate) fn lcg(seed: &mut u64) -> f64 {
+        *seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((*seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+    }
+}

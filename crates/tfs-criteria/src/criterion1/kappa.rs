@@ -492,13 +492,7 @@ pub fn kappa0_from_curve(curve: &[CalibrationPoint], variant: KappaVariant) -> O
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn lcg(seed: &mut u64) -> f64 {
-        *seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((*seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-    }
+    use crate::test_util::lcg;
 
     /// κ from the small factor equals κ from the eigenvalues of the explicit covariance.
     #[test]
