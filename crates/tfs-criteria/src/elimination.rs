@@ -130,7 +130,7 @@ pub(crate) fn run(
         .map(|d| support(&id, d))
         .collect::<Result<_>>()?;
     // Why the first pass was not supported, with the SNR it stated, per DOF.
-    let first_problem: Vec<Option<(Option<f64>, Problem)>> = id
+    let first_problem: Vec<Option<(Option<crate::trace::SnrEstimate>, Problem)>> = id
         .trace
         .dofs
         .iter()

@@ -84,7 +84,8 @@ pub use pipeline::identify_tfs;
 pub use tied::{MassChoice, Tie, TieOptions, chain_ties, identify_tfs_tied};
 pub use trace::{
     AssemblyStep, AssemblyVerdict, ChosenSettings, Criterion4Outcome, DofTrace, Identified, Method,
-    NoiseCause, Problem, RecordBins, SettingScore, Support, TieTrace, TiedTrace, Trace,
+    NoiseCause, Problem, RecordBins, SettingScore, SnrEstimate, Support, TieTrace, TiedTrace,
+    Trace,
 };
 pub use uncertainty::TermTest;
 

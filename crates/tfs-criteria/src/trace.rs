@@ -257,16 +257,43 @@ pub enum Problem {
     /// model was reduced one significance test at a time.
     Reduced {
         /// The first pass's estimated displacement SNR.
-        snr_db: Option<f64>,
+        snr_db: Option<SnrEstimate>,
         /// Why the first pass was not supported.
         first: Box<Problem>,
     },
 }
 
+/// The displacement SNR estimated from the records' noise floors: a value, or a lower bound
+/// when the records show no noise floor at all.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct SnrEstimate {
+    /// The SNR (dB).
+    pub db: f64,
+    /// True when some record's spectrum shows no noise floor (its upper half falls like the
+    /// signal's own tail, steeper than any noise floor): `db` then comes from white noise at the
+    /// lowest level that spectrum reaches, so the SNR is at least `db` if the noise is white
+    /// (noise confined to low frequencies, like drift, cannot be seen there).
+    pub lower_bound: bool,
+}
+
+impl fmt::Display for SnrEstimate {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.lower_bound {
+            write!(
+                f,
+                "at least {:.1} dB if the noise is white; the spectrum shows no noise floor, so the data are clean or their noise sits at low frequencies",
+                self.db
+            )
+        } else {
+            write!(f, "{:.1} dB", self.db)
+        }
+    }
+}
+
 /// The estimated-SNR clause of a support verdict.
-fn snr_clause(snr_db: Option<f64>) -> String {
-    snr_db.map_or(String::new(), |v| {
-        format!(" (estimated displacement SNR {v:.1} dB)")
+fn snr_clause(snr: Option<SnrEstimate>) -> String {
+    snr.map_or(String::new(), |v| {
+        format!(" (estimated displacement SNR {v})")
     })
 }
 
@@ -321,14 +348,14 @@ pub enum Support {
     /// Every kept term is distinguishable from zero.
     Supported {
         /// The estimated displacement SNR.
-        snr_db: Option<f64>,
+        snr_db: Option<SnrEstimate>,
     },
     /// The tied fit keeps a restoring-force term in every DOF (it has no term test).
     SupportedTied,
     /// The model is not a reliable identification.
     NotSupported {
         /// The estimated displacement SNR (when the verdict states it).
-        snr_db: Option<f64>,
+        snr_db: Option<SnrEstimate>,
         /// Why.
         problem: Problem,
         /// Whether the records' own noise estimate blames noise (only then does the sentence
@@ -549,7 +576,10 @@ mod tests {
             candidates: 36,
         };
         let noisy = Support::NotSupported {
-            snr_db: Some(20.42),
+            snr_db: Some(SnrEstimate {
+                db: 20.42,
+                lower_bound: false,
+            }),
             problem: first.clone(),
             cause: NoiseCause::Noise,
         };
@@ -562,7 +592,10 @@ mod tests {
         let reduced = Support::NotSupported {
             snr_db: None,
             problem: Problem::Reduced {
-                snr_db: Some(20.42),
+                snr_db: Some(SnrEstimate {
+                    db: 20.42,
+                    lower_bound: false,
+                }),
                 first: Box::new(first.clone()),
             },
             cause: NoiseCause::Noise,
@@ -584,7 +617,10 @@ mod tests {
         // Without the noise estimate's word, the sentence does not say "noise".
         for cause in [NoiseCause::NotNoise, NoiseCause::Unknown] {
             let clean = Support::NotSupported {
-                snr_db: Some(60.0),
+                snr_db: Some(SnrEstimate {
+                    db: 60.0,
+                    lower_bound: false,
+                }),
                 problem: first.clone(),
                 cause,
             };
@@ -593,6 +629,20 @@ mod tests {
             assert!(text.starts_with("not supported by these data"), "{text}");
             assert!(!clean.is_supported());
         }
+        // Records without a visible noise floor state a bound, not a value.
+        let bound = Support::Supported {
+            snr_db: Some(SnrEstimate {
+                db: 83.04,
+                lower_bound: true,
+            }),
+        }
+        .to_string();
+        assert!(
+            bound.starts_with(
+                "supported (estimated displacement SNR at least 83.0 dB if the noise is white; the spectrum shows no noise floor"
+            ),
+            "{bound}"
+        );
     }
 
     /// The assembly verdict puts the latest caveat first and serialises as one sentence; the

@@ -2,7 +2,9 @@
 //! on noise-free records of systems the library cannot express (a Duffing oscillator fitted
 //! without its cubic term, Bouc–Wen oscillators fitted with `x, x', u`) it is model error and
 //! never low SNR; on records that really are noisy (20 and 10 dB, white and pink) it is low SNR;
-//! on noise-free records and a library that holds the law it is neither.
+//! on noise-free records and a library that holds the law it is neither. The estimated
+//! displacement SNR of noise-free records is a bound (their spectra show no noise floor), of
+//! noisy ones an estimate.
 
 use tfs_criteria::{Criterion1, IdentifySpec, SnrVerdict, identify_tfs};
 use tfs_data::Record;
@@ -176,6 +178,14 @@ fn clean_records_are_never_called_too_noisy() {
             "{name}: {}",
             c1.support
         );
+        // The spectra of noise-free records show no noise floor: the SNR is stated as a bound
+        // for white noise (an extrapolated floor read these records as 25–45 dB).
+        let est = c1.estimated_snr_db.unwrap();
+        assert!(est.lower_bound && est.db > 60.0, "{name}: {est}");
+        assert!(
+            c1.support.to_string().contains("shows no noise floor"),
+            "{name}"
+        );
         not_supported += usize::from(!c1.support.is_supported());
     }
     eprintln!("{not_supported} of 4 not supported");
@@ -196,5 +206,63 @@ fn noisy_records_are_low_snr() {
         eprintln!("Duffing at {noise:?}: {}", describe(&c1));
         assert!(c1.snr.is_low_snr(), "{noise:?}: {}", describe(&c1));
         assert!(c1.snr.to_string().starts_with("low SNR"));
+        // Noisy records show their floor: the SNR is an estimate, not a bound.
+        let est = c1.estimated_snr_db.unwrap();
+        assert!(!est.lower_bound, "{noise:?}: {est}");
+        if noise.1 == NoiseKind::White {
+            assert!((est.db - noise.0).abs() < 3.0, "{noise:?}: {est}");
+        }
+    }
+}
+
+/// Records with moderate white noise (Duffing at 40 and 60 dB, the Bouc–Wen benchmark at 40 dB)
+/// show their noise floor: the estimated displacement SNR is an estimate within 3 dB of the
+/// truth, never a bound.
+#[test]
+fn moderate_noise_is_estimated_not_bounded() {
+    let duff = duffing(1.0, 0.02, 400.0);
+    let bw = BoucWenOscillator::benchmark();
+    for (name, recs, library, db) in [
+        (
+            "Duffing 40 dB",
+            records(
+                &duff,
+                200.0,
+                (0.5, 2.0),
+                30.0,
+                Some((40.0, NoiseKind::White)),
+            ),
+            "x, x^3, x', u",
+            40.0,
+        ),
+        (
+            "Duffing 60 dB",
+            records(
+                &duff,
+                200.0,
+                (0.5, 2.0),
+                30.0,
+                Some((60.0, NoiseKind::White)),
+            ),
+            "x, x^3, x', u",
+            60.0,
+        ),
+        (
+            "Bouc–Wen 40 dB",
+            records(
+                &bw,
+                750.0,
+                (5.0, 150.0),
+                50.0,
+                Some((40.0, NoiseKind::White)),
+            ),
+            "x, x', u",
+            40.0,
+        ),
+    ] {
+        let est = criterion1(&recs, library).estimated_snr_db.unwrap();
+        eprintln!("{name}: estimated displacement SNR {est}");
+        assert!(!est.lower_bound, "{name}: {est}");
+        assert!((est.db - db).abs() < 3.0, "{name}: {est}");
     }
 }

@@ -29,6 +29,10 @@ pub struct Band {
     pub bin_hz: f64,
     /// Length of the mirror-extended transform (2N, lengthened to a fast FFT size).
     pub mirror_len: usize,
+    /// The spectrum's upper half falls faster than a noise floor can
+    /// ([`crate::floor::NoiseFloor::is_signal_tail`]): no noise floor is visible, and the fitted
+    /// one only bounds the noise from above.
+    pub floor_is_signal_tail: bool,
 }
 
 impl Band {
@@ -51,6 +55,20 @@ impl Band {
         self.floor_log_a.is_finite()
             && self.mirror_len > 0
             && self.cutoff_hz < 0.25 * self.mirror_len as f64 * self.bin_hz
+    }
+
+    /// An upper bound on the variance of white measurement noise when the floor is a signal
+    /// tail ([`Band::floor_is_signal_tail`]): noise flat at the lowest level the fitted floor
+    /// reaches (its value at the top bin), summed over every bin. White noise above that level
+    /// would have shown as a flat floor there. 0 without a floor model.
+    pub fn white_noise_var_bound(&self) -> f64 {
+        if !self.floor_log_a.is_finite() || self.mirror_len < 2 {
+            return 0.0;
+        }
+        let k = self.mirror_len / 2;
+        let nn = self.mirror_len as f64;
+        let top = (self.floor_log_a + self.floor_beta * (k as f64).ln()).exp();
+        2.0 * top * k as f64 / (nn * nn)
     }
 
     /// Estimated variance of the whole-band noise of the raw signal: the fitted floor summed over
@@ -257,6 +275,7 @@ pub fn reconstruct_guarded(
             floor_beta: floor_model.beta,
             bin_hz: df,
             mirror_len: nn,
+            floor_is_signal_tail: floor_model.is_signal_tail(),
         },
     }
 }

@@ -101,6 +101,9 @@ pub struct NoiseFloor {
     mx: f64,
     /// Σ (ln k − mx)².
     sxx: f64,
+    /// The unclamped slope is below −2 by more than three standard errors: the upper half falls
+    /// faster than any noise floor the model admits.
+    tail: bool,
 }
 
 impl NoiseFloor {
@@ -156,11 +159,8 @@ impl NoiseFloor {
         let per_point = ((k - lo) as f64 / cnt).max(1.0);
         let s = (rss / (cnt - 2.0)).sqrt().max(2.33 / per_point.sqrt());
         let se = s / sxx.sqrt();
-        let beta = if b.abs() > 3.0 * se {
-            b.clamp(-2.0, 0.5)
-        } else {
-            0.0
-        };
+        let significant = b.abs() > 3.0 * se;
+        let beta = if significant { b.clamp(-2.0, 0.5) } else { 0.0 };
         Self {
             log_a: my - beta * mx,
             beta,
@@ -168,6 +168,7 @@ impl NoiseFloor {
             n: cnt,
             mx,
             sxx,
+            tail: b + 3.0 * se < -2.0,
         }
     }
 
@@ -180,7 +181,16 @@ impl NoiseFloor {
             n,
             mx,
             sxx,
+            tail: false,
         }
+    }
+
+    /// Does the upper half of the spectrum fall faster than a noise floor can (a slope below −2
+    /// by more than three standard errors: steeper than pink or even integrated white noise)? Then it is the tail of
+    /// the signal itself, the records show no noise floor, and the fitted floor (clamped to
+    /// slope −2) is only an upper bound on the noise: clean or nearly clean data.
+    pub fn is_signal_tail(&self) -> bool {
+        self.tail
     }
 
     /// The floor at bin `k` (bin 0 counts as bin 1).

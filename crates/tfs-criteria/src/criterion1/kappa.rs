@@ -436,8 +436,9 @@ pub struct Criterion1 {
     pub curve: Vec<CalibrationPoint>,
     /// The added-noise SNR at the knee of the curve, if calibrated.
     pub knee_snr_db: Option<f64>,
-    /// SNR (dB) of the displacement estimated from the fitted noise floors of the records.
-    pub estimated_snr_db: Option<f64>,
+    /// SNR (dB) of the displacement estimated from the fitted noise floors of the records (a
+    /// lower bound when they show no noise floor).
+    pub estimated_snr_db: Option<crate::trace::SnrEstimate>,
     /// Does the identified model show that the data support the library (in JSON:
     /// `supported` and `support_note`)?
     #[serde(flatten)]

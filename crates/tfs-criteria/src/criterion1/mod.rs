@@ -247,19 +247,35 @@ fn criterion1_blocks(
 }
 
 /// The SNR (dB) of DOF `d`'s displacement over all records, estimated from the fitted noise
-/// floors: total signal power over total noise power (`None` without a noise estimate).
-pub(crate) fn estimated_snr_db(preps: &[Prepared<'_>], dof: &str, d: usize) -> Option<f64> {
-    let (mut sig, mut noise) = (0.0, 0.0);
+/// floors: total signal power over total noise power (`None` without a noise estimate). Where a
+/// record's spectrum shows no noise floor (its upper half is the signal's own tail), its noise is
+/// bounded from above by white noise at the lowest level the spectrum reaches, and the result is
+/// a lower bound (an extrapolated floor would read clean records as 25–45 dB).
+pub(crate) fn estimated_snr_db(
+    preps: &[Prepared<'_>],
+    dof: &str,
+    d: usize,
+) -> Option<crate::trace::SnrEstimate> {
+    let (mut sig, mut noise, mut lower_bound) = (0.0, 0.0, false);
     for p in preps {
         let x = p.rec.column(dof)?;
         let n = x.len() as f64;
         let mean = x.iter().sum::<f64>() / n;
         let var = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
-        let nv = p.smooth[d].band.total_noise_var();
+        let band = &p.smooth[d].band;
+        let nv = if band.floor_is_signal_tail {
+            lower_bound = true;
+            band.white_noise_var_bound()
+        } else {
+            band.total_noise_var()
+        };
         sig += n * (var - nv).max(0.0);
         noise += n * nv;
     }
-    (noise > 0.0 && sig > 0.0).then(|| 10.0 * (sig / noise).log10())
+    (noise > 0.0 && sig > 0.0).then(|| crate::trace::SnrEstimate {
+        db: 10.0 * (sig / noise).log10(),
+        lower_bound,
+    })
 }
 
 /// The columns of Criterion 1's time-domain block `(Θ, x'')` of DOF `dof` on the *measured*

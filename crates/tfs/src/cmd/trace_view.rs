@@ -85,7 +85,14 @@ fn print_dof(d: &DofTrace) {
 
 fn print_criterion1(c1: &Criterion1) {
     let snr = c1.estimated_snr_db.map_or(String::new(), |v| {
-        format!("; estimated displacement SNR {} dB", sig(v))
+        if v.lower_bound {
+            format!(
+                "; estimated displacement SNR at least {} dB if the noise is white (the spectrum shows no noise floor)",
+                sig(v.db)
+            )
+        } else {
+            format!("; estimated displacement SNR {} dB", sig(v.db))
+        }
     });
     println!(
         "  criterion 1: κ = {} ({:?}) against κ0 = {}: {}{snr}",
