@@ -2,11 +2,20 @@
 //! `xi`) as a system with its wells, for basins and the minimum-energy deployment: each cell's
 //! force law is read from its own DOF's equation, the chain's stable states are the products of
 //! the cells' stable heights, its saddles every other product.
+//!
+//! Where the next cell rests its force is zero, so the terms of DOF `i`'s equation that name the
+//! next cell's coordinate `(x(i+1)-xi)` push nothing there. A tied fit has that by construction
+//! (those terms are the next cell's own law); an untied fit does not: the data pin down only
+//! the sum of cell `i`'s polynomial and the coupling's, and a constant force can move between the
+//! two (polynomials without a constant term still make one over the heights the records span).
+//! Cell `i`'s law is therefore its own terms plus the coupling's force where the next cell rests
+//! (the mean over the next cell's stable heights): zero for a tied fit, and the constant an
+//! untied fit moved into the coupling otherwise.
 
 use std::sync::Arc;
 
 use tfs_basin::{ChainWells, WellInfo};
-use tfs_library::{Coord, Model, Var};
+use tfs_library::{Coord, Model, Restoring, Var};
 
 use crate::error::{Context, Result};
 use crate::invalid;
@@ -18,6 +27,37 @@ pub struct CellStates {
     pub stable: Vec<f64>,
     /// Unstable heights, ascending.
     pub unstable: Vec<f64>,
+    /// The force per unit mass of the next cell's terms in this DOF's equation where the next
+    /// cell rests (mean over its stable heights), moved into this cell's law (see the module
+    /// docs): 0 for the last cell and for a tied fit.
+    pub coupling_at_rest: f64,
+    /// This cell's stable heights with the coupling taken at each stable height of the next
+    /// cell in turn (`(next cell's height, this cell's stable heights)`); empty for the last
+    /// cell. They differ when an untied fit's coupling is not the next cell's law.
+    pub by_next: Vec<(f64, Vec<f64>)>,
+}
+
+/// One cell's force law along its height: its own terms' restoring force plus a constant.
+#[derive(Debug, Clone)]
+struct CellLaw {
+    own: Restoring,
+    shift: f64,
+}
+
+impl CellLaw {
+    fn force(&self, h: f64) -> f64 {
+        self.own.force(h) + self.shift
+    }
+
+    fn potential(&self, h: f64) -> f64 {
+        self.own.potential(h) + self.shift * h
+    }
+
+    /// The equilibria on `search`.
+    fn wells(&self, search: (f64, f64)) -> tfs_basin::Result<WellInfo> {
+        let (f, p) = (self.clone(), self.clone());
+        WellInfo::from_force(move |h| f.force(h), move |h| p.potential(h), search, 1.0)
+    }
 }
 
 /// A chain model's cells, masses and wells.
@@ -28,61 +68,141 @@ pub struct ChainModel {
     pub masses: Vec<f64>,
     /// The chain's stable states (displacements), saddles' lowest energy and potential.
     pub wells: ChainWells,
+    /// Whether the model was fitted with ties (see [`is_tied`]).
+    pub tied: bool,
+}
+
+/// Whether `model` was fitted with its chain elements' laws tied between the equations they
+/// enter: its trace lists the ties (`"ties"`, beside the fit's `"masses"`).
+pub fn is_tied(model: &Model) -> bool {
+    model.trace["ties"].as_array().is_some_and(|t| !t.is_empty())
 }
 
 /// The model with DOF `i`'s equation reduced to the terms of cell `i` (those not naming the next
 /// cell's coordinate `(x(i+1)-xi)`): its restoring force along `xi` is then the cell's own law.
 fn cell_model(model: &Model, i: usize) -> Model {
+    split(model, i, false)
+}
+
+/// The model with DOF `i + 1`'s equation replaced by the terms of DOF `i`'s equation that name
+/// the next cell's coordinate `(x(i+1)-xi)`: its restoring force along `x(i+1)` is minus the
+/// coupling's force per unit mass in `xi''` as a function of the next cell's height.
+fn coupling_model(model: &Model, i: usize) -> Model {
+    let mut m = split(model, i, true);
+    let terms = m
+        .equations
+        .iter()
+        .find(|e| e.dof == model.dofs[i])
+        .map(|e| e.terms.clone())
+        .unwrap_or_default();
+    let next = &model.dofs[i + 1];
+    if let Some(eq) = m.equations.iter_mut().find(|e| &e.dof == next) {
+        eq.terms = terms;
+    }
+    m
+}
+
+/// The model with DOF `i`'s equation reduced to the terms naming the next cell's coordinate
+/// (`coupling`) or to the others.
+fn split(model: &Model, i: usize, coupling: bool) -> Model {
     let dof = &model.dofs[i];
     let mut m = model.clone();
     if let Some(eq) = m.equations.iter_mut().find(|e| &e.dof == dof) {
         eq.terms.retain(|t| {
-            !t.term.vars().iter().any(|v| match v {
+            let names_next = t.term.vars().iter().any(|v| match v {
                 Var::RelDisp(_, Coord::Dof(b)) | Var::RelVel(_, Coord::Dof(b)) => b == dof,
                 _ => false,
-            })
+            });
+            names_next == coupling
         });
     }
     m
+}
+
+/// Each cell's law and equilibria on `search`, from the last cell to the first (a cell's law
+/// takes the coupling where the next cell rests, see the module docs).
+fn cell_laws(label: &str, model: &Model, search: (f64, f64)) -> Result<Vec<(CellLaw, CellStates)>> {
+    let n = model.dofs.len();
+    let mut out: Vec<(CellLaw, CellStates)> = Vec::with_capacity(n);
+    for i in (0..n).rev() {
+        let dof = &model.dofs[i];
+        let own = cell_model(model, i)
+            .restoring(dof)
+            .with_context(|| format!("{label}: restoring force of cell {} ('{dof}')", i + 1))?;
+        let context = || {
+            format!(
+                "{label}: equilibria of cell {} on heights {search:?} (choose the range with --search)",
+                i + 1
+            )
+        };
+        let (mut shift, mut by_next) = (0.0, Vec::new());
+        if let Some((_, next)) = out.last() {
+            let g = coupling_model(model, i)
+                .restoring(&model.dofs[i + 1])
+                .with_context(|| {
+                    format!("{label}: the next cell's terms in the equation of '{dof}'")
+                })?;
+            let at: Vec<f64> = next.stable.iter().map(|z| -g.force(*z)).collect();
+            if !at.is_empty() {
+                shift = -at.iter().sum::<f64>() / at.len() as f64;
+            }
+            for (z, a) in next.stable.iter().zip(&at) {
+                let law = CellLaw {
+                    own: own.clone(),
+                    shift: -a,
+                };
+                let w = law.wells(search).with_context(context)?;
+                by_next.push((*z, w.stable().to_vec()));
+            }
+        }
+        let law = CellLaw { own, shift };
+        let w = law.wells(search).with_context(context)?;
+        let states = CellStates {
+            stable: w.stable().to_vec(),
+            unstable: w.unstable().to_vec(),
+            coupling_at_rest: -shift,
+            by_next,
+        };
+        out.push((law, states));
+    }
+    out.reverse();
+    Ok(out)
+}
+
+/// Each cell's equilibria on `search` (`label` names the model in messages), the base cell
+/// first; see the module docs for how each cell's law is read from the equations.
+pub fn cell_states(label: &str, model: &Model, search: (f64, f64)) -> Result<Vec<CellStates>> {
+    chain_dofs(label, model)?;
+    Ok(cell_laws(label, model, search)?
+        .into_iter()
+        .map(|(_, s)| s)
+        .collect())
+}
+
+/// Refuses a model of one DOF.
+fn chain_dofs(label: &str, model: &Model) -> Result<()> {
+    if model.dofs.len() < 2 {
+        invalid!(
+            "{label}: the model has one DOF ({}); a chain has two or more",
+            model.dofs.join(", ")
+        );
+    }
+    Ok(())
 }
 
 /// Reads a chain model's cells and wells (`label` names it in messages): each cell's stable and
 /// unstable heights on `search`, the masses from the tied fit's trace (1 each otherwise), and the
 /// chain's stable states ordered by the last DOF's displacement.
 pub fn model_chain(label: &str, model: &Model, search: (f64, f64)) -> Result<ChainModel> {
+    chain_dofs(label, model)?;
     let n = model.dofs.len();
-    if n < 2 {
-        invalid!(
-            "{label}: the model has one DOF ({}); a chain has two or more",
-            model.dofs.join(", ")
-        );
-    }
-    let masses: Vec<f64> = model.trace["tied"]["masses"]
+    let masses: Vec<f64> = model.trace["masses"]
         .as_array()
         .map(|a| a.iter().filter_map(|m| m.as_f64()).collect::<Vec<f64>>())
         .filter(|m| m.len() == n && m.iter().all(|v| v.is_finite() && *v > 0.0))
         .unwrap_or_else(|| vec![1.0; n]);
-    let mut cells = Vec::with_capacity(n);
-    let mut laws = Vec::with_capacity(n);
-    for i in 0..n {
-        let dof = &model.dofs[i];
-        let r = cell_model(model, i)
-            .restoring(dof)
-            .with_context(|| format!("{label}: restoring force of cell {} ('{dof}')", i + 1))?;
-        let (f, p) = (r.clone(), r.clone());
-        let w = WellInfo::from_force(move |h| f.force(h), move |h| p.potential(h), search, 1.0)
-            .with_context(|| {
-                format!(
-                    "{label}: equilibria of cell {} on heights {search:?} (choose the range with --search)",
-                    i + 1
-                )
-            })?;
-        cells.push(CellStates {
-            stable: w.stable().to_vec(),
-            unstable: w.unstable().to_vec(),
-        });
-        laws.push(r);
-    }
+    let (laws, cells): (Vec<CellLaw>, Vec<CellStates>) =
+        cell_laws(label, model, search)?.into_iter().unzip();
     let (stable, saddles) = products(&cells);
     if stable.is_empty() {
         invalid!(
@@ -116,6 +236,7 @@ pub fn model_chain(label: &str, model: &Model, search: (f64, f64)) -> Result<Cha
         cells,
         masses,
         wells,
+        tied: is_tied(model),
     })
 }
 

@@ -7,7 +7,7 @@ use std::path::Path;
 use anyhow::{Result, anyhow};
 use serde_json::{Value, json};
 use tfs::basin::{BasinConfig, BasinMap, ChainMed, Slice, basin_chain, med_chain};
-use tfs::chain::{ChainModel, model_chain};
+use tfs::chain::{CellStates, ChainModel, model_chain};
 use tfs::library::{CompiledModel, Model};
 
 use super::parse_range;
@@ -92,9 +92,11 @@ pub fn chain_json(c: &ChainMap) -> Value {
     })
 }
 
-/// The cells' equilibria and the chain's stable states, as sentences.
-pub fn print_states(c: &ChainMap) {
-    for (i, s) in c.chain.cells.iter().enumerate() {
+/// The cells' equilibria as sentences; for a model that is not tied, what each cell's law
+/// took from the next cell's terms in its equation and how its stable heights depend on where
+/// the next cell rests.
+pub fn print_cells(cells: &[CellStates], tied: bool) {
+    for (i, s) in cells.iter().enumerate() {
         let kind = match s.stable.len() {
             1 => "monostable".to_string(),
             2 => "bistable".to_string(),
@@ -106,7 +108,37 @@ pub fn print_states(c: &ChainMap) {
             list(&s.stable),
             list(&s.unstable)
         );
+        if tied || s.by_next.is_empty() {
+            continue;
+        }
+        let at: Vec<String> = s
+            .by_next
+            .iter()
+            .map(|(z, h)| format!("at {z:.4}: h = {}", list(h)))
+            .collect();
+        println!(
+            "  with cell {}'s terms in x{}'' taken where cell {} rests ({:.4} per unit mass; the fit was not tied, so the data fix only the sum of cell {}'s terms and these); with cell {} {}",
+            i + 2,
+            i + 1,
+            i + 2,
+            s.coupling_at_rest,
+            i + 1,
+            i + 2,
+            at.join("; ")
+        );
+        if s.by_next.iter().any(|(_, h)| h.len() != s.stable.len()) {
+            println!(
+                "  warning: cell {}'s kind depends on where cell {} rests: this untied fit cannot separate the two cells' laws; fit with ties (the default for a chain)",
+                i + 1,
+                i + 2
+            );
+        }
     }
+}
+
+/// The cells' equilibria and the chain's stable states, as sentences.
+pub fn print_states(c: &ChainMap) {
+    print_cells(&c.chain.cells, c.chain.tied);
     for (k, s) in c.chain.wells.stable().iter().enumerate() {
         println!("S{}: x = {}", k + 1, state(s));
     }

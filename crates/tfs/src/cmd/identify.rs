@@ -202,6 +202,9 @@ pub fn run(args: Args) -> Result<()> {
                 "chain: each element's force law is tied between the two equations it enters (the default for a chain; --no-tie fits each equation on its own)"
             );
         }
+        if plan.dofs.len() > 1 && !tfs::criteria::chain_ties(&plan.spec)?.is_empty() {
+            print_chain_cells(&identified.model)?;
+        }
         print_trace(&identified.trace);
         print_offsets(offsets_report);
         for line in refine_report.iter().flat_map(RefineReport::lines) {
@@ -210,6 +213,23 @@ pub fn run(args: Args) -> Result<()> {
         if let Some(out) = &args.out {
             println!("model written to {}", out.display());
         }
+    }
+    Ok(())
+}
+
+/// A chain model's cells as `tfs basin` reads them (each cell's law from its own equation, on
+/// the default search range), or why they could not be read.
+fn print_chain_cells(model: &tfs::library::Model) -> Result<()> {
+    let search = super::parse_range(super::chain_basin::DEFAULT_SEARCH, "--search")?;
+    match tfs::chain::cell_states("the model", model, search) {
+        Ok(cells) => {
+            println!(
+                "cells (each cell's force law from its own equation, heights h on {}..{}):",
+                search.0, search.1
+            );
+            super::chain_basin::print_cells(&cells, tfs::chain::is_tied(model));
+        }
+        Err(e) => println!("cells: not read ({})", tfs::one_line(&e)),
     }
     Ok(())
 }
