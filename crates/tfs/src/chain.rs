@@ -75,7 +75,9 @@ pub struct ChainModel {
 /// Whether `model` was fitted with its chain elements' laws tied between the equations they
 /// enter: its trace lists the ties (`"ties"`, beside the fit's `"masses"`).
 pub fn is_tied(model: &Model) -> bool {
-    model.trace["ties"].as_array().is_some_and(|t| !t.is_empty())
+    model.trace["ties"]
+        .as_array()
+        .is_some_and(|t| !t.is_empty())
 }
 
 /// The model with DOF `i`'s equation reduced to the terms of cell `i` (those not naming the next
@@ -280,9 +282,9 @@ mod tests {
 
     /// Two cells with known laws, the coupling in both equations as a tied fit writes it: cell 1
     /// F1(h) = h − h² (stable at 1), cell 2 F2(h) = −h(h − 0.5)(h − 1)(h − 1.5) (stable at 0.5
-    /// and 1.5, a saddle at 1).
-    #[test]
-    fn cells_are_read_from_their_own_equations() {
+    /// and 1.5, a saddle at 1); `extra` is added to the coefficient of `(x2-x1)` in x1'' only
+    /// (as an untied fit may leave it), `tied` records ties in the trace.
+    fn two_cells(extra: f64, tied: bool) -> Model {
         let f2 = [0.0, 0.75, -2.75, 3.0, -1.0];
         let mut terms1 = vec![("x1".to_string(), 1.0), ("x1^2".to_string(), -1.0)];
         let mut terms2 = Vec::new();
@@ -292,17 +294,62 @@ mod tests {
             } else {
                 format!("(x2-x1)^{k}")
             };
-            terms1.push((name.clone(), -c));
+            terms1.push((name.clone(), if k == 1 { extra - c } else { -c }));
             terms2.push((name, *c));
         }
         let eq = |dof: &str, t: &[(String, f64)]| serde_json::json!({"dof": dof, "terms": t.iter().map(|(n, c)| serde_json::json!({"term": n, "coef": c})).collect::<Vec<_>>()});
-        let json = serde_json::json!({"format": "tfs-model/1", "dofs": ["x1", "x2"], "inputs": [],
-            "equations": [eq("x1", &terms1), eq("x2", &terms2)], "method": "test"});
-        let model = Model::from_json_str(&json.to_string()).unwrap();
-        let c = model_chain("test", &model, (0.1, 2.0)).unwrap();
-        let close = |a: &[f64], b: &[f64]| {
-            a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-6)
+        let trace = if tied {
+            serde_json::json!({"masses": [1.0, 0.5], "ties": [{"term": "(x2-x1)", "owner": "x2", "partner": "x1", "factor_in_partner": -1.0}]})
+        } else {
+            serde_json::json!({})
         };
+        let json = serde_json::json!({"format": "tfs-model/1", "dofs": ["x1", "x2"], "inputs": [],
+            "equations": [eq("x1", &terms1), eq("x2", &terms2)], "method": "test", "trace": trace});
+        Model::from_json_str(&json.to_string()).unwrap()
+    }
+
+    fn close(a: &[f64], b: &[f64]) -> bool {
+        a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-6)
+    }
+
+    /// An untied fit's coupling that does not vanish where cell 2 rests: x1'' = h − h² + 0.1·z
+    /// there (z = 0.5 or 1.5), so cell 1 rests where h² − h = 0.1·z, and its law takes the mean
+    /// coupling 0.1.
+    #[test]
+    fn an_untied_coupling_is_taken_where_the_next_cell_rests() {
+        let model = two_cells(0.1, false);
+        let c = model_chain("test", &model, (0.1, 2.0)).unwrap();
+        assert!(!c.tied);
+        let root = |cz: f64| (1.0 + (1.0 + 4.0 * cz).sqrt()) / 2.0;
+        assert!(close(&c.cells[0].stable, &[root(0.1)]), "{:?}", c.cells);
+        assert!(
+            (c.cells[0].coupling_at_rest - 0.1).abs() < 1e-9,
+            "{:?}",
+            c.cells
+        );
+        let by: Vec<f64> = c.cells[0].by_next.iter().map(|(z, _)| *z).collect();
+        assert!(close(&by, &[0.5, 1.5]), "{:?}", c.cells);
+        assert!(
+            close(&c.cells[0].by_next[0].1, &[root(0.05)]),
+            "{:?}",
+            c.cells
+        );
+        assert!(
+            close(&c.cells[0].by_next[1].1, &[root(0.15)]),
+            "{:?}",
+            c.cells
+        );
+        assert!(close(&c.cells[1].stable, &[0.5, 1.5]), "{:?}", c.cells);
+        assert_eq!(c.cells[1].coupling_at_rest, 0.0);
+        assert_eq!(cell_states("test", &model, (0.1, 2.0)).unwrap(), c.cells);
+    }
+
+    #[test]
+    fn cells_are_read_from_their_own_equations() {
+        let model = two_cells(0.0, true);
+        let c = model_chain("test", &model, (0.1, 2.0)).unwrap();
+        assert!(c.tied);
+        assert_eq!(c.masses, vec![1.0, 0.5]);
         assert!(close(&c.cells[0].stable, &[1.0]), "{:?}", c.cells);
         assert!(close(&c.cells[1].stable, &[0.5, 1.5]), "{:?}", c.cells);
         assert!(close(&c.cells[1].unstable, &[1.0]), "{:?}", c.cells);
