@@ -10,11 +10,14 @@
 //! when none does, at most [`MAX_EVALS`] evaluations. The search stays within the range the
 //! effect's scan covered (plus half a step): a time constant far below the scan's shortest is a
 //! different effect (a Maxwell element with τ → 0 is a plain damper).
+//!
+//! An input effect (a delayed or low-pass filtered input) is refined the same way in its one
+//! parameter: the scan's delays are whole samples, a true delay rarely is.
 
 use tfs_library::{Factor, StateLaw, Term};
 
 use crate::Result;
-use crate::effects::{EffectColumn, Variant};
+use crate::effects::{ComputedColumn, EffectColumn, Variant, input_variant, round3};
 use crate::explain::Scored;
 
 /// Most variants a refinement scores.
@@ -120,19 +123,36 @@ pub(crate) fn polish(
     variants: &[Variant],
     score: &dyn Fn(&Variant) -> Result<Scored>,
 ) -> Result<Scored> {
+    if let Some(input) = InputFamily::of(&best.variant) {
+        return polish_input(best, &input, variants, score);
+    }
     let Some((_, law)) = state_of(&best.variant) else {
         return Ok(best);
     };
-    let Some(mut u) = to_coords(&law) else {
+    let Some(u) = to_coords(&law) else {
         return Ok(best);
     };
     // Half a grid step: the grids scan factors of about three (ln 3 / 2); b/a in steps of 1/2.
-    let mut step: Vec<f64> = (0..u.len())
+    let step: Vec<f64> = (0..u.len())
         .map(|k| if k == 0 { 0.55 } else { 0.25 })
         .collect();
     let Some(bounds) = scan_bounds(&best.variant, variants, &step) else {
         return Ok(best);
     };
+    let make = |v: &Variant, u: &[f64]| from_coords(&law, u).and_then(|l| with_law(v, l));
+    pattern_search(best, u, step, &bounds, &make, score)
+}
+
+/// The pattern search of the module docs from `best` at coordinates `u`: each coordinate moved
+/// by ± its step within `bounds`, `make` building the variant at new coordinates.
+fn pattern_search(
+    best: Scored,
+    mut u: Vec<f64>,
+    mut step: Vec<f64>,
+    bounds: &[(f64, f64)],
+    make: &dyn Fn(&Variant, &[f64]) -> Option<Variant>,
+    score: &dyn Fn(&Variant) -> Result<Scored>,
+) -> Result<Scored> {
     let mut best = best;
     let mut evals = 0;
     for _level in 0..3 {
@@ -148,11 +168,8 @@ pub(crate) fn polish(
                     if !(bounds[k].0..=bounds[k].1).contains(&trial[k]) {
                         continue;
                     }
-                    let Some(law) = from_coords(&law, &trial) else {
+                    let Some(v) = make(&best.variant, &trial) else {
                         continue;
-                    };
-                    let Some(v) = with_law(&best.variant, law) else {
-                        return Ok(best);
                     };
                     evals += 1;
                     let s = score(&v)?;
@@ -171,4 +188,80 @@ pub(crate) fn polish(
         step.iter_mut().for_each(|s| *s *= 0.5);
     }
     Ok(best)
+}
+
+/// An input effect's variant: every replacement a computed column of the same kind with the same
+/// parameter (`"delay"` or `"tau"`), nothing added.
+struct InputFamily {
+    inputs: Vec<String>,
+    parameter: &'static str,
+    value: f64,
+}
+
+impl InputFamily {
+    fn of(v: &Variant) -> Option<Self> {
+        if !v.add.is_empty() || v.replace.is_empty() {
+            return None;
+        }
+        let mut inputs = Vec::new();
+        let mut kind: Option<(&'static str, f64)> = None;
+        for (_, c) in &v.replace {
+            let this = match c.computed.as_ref()? {
+                ComputedColumn::Delayed { input, delay } => {
+                    inputs.push(input.clone());
+                    ("delay", *delay)
+                }
+                ComputedColumn::Lowpass { input, tau } => {
+                    inputs.push(input.clone());
+                    ("tau", *tau)
+                }
+            };
+            if kind.is_some_and(|k| k != this) {
+                return None;
+            }
+            kind = Some(this);
+        }
+        let (parameter, value) = kind?;
+        (value > 0.0 && value.is_finite()).then_some(Self {
+            inputs,
+            parameter,
+            value,
+        })
+    }
+}
+
+/// Refines the delay or time constant of an input effect between the scanned values, on a log
+/// scale: the first step is half the wider log-gap to the scanned neighbours of the best value,
+/// and the search stays within the scanned range widened by that step (a delay below one sample
+/// is allowed down to about half a sample). Values are rounded to 3 significant digits, as the
+/// computed column's name writes them.
+fn polish_input(
+    best: Scored,
+    family: &InputFamily,
+    variants: &[Variant],
+    score: &dyn Fn(&Variant) -> Result<Scored>,
+) -> Result<Scored> {
+    let mut scanned: Vec<f64> = variants
+        .iter()
+        .filter_map(InputFamily::of)
+        .filter(|f| f.parameter == family.parameter && f.inputs == family.inputs)
+        .map(|f| f.value.ln())
+        .collect();
+    scanned.sort_by(f64::total_cmp);
+    scanned.dedup();
+    let u0 = family.value.ln();
+    let below = scanned.iter().rev().find(|&&x| x < u0).map(|x| u0 - x);
+    let above = scanned.iter().find(|&&x| x > u0).map(|x| x - u0);
+    let step = match (below, above) {
+        (None, None) => return Ok(best),
+        (a, b) => 0.5 * a.unwrap_or(0.0).max(b.unwrap_or(0.0)),
+    };
+    let (lo, hi) = (scanned[0] - step, scanned[scanned.len() - 1] + step);
+    let inputs = family.inputs.clone();
+    let parameter = family.parameter;
+    let make = move |_: &Variant, u: &[f64]| {
+        let value = round3(u[0].exp());
+        (value > 0.0).then(|| input_variant(&inputs, parameter, value))
+    };
+    pattern_search(best, vec![u0], vec![step], &[(lo, hi)], &make, score)
 }

@@ -373,6 +373,26 @@ pub(crate) fn dominant_period(x: &[f64], dt: f64) -> Result<f64> {
     Ok(1.0 / f[k.min(f.len() - 1)].max(f[1.min(f.len() - 1)]))
 }
 
+/// RMS-frequency period (s) of a signal: `1/f_rms` with `f_rms² = Σ f²·|X(f)|² / Σ |X(f)|²`
+/// over its spectrum (mean removed). `‖u'‖ = 2π f_rms ‖u‖`, so this is the time scale on which a
+/// shift or a smoothing of the signal changes it: a delay δ changes `u` by about `2π δ/T` of its
+/// RMS. NaN for a constant signal.
+pub(crate) fn rms_frequency_period(x: &[f64], dt: f64) -> Result<f64> {
+    let mean = x.iter().sum::<f64>() / x.len().max(1) as f64;
+    let centred: Vec<f64> = x.iter().map(|v| v - mean).collect();
+    let (f, a) = amplitude_spectrum(&centred, dt)?;
+    let (mut num, mut den) = (0.0, 0.0);
+    for (fi, ai) in f.iter().zip(&a).skip(1) {
+        num += fi * fi * ai * ai;
+        den += ai * ai;
+    }
+    Ok(if num > 0.0 {
+        (den / num).sqrt()
+    } else {
+        f64::NAN
+    })
+}
+
 /// What the catalogue's effects are told about the data of one DOF's equation (see
 /// [`crate::EffectContext`]), measured over the usable rows of every record.
 #[derive(Debug, Clone)]
@@ -390,6 +410,9 @@ pub(crate) struct DataScales {
     pub rms: Vec<(tfs_library::Var, f64)>,
     /// Duration of the shortest record (s).
     pub shortest_record: f64,
+    /// Median over records of the RMS-frequency period ([`rms_frequency_period`]) of the
+    /// smoothed inputs the equation uses linearly (s); NaN without such an input.
+    pub input_period: f64,
 }
 
 impl DataScales {
@@ -405,6 +428,8 @@ impl DataScales {
         let vname = format!("{dof}'");
         let mut vel = Vec::new();
         let mut periods = Vec::new();
+        let mut input_periods = Vec::new();
+        let inputs = crate::effects::linear_inputs(terms);
         let (mut xsum, mut xn) = (0.0, 0usize);
         let vars = crate::effects::coordinates(
             tfs_library::Var::Disp(dof.clone()),
@@ -423,6 +448,15 @@ impl DataScales {
             vel.extend_from_slice(&v[used.start.min(v.len())..used.end.min(v.len())]);
             let x = s.column(dof).unwrap_or(&[]);
             periods.push(dominant_period(x, s.record.dt())?);
+            for name in &inputs {
+                if let Some(u) = s.column(name) {
+                    let uu = &u[used.start.min(u.len())..used.end.min(u.len())];
+                    let p = rms_frequency_period(uu, s.record.dt())?;
+                    if p.is_finite() && p > 0.0 {
+                        input_periods.push(p);
+                    }
+                }
+            }
             let xu = &x[used.start.min(x.len())..used.end.min(x.len())];
             xsum += xu.iter().sum::<f64>();
             xn += xu.len();
@@ -438,12 +472,17 @@ impl DataScales {
             }
         }
         periods.sort_by(f64::total_cmp);
+        input_periods.sort_by(f64::total_cmp);
         let shortest_record = states
             .iter()
             .map(|s| s.record.dt() * s.record.len().saturating_sub(1) as f64)
             .fold(f64::INFINITY, f64::min);
         Ok(Self {
             shortest_record,
+            input_period: input_periods
+                .get(input_periods.len() / 2)
+                .copied()
+                .unwrap_or(f64::NAN),
             velocity: rms(&vel),
             period: periods.get(periods.len() / 2).copied().unwrap_or(f64::NAN),
             mean: if xn > 0 { xsum / xn as f64 } else { 0.0 },
