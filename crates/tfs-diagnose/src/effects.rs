@@ -556,7 +556,7 @@ impl Effect for InputDelay {
     }
     fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
         let inputs = linear_inputs(&ctx.terms);
-        if inputs.is_empty() || !(ctx.dt > 0.0) {
+        if inputs.is_empty() || ctx.dt.is_nan() || ctx.dt <= 0.0 {
             return Vec::new();
         }
         let max = if ctx.input_period.is_finite() && ctx.input_period > 0.0 {
