@@ -81,7 +81,7 @@ pub use options::{
     IdentifySpec, Kappa0Choice, SindyOptions, TfsOptions, UncertaintyOptions,
 };
 pub use pipeline::identify_tfs;
-pub use tied::{MassChoice, Tie, TieOptions, chain_ties, identify_tfs_tied};
+pub use tied::{MassChoice, Tie, TieOptions, chain_ties, identify_tfs_tied, library_ties};
 pub use trace::{
     AssemblyStep, AssemblyVerdict, ChosenSettings, Criterion4Outcome, DofTrace, Identified, Method,
     NoiseCause, Problem, RecordBins, SettingScore, SnrEstimate, Support, TieTrace, TiedTrace,

@@ -67,7 +67,8 @@ pub use explain::{Explanation, RankedEffect, explain};
 pub use judge::Judge;
 pub use prepare::DiagnoseOptions;
 pub use refit::{
-    LadderStep, add_effect, add_effect_with, error_ladder, ladder_table, refit, score_records,
+    LadderStep, SharedTerm, add_effect, add_effect_with, error_ladder, ladder_table, refit,
+    refit_shared, score_records,
 };
 pub use residual::{Localisation, localise};
 pub use restoring::{RestoringLoop, restoring_loop};

@@ -1,10 +1,12 @@
 //! Add and refit: refit a model's structure by equation error, add a named effect (its scanned
 //! parameter chosen by held-out error), keep the history, and print the error ladder.
 
+use faer::Mat;
 use serde::Serialize;
 use serde_json::json;
 use tfs_data::Record;
-use tfs_library::{HistoryEntry, Model, RecordScore};
+use tfs_library::{HistoryEntry, Model, RecordScore, Term};
+use tfs_regress::Compressed;
 
 use crate::effects::{Catalogue, EffectColumn};
 use crate::explain::{
@@ -40,6 +42,117 @@ pub fn refit(model: &Model, records: &[Record], opts: &DiagnoseOptions) -> Resul
         let d = design(&states, idx, &cols)?;
         let coef = full_fit(&compress_blocks(&d, &layout)?)?;
         out = with_equation(&out, idx, &cols, &coef)?;
+    }
+    Ok(out)
+}
+
+/// A term of a chain element's force law that two equations share (Newton's third law, as a
+/// tied fit writes it): its coefficient in the partner DOF's equation is `factor` times the one
+/// in the owner DOF's equation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SharedTerm {
+    /// The term, a function of the relative coordinate between the two DOFs.
+    pub term: Term,
+    /// Index of the DOF whose equation holds the free coefficient.
+    pub owner: usize,
+    /// Index of the DOF whose coefficient is `factor` times the owner's.
+    pub partner: usize,
+    /// The tie factor (`−m_owner/m_partner` per unit mass).
+    pub factor: f64,
+}
+
+/// [`refit`] with the `shared` terms tied: every equation's coefficients (same terms) are
+/// estimated jointly by equation-error least squares on the usable rows of `records`, one
+/// unknown per shared term for both equations it enters. The last history step, if any, is
+/// rescored with these coefficients (it was scored with the untied ones).
+pub fn refit_shared(
+    model: &Model,
+    records: &[Record],
+    shared: &[SharedTerm],
+    opts: &DiagnoseOptions,
+) -> Result<Model> {
+    let states = prepare(model, records, opts)?;
+    let layout = Layout::new(&states, opts)?;
+    // Each equation's column -> (unknown, factor): owners' and untied terms get their own
+    // unknown, a partner's shared term the owner's unknown times the factor.
+    let position = |d: usize, t: &Term| model.equations[d].terms.iter().position(|m| m.term == *t);
+    let mut map: Vec<Vec<Option<(usize, f64)>>> = model
+        .equations
+        .iter()
+        .map(|e| vec![None; e.terms.len()])
+        .collect();
+    let mut unknowns = 0;
+    for (d, cols) in map.iter_mut().enumerate() {
+        for (c, slot) in cols.iter_mut().enumerate() {
+            let t = &model.equations[d].terms[c].term;
+            let partner_of_owner = shared
+                .iter()
+                .any(|s| s.partner == d && s.term == *t && position(s.owner, t).is_some());
+            if !partner_of_owner {
+                *slot = Some((unknowns, 1.0));
+                unknowns += 1;
+            }
+        }
+    }
+    for s in shared {
+        if let (Some(oc), Some(pc)) = (position(s.owner, &s.term), position(s.partner, &s.term))
+            && let Some((u, _)) = map[s.owner][oc]
+        {
+            map[s.partner][pc] = Some((u, s.factor));
+        }
+    }
+    let map: Vec<Vec<(usize, f64)>> = map
+        .into_iter()
+        .map(|cols| cols.into_iter().map(|m| m.unwrap_or((0, 0.0))).collect())
+        .collect();
+    let columns: Vec<Vec<EffectColumn>> = model
+        .equations
+        .iter()
+        .map(|e| {
+            e.terms
+                .iter()
+                .map(|t| EffectColumn::term(t.term.clone()))
+                .collect()
+        })
+        .collect();
+    let mut blocks = Vec::new();
+    for (d, cols) in columns.iter().enumerate() {
+        if cols.is_empty() {
+            continue;
+        }
+        let des = design(&states, d, cols)?;
+        for bl in &layout.blocks {
+            let a = des.a[bl.record].as_ref().subrows(bl.start, bl.len);
+            let mut joint = Mat::<f64>::zeros(bl.len, unknowns);
+            for (c, &(u, f)) in map[d].iter().enumerate() {
+                for i in 0..bl.len {
+                    joint[(i, u)] += f * a[(i, c)];
+                }
+            }
+            let b = &des.b[bl.record][bl.start..bl.start + bl.len];
+            blocks.push(Compressed::from_rows(joint.as_ref(), b)?);
+        }
+    }
+    let theta = full_fit(&blocks)?;
+    let mut out = model.clone();
+    for (d, cols) in columns.iter().enumerate() {
+        if cols.is_empty() {
+            continue;
+        }
+        let coef: Vec<f64> = map[d].iter().map(|&(u, f)| f * theta[u]).collect();
+        out = with_equation(&out, d, cols, &coef)?;
+    }
+    if !out.history.is_empty() {
+        let (scores, failed) = try_scores(&out, records);
+        let equations = out.equation_string();
+        if let Some(last) = out.history.last_mut() {
+            last.r_mse = scores;
+            if let Some(details) = last.details.as_object_mut() {
+                details.insert("failed".into(), json!(failed));
+                details.insert("equations".into(), json!(equations));
+                details.insert("shared_terms".into(), json!(shared.len()));
+            }
+        }
     }
     Ok(out)
 }

@@ -192,17 +192,23 @@ fn chain_dofs(label: &str, model: &Model) -> Result<()> {
     Ok(())
 }
 
+/// The masses a tied fit used (its trace's `"masses"`, one positive number per DOF), 1 each
+/// for a model without them.
+pub fn fit_masses(model: &Model) -> Vec<f64> {
+    let n = model.dofs.len();
+    model.trace["masses"]
+        .as_array()
+        .map(|a| a.iter().filter_map(|m| m.as_f64()).collect::<Vec<f64>>())
+        .filter(|m| m.len() == n && m.iter().all(|v| v.is_finite() && *v > 0.0))
+        .unwrap_or_else(|| vec![1.0; n])
+}
+
 /// Reads a chain model's cells and wells (`label` names it in messages): each cell's stable and
 /// unstable heights on `search`, the masses from the tied fit's trace (1 each otherwise), and the
 /// chain's stable states ordered by the last DOF's displacement.
 pub fn model_chain(label: &str, model: &Model, search: (f64, f64)) -> Result<ChainModel> {
     chain_dofs(label, model)?;
-    let n = model.dofs.len();
-    let masses: Vec<f64> = model.trace["masses"]
-        .as_array()
-        .map(|a| a.iter().filter_map(|m| m.as_f64()).collect::<Vec<f64>>())
-        .filter(|m| m.len() == n && m.iter().all(|v| v.is_finite() && *v > 0.0))
-        .unwrap_or_else(|| vec![1.0; n]);
+    let masses = fit_masses(model);
     let (laws, cells): (Vec<CellLaw>, Vec<CellStates>) =
         cell_laws(label, model, search)?.into_iter().unzip();
     let (stable, saddles) = products(&cells);

@@ -6,9 +6,10 @@
 use serde::Serialize;
 use tfs_data::Record;
 use tfs_diagnose::{
-    Catalogue, DiagnoseOptions, LadderStep, add_effect_with, error_ladder, explain,
+    Catalogue, DiagnoseOptions, LadderStep, SharedTerm, add_effect_with, error_ladder, explain,
+    refit_shared,
 };
-use tfs_library::Model;
+use tfs_library::{Library, Model};
 
 use crate::error::{Context, Result};
 use crate::identify::set_offsets;
@@ -82,6 +83,7 @@ pub fn until_clean(
         };
         model = add_effect_with(&model, &top.name, records, &catalogue, opts)
             .with_context(|| format!("--until-clean: adding {} in round {round}", top.name))?;
+        model = keep_ties(model, records, opts)?;
         rounds.push(LoopRound {
             round,
             added: Some(top.name.clone()),
@@ -89,6 +91,67 @@ pub fn until_clean(
         });
     }
     Ok((model, rounds))
+}
+
+/// The terms a tied chain model shares between two equations (one cell's force law, Newton's
+/// third law), from its equations' current terms and the tied fit's masses: each term of a
+/// relative coordinate `(xi-xj)` in both DOFs' equations, the partner's coefficient
+/// `−m_i/m_j` times the owner's. Empty for a model that was not fitted with ties
+/// ([`crate::chain::is_tied`]).
+pub fn shared_terms(model: &Model) -> Result<Vec<SharedTerm>> {
+    if !crate::chain::is_tied(model) {
+        return Ok(Vec::new());
+    }
+    let masses = crate::chain::fit_masses(model);
+    let libs = model
+        .equations
+        .iter()
+        .map(|e| {
+            Library::new(
+                &model.dofs,
+                e.terms.iter().map(|t| t.term.clone()).collect(),
+            )
+        })
+        .collect::<std::result::Result<Vec<Library>, _>>()
+        .context("the tied model's equations as libraries")?;
+    Ok(tfs_criteria::library_ties(&libs, &model.dofs)
+        .into_iter()
+        .map(|t| SharedTerm {
+            term: libs[t.owner].terms()[t.owner_col].clone(),
+            owner: t.owner,
+            partner: t.partner,
+            factor: -masses[t.owner] / masses[t.partner],
+        })
+        .collect())
+}
+
+/// A tied chain model after an effect was added (each equation refitted on its own): its
+/// coefficients re-estimated jointly with the shared terms tied ([`shared_terms`], which
+/// includes an added term of a cell's coordinate in both equations), and the trace's `"ties"`
+/// updated to them, so that the written model says it is tied and a later refit keeps them.
+/// An untied model is returned as it is.
+fn keep_ties(model: Model, records: &[Record], opts: &DiagnoseOptions) -> Result<Model> {
+    let shared = shared_terms(&model)?;
+    if shared.is_empty() {
+        return Ok(model);
+    }
+    let mut out =
+        refit_shared(&model, records, &shared, opts).context("refitting with the chain's ties")?;
+    let ties: Vec<serde_json::Value> = shared
+        .iter()
+        .map(|s| {
+            serde_json::json!({
+                "term": s.term.to_string(),
+                "owner": out.dofs[s.owner],
+                "partner": out.dofs[s.partner],
+                "factor_in_partner": s.factor,
+            })
+        })
+        .collect();
+    if let Some(trace) = out.trace.as_object_mut() {
+        trace.insert("ties".into(), serde_json::Value::Array(ties));
+    }
+    Ok(out)
 }
 
 /// Appends the model's input-derived computed columns (delayed or filtered inputs) to each
@@ -178,6 +241,7 @@ pub fn refit_with(
     for name in &req.add {
         model = add_effect_with(&model, name, records, &catalogue, &opts)
             .with_context(|| format!("--add {name}"))?;
+        model = keep_ties(model, records, &opts)?;
     }
     let mut rounds = Vec::new();
     if let Some(max) = req.until_clean {
@@ -185,6 +249,7 @@ pub fn refit_with(
     }
     let (refine, mut held_out) = (req.refine, req.held_out.clone());
     let mut report = None;
+    let mut tie_warning = None;
     if refine {
         let mut train = records.to_vec();
         with_computed_inputs(&model, &mut train)?;
@@ -202,6 +267,15 @@ pub fn refit_with(
             model = chosen;
         }
         report = Some(r);
+        if crate::chain::is_tied(&model) {
+            // Refinement re-estimates each equation on its own: the file must not claim ties.
+            if let Some(trace) = model.trace.as_object_mut() {
+                trace.remove("ties");
+            }
+            tie_warning = Some(
+                "--refine re-estimated each equation on its own: the chain's tied terms (one force law per cell) no longer hold in the refined model; refit without --refine to keep them".to_string(),
+            );
+        }
     } else if !held_out.is_empty() {
         invalid!("--validate needs --refine (the held-out records choose the refined fit or not)");
     }
@@ -209,7 +283,8 @@ pub fn refit_with(
     // `compare` and `diagnose` treat them the same.
     set_offsets(&mut model, offsets);
     let ladder = error_ladder(&model);
-    let warnings = ladder_warnings(&ladder);
+    let mut warnings = ladder_warnings(&ladder);
+    warnings.extend(tie_warning);
     Ok(Refitted {
         model,
         ladder,
@@ -265,5 +340,34 @@ mod tests {
             w[0].contains("fails on 1 of 2") && w[0].contains("blew up"),
             "{w:?}"
         );
+    }
+
+    /// A tied model's shared terms are the terms of a cell's coordinate in both equations (the
+    /// stop too), with the factor −m2/m1 from its masses; a model without ties shares none.
+    #[test]
+    fn shared_terms_follow_the_tied_masses() {
+        let json = |ties: bool| {
+            let trace = if ties {
+                serde_json::json!({"masses": [1.0, 0.5], "ties": [{"term": "(x2-x1)^3", "owner": "x2", "partner": "x1", "factor_in_partner": -0.5}]})
+            } else {
+                serde_json::json!({})
+            };
+            serde_json::json!({"format": "tfs-model/1", "dofs": ["x1", "x2"], "inputs": [], "method": "test", "trace": trace,
+                "equations": [
+                    {"dof": "x1", "terms": [{"term": "x1", "coef": -1.0}, {"term": "(x2-x1)^3", "coef": 2.0}, {"term": "below((x2-x1), 0.1)", "coef": -4.0}]},
+                    {"dof": "x2", "terms": [{"term": "(x2-x1)^3", "coef": -1.0}, {"term": "below((x2-x1), 0.1)", "coef": 2.0}, {"term": "x2'", "coef": -0.1}]}]})
+            .to_string()
+        };
+        let tied = Model::from_json_str(&json(true)).unwrap();
+        let shared = shared_terms(&tied).unwrap();
+        let names: Vec<String> = shared.iter().map(|s| s.term.to_string()).collect();
+        assert_eq!(names, ["(x2-x1)^3", "below((x2-x1), 0.1)"]);
+        assert!(
+            shared
+                .iter()
+                .all(|s| s.owner == 1 && s.partner == 0 && s.factor == -0.5)
+        );
+        let untied = Model::from_json_str(&json(false)).unwrap();
+        assert!(shared_terms(&untied).unwrap().is_empty());
     }
 }

@@ -4,11 +4,14 @@
 //! model lacks and `refit` with it gives a model that `compare` simulates on every record and
 //! whose basins and minimum-energy deployment `basin` and `med` map on the paper's slice. The
 //! identified cells are judged against the truss truth: cell 1 monostable, cell 2 bistable, each
-//! stable state within 0.05 of the truth's.
+//! stable state within 0.05 of the truth's, as `identify` prints them (tied and untied, clean, at
+//! 30 and 60 dB) and as `basin` reads them from the untied and the refitted model; the refit of a
+//! tied model keeps the ties.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use tfs::library::Model;
 use tfs::origami::{CellSpec, KreslingParams, SystemSpec, Truth, build_system};
 
 /// The angles of the README's chain (`tfs simulate chain`'s default).
@@ -141,6 +144,37 @@ fn identify_and_judge(
     model
 }
 
+/// The refitted model of a tied chain is tied too: its file lists the ties (the cells' force
+/// laws, now with cell 2's stop) and every partner coefficient is the tie factor times the
+/// owner's.
+fn ties_hold(path: &Path) {
+    let model = Model::from_json_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let ties = model.trace["ties"]
+        .as_array()
+        .expect("the refitted model lists its ties");
+    let coef = |dof: &str, term: &str| -> f64 {
+        let eq = model.equations.iter().find(|e| e.dof == dof).unwrap();
+        let t = eq.terms.iter().find(|t| t.term.to_string() == term);
+        t.unwrap_or_else(|| panic!("{term} missing from {dof}''"))
+            .coef
+    };
+    assert!(
+        ties.iter()
+            .any(|t| t["term"].as_str().unwrap().starts_with("below(")),
+        "cell 2's stop is tied: {ties:?}"
+    );
+    for t in ties {
+        let term = t["term"].as_str().unwrap();
+        let (o, p) = (t["owner"].as_str().unwrap(), t["partner"].as_str().unwrap());
+        let factor = t["factor_in_partner"].as_f64().unwrap();
+        let (a, b) = (coef(o, term), coef(p, term));
+        assert!(
+            (b - factor * a).abs() <= 1e-9 * a.abs(),
+            "{term}: {b} in {p}'' vs {factor} × {a} in {o}''"
+        );
+    }
+}
+
 #[test]
 fn the_readme_chain_is_identified_from_the_cli_clean_and_at_30_db() {
     let dir = tempfile::tempdir().unwrap();
@@ -199,6 +233,7 @@ fn the_readme_chain_is_identified_from_the_cli_clean_and_at_30_db() {
     ];
     args.extend(clean.iter().map(String::as_str));
     ok(&args);
+    ties_hold(Path::new(&refit));
     let mut args = vec!["compare", "--model", &refit];
     args.extend(clean.iter().map(String::as_str));
     let c = ok(&args);

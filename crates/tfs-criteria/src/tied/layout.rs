@@ -114,6 +114,13 @@ pub(crate) fn ties_of(libs: &[Library], dofs: &[String]) -> Vec<Tie> {
     out
 }
 
+/// The ties among per-DOF libraries `libs` (DOF names `dofs`, in the same order), e.g. a fitted
+/// model's equations: every term that is a function of a relative coordinate `(x_i-x_j)` between
+/// two DOFs only and appears in both DOF `i`'s and DOF `j`'s library (see [`chain_ties`]).
+pub fn library_ties(libs: &[Library], dofs: &[String]) -> Vec<Tie> {
+    ties_of(libs, dofs)
+}
+
 /// The ties Newton's third law imposes on `spec`: every term that is a function of a relative
 /// coordinate `(x_i-x_j)` between two DOFs only and appears in the libraries of both DOF `i` and
 /// DOF `j`. Empty when the DOFs do not form such a chain.

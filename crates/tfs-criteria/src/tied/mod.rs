@@ -43,7 +43,7 @@ use crate::trace::{
 use crate::uncertainty::{ClusterRows, INTERVAL_LEVEL, bin_clusters, jackknife_intervals};
 use crate::verdict::tied_support_verdict;
 use layout::{DofRows, Layout, stack, ties_of};
-pub use layout::{MassChoice, Tie, TieOptions, chain_ties};
+pub use layout::{MassChoice, Tie, TieOptions, chain_ties, library_ties};
 
 /// T-F-S SINDy with the force laws of chain elements tied between the DOFs they connect (see the
 /// module docs). Criterion 1 per DOF as in [`crate::identify_tfs`]; Criterion 3 rows, the λ path
