@@ -27,10 +27,13 @@
 //! such columns needs [`crate::simulate`] (delays and filters are computed from the record).
 
 mod computed;
+mod input;
 pub mod memory;
 
 pub(crate) use computed::round3;
 pub use computed::{ComputedColumn, computed_columns, delayed, lowpass, upgrade_legacy};
+pub use input::{InputDelay, InputFilter};
+pub(crate) use input::{input_variant, linear_inputs};
 pub use memory::{DahlFriction, Hysteresis, Maxwell};
 
 use tfs_library::{Factor, Model, Term, Var};
@@ -418,6 +421,25 @@ impl Effect for DryFriction {
     }
 }
 
+/// Linear viscous damping `x'` (a dashpot, the loss of most materials and joints at small
+/// amplitude) missing from the equation: offered on the DOF's own velocity and on every relative
+/// velocity `(a-b)'` its equation uses, when the term is not there yet. Without it, a library
+/// that omits `x'` gets the nearest nonlinear relative (quadratic damping, a hysteresis state
+/// acting as a damper) instead of the plain term.
+#[derive(Debug, Clone, Copy)]
+pub struct LinearDamping;
+impl Effect for LinearDamping {
+    fn name(&self) -> String {
+        "linear-damping".into()
+    }
+    fn description(&self) -> String {
+        "linear viscous damping x' (dashpot) missing from the model".into()
+    }
+    fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
+        per_coordinate(ctx, ctx.velocity_vars(), |v| Term::var(v.clone()), single)
+    }
+}
+
 /// Velocity-squared (quadratic, drag-like) damping `x'·|x'|`.
 #[derive(Debug, Clone, Copy)]
 pub struct QuadraticDamping;
@@ -525,124 +547,6 @@ impl Effect for Offset {
     }
 }
 
-/// Input delay and gain (shaker dynamics, a base motion that reaches the structure late): every
-/// input term `u` is replaced by `u(t − δ)` — the delayed input takes the input's place (and its
-/// coefficient, the gain), it is not added beside it. δ is scanned over whole samples on a
-/// geometric grid (ratio about 1.25) from one sample up to half the input's RMS-frequency period
-/// ([`EffectContext::input_period`]): a longer delay is a sign flip of a narrow-band input. The
-/// best δ is then refined between samples (`crate::polish`).
-#[derive(Debug, Clone, Copy)]
-pub struct InputDelay;
-
-/// Whole-sample delays from 1 up to `max` samples, each about 1.25 times the last.
-fn delay_grid(max: usize) -> Vec<usize> {
-    let mut out = vec![1];
-    loop {
-        let last = out[out.len() - 1];
-        let next = ((last as f64 * 1.25).round() as usize).max(last + 1);
-        if next > max {
-            return out;
-        }
-        out.push(next);
-    }
-}
-
-impl Effect for InputDelay {
-    fn name(&self) -> String {
-        "input-delay".into()
-    }
-    fn description(&self) -> String {
-        "input delay and gain: u(t) replaced by u(t - delta), delta scanned from one sample up to half the input's period, then refined between samples".into()
-    }
-    fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
-        let inputs = linear_inputs(&ctx.terms);
-        if inputs.is_empty() || ctx.dt.is_nan() || ctx.dt <= 0.0 {
-            return Vec::new();
-        }
-        let max = if ctx.input_period.is_finite() && ctx.input_period > 0.0 {
-            (0.5 * ctx.input_period / ctx.dt).floor().max(1.0) as usize
-        } else {
-            1
-        };
-        delay_grid(max)
-            .into_iter()
-            .map(|n| input_variant(&inputs, "delay", round3(n as f64 * ctx.dt)))
-            .collect()
-    }
-}
-
-/// The variant replacing every input in `inputs` by its computed column with parameter `value`
-/// (`"delay"` or `"tau"`).
-pub(crate) fn input_variant(inputs: &[String], parameter: &str, value: f64) -> Variant {
-    let column = |input: &String| {
-        if parameter == "delay" {
-            ComputedColumn::Delayed {
-                input: input.clone(),
-                delay: value,
-            }
-        } else {
-            ComputedColumn::Lowpass {
-                input: input.clone(),
-                tau: value,
-            }
-        }
-    };
-    Variant {
-        parameter: Some((parameter.into(), value)),
-        add: Vec::new(),
-        replace: inputs
-            .iter()
-            .map(|i| {
-                (
-                    Term::var(Var::Input(i.clone())),
-                    EffectColumn::computed(column(i)),
-                )
-            })
-            .collect(),
-    }
-}
-
-/// The inputs used linearly by an equation with terms `terms` (plain input columns, not
-/// computed ones).
-pub(crate) fn linear_inputs(terms: &[Term]) -> Vec<String> {
-    terms
-        .iter()
-        .filter_map(|t| match t.factors() {
-            [Factor::Pow(Var::Input(n), 1)] if ComputedColumn::parse(n).is_none() => {
-                Some(n.clone())
-            }
-            _ => None,
-        })
-        .collect()
-}
-
-/// Input filter and gain (exciter or amplifier dynamics): every input term `u` is replaced by
-/// `u` low-pass filtered with time constant τ, τ scanned over 1 %..50 % of the input's
-/// RMS-frequency period ([`EffectContext::input_period`]) and then refined (`crate::polish`);
-/// the gain is the refitted input coefficient.
-#[derive(Debug, Clone, Copy)]
-pub struct InputFilter;
-impl Effect for InputFilter {
-    fn name(&self) -> String {
-        "input-filter".into()
-    }
-    fn description(&self) -> String {
-        "input filter and gain: u replaced by u low-pass filtered with time constant tau (first-order exciter/amplifier dynamics), tau scanned over 1 %..50 % of the input's period, then refined".into()
-    }
-    fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
-        let inputs = linear_inputs(&ctx.terms);
-        if inputs.is_empty() || !(ctx.input_period.is_finite() && ctx.input_period > 0.0) {
-            return Vec::new();
-        }
-        [0.01, 0.02, 0.05, 0.1, 0.2, 0.5]
-            .iter()
-            .map(|r| round3(r * ctx.input_period))
-            .filter(|&tau| tau >= 0.1 * ctx.dt)
-            .map(|tau| input_variant(&inputs, "tau", tau))
-            .collect()
-    }
-}
-
 /// A one-sided stop (end stop, contact, a cell's folded state): `below(q, c)` for a stop the
 /// coordinate `q` runs into from above, `above(q, c)` for one from below, the contact stiffness
 /// the refitted coefficient. The position `c` is scanned inside either end of the range the data
@@ -717,6 +621,7 @@ impl Catalogue {
         let mut c = Self::empty();
         let mut add = |e: Box<dyn Effect>| c.effects.push(e);
         add(Box::new(DryFriction));
+        add(Box::new(LinearDamping));
         add(Box::new(QuadraticDamping));
         add(Box::new(CubicDamping));
         add(Box::new(AmplitudeDamping));

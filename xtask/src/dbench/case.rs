@@ -212,6 +212,19 @@ fn realised(b: &Baseline, hides: &[Hide], clean: &[truth::Clean]) -> Vec<f64> {
                         .zip(&c.u)
                         .map(|(f, u)| b.gain * (f - u))
                         .collect()
+                } else if h.effect == "linear-damping" {
+                    // The baseline's own dashpot.
+                    let coef = h.params["coef"].as_f64().unwrap_or(0.0);
+                    let v = &c.motion.v[h.dof];
+                    let rel: Vec<f64> = if h.dof == 0 {
+                        v.clone()
+                    } else {
+                        v.iter()
+                            .zip(&c.motion.v[h.dof - 1])
+                            .map(|(a, b)| a - b)
+                            .collect()
+                    };
+                    rel.iter().map(|v| coef * v).collect()
                 } else {
                     // The baseline's own stiffness power.
                     let p = h.params["own_term"]

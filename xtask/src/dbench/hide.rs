@@ -49,6 +49,15 @@ fn own_power(b: &Baseline, cell: usize, p: u32) -> Option<f64> {
     }
 }
 
+/// The baseline's own linear damping coefficient of cell `cell`, per unit mass (the force is
+/// `−c·v`).
+fn own_damping(b: &Baseline, cell: usize) -> f64 {
+    match &b.system {
+        BaseSystem::Osc(o) => o.damping,
+        BaseSystem::Cells(c) => c.cells()[cell].damping() / c.cells()[cell].mass(),
+    }
+}
+
 /// The coordinate (and its velocity) of cell `i` along the pilot.
 fn coordinate(m: &Clean, on: On) -> (Vec<f64>, Vec<f64>) {
     let x = &m.motion.x;
@@ -248,6 +257,21 @@ pub fn hide(
                 vec![],
                 json!({"k": k, "at": at, "quantile": q}),
             )
+        }
+        "linear-damping" => {
+            // The baseline's own dashpot, removed from the start library: its size is the
+            // baseline's, not drawn.
+            let term = format!("{coord}'");
+            drop.push(term.clone());
+            return Ok(Some(Hide {
+                effect: name.into(),
+                placed: vec![],
+                exciter: vec![],
+                drop,
+                dofs,
+                dof: cell,
+                params: json!({"own_term": term, "coef": -own_damping(b, cell)}),
+            }));
         }
         "input-delay" | "input-filter" => {
             let sig = &b.excitations[0];

@@ -1,0 +1,127 @@
+//! Input effects: the exciter's dynamics between the recorded input and the structure. A
+//! delayed or low-pass filtered copy of the input takes the input's place in the equation (and
+//! its coefficient, the gain); it is never added beside it. Both are scanned on the input's own
+//! time scale ([`EffectContext::input_period`]) and refined between grid values
+//! (`crate::polish`).
+
+use tfs_library::{Factor, Term, Var};
+
+use super::{ComputedColumn, Effect, EffectColumn, EffectContext, Variant, round3};
+
+/// Input delay and gain (shaker dynamics, a base motion that reaches the structure late): every
+/// input term `u` is replaced by `u(t − δ)` — the delayed input takes the input's place (and its
+/// coefficient, the gain), it is not added beside it. δ is scanned over whole samples on a
+/// geometric grid (ratio about 1.25) from one sample up to half the input's RMS-frequency period
+/// ([`EffectContext::input_period`]): a longer delay is a sign flip of a narrow-band input. The
+/// best δ is then refined between samples (`crate::polish`).
+#[derive(Debug, Clone, Copy)]
+pub struct InputDelay;
+
+/// Whole-sample delays from 1 up to `max` samples, each about 1.25 times the last.
+fn delay_grid(max: usize) -> Vec<usize> {
+    let mut out = vec![1];
+    loop {
+        let last = out[out.len() - 1];
+        let next = ((last as f64 * 1.25).round() as usize).max(last + 1);
+        if next > max {
+            return out;
+        }
+        out.push(next);
+    }
+}
+
+impl Effect for InputDelay {
+    fn name(&self) -> String {
+        "input-delay".into()
+    }
+    fn description(&self) -> String {
+        "input delay and gain: u(t) replaced by u(t - delta), delta scanned from one sample up to half the input's period, then refined between samples".into()
+    }
+    fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
+        let inputs = linear_inputs(&ctx.terms);
+        if inputs.is_empty() || ctx.dt.is_nan() || ctx.dt <= 0.0 {
+            return Vec::new();
+        }
+        let max = if ctx.input_period.is_finite() && ctx.input_period > 0.0 {
+            (0.5 * ctx.input_period / ctx.dt).floor().max(1.0) as usize
+        } else {
+            1
+        };
+        delay_grid(max)
+            .into_iter()
+            .map(|n| input_variant(&inputs, "delay", round3(n as f64 * ctx.dt)))
+            .collect()
+    }
+}
+
+/// The variant replacing every input in `inputs` by its computed column with parameter `value`
+/// (`"delay"` or `"tau"`).
+pub(crate) fn input_variant(inputs: &[String], parameter: &str, value: f64) -> Variant {
+    let column = |input: &String| {
+        if parameter == "delay" {
+            ComputedColumn::Delayed {
+                input: input.clone(),
+                delay: value,
+            }
+        } else {
+            ComputedColumn::Lowpass {
+                input: input.clone(),
+                tau: value,
+            }
+        }
+    };
+    Variant {
+        parameter: Some((parameter.into(), value)),
+        add: Vec::new(),
+        replace: inputs
+            .iter()
+            .map(|i| {
+                (
+                    Term::var(Var::Input(i.clone())),
+                    EffectColumn::computed(column(i)),
+                )
+            })
+            .collect(),
+    }
+}
+
+/// The inputs used linearly by an equation with terms `terms` (plain input columns, not
+/// computed ones).
+pub(crate) fn linear_inputs(terms: &[Term]) -> Vec<String> {
+    terms
+        .iter()
+        .filter_map(|t| match t.factors() {
+            [Factor::Pow(Var::Input(n), 1)] if ComputedColumn::parse(n).is_none() => {
+                Some(n.clone())
+            }
+            _ => None,
+        })
+        .collect()
+}
+
+/// Input filter and gain (exciter or amplifier dynamics): every input term `u` is replaced by
+/// `u` low-pass filtered with time constant τ, τ scanned over 1 %..50 % of the input's
+/// RMS-frequency period ([`EffectContext::input_period`]) and then refined (`crate::polish`);
+/// the gain is the refitted input coefficient.
+#[derive(Debug, Clone, Copy)]
+pub struct InputFilter;
+impl Effect for InputFilter {
+    fn name(&self) -> String {
+        "input-filter".into()
+    }
+    fn description(&self) -> String {
+        "input filter and gain: u replaced by u low-pass filtered with time constant tau (first-order exciter/amplifier dynamics), tau scanned over 1 %..50 % of the input's period, then refined".into()
+    }
+    fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
+        let inputs = linear_inputs(&ctx.terms);
+        if inputs.is_empty() || !(ctx.input_period.is_finite() && ctx.input_period > 0.0) {
+            return Vec::new();
+        }
+        [0.01, 0.02, 0.05, 0.1, 0.2, 0.5]
+            .iter()
+            .map(|r| round3(r * ctx.input_period))
+            .filter(|&tau| tau >= 0.1 * ctx.dt)
+            .map(|tau| input_variant(&inputs, "tau", tau))
+            .collect()
+    }
+}
