@@ -15,15 +15,7 @@ fn check(label: &str, truth: &Truth, spec: &str, sweep: (f64, f64, f64), seed: u
     let Some(Hidden::Delay(delay)) = truth.hidden.first().cloned() else {
         panic!("{label}: the truth must hide a delay");
     };
-    let (f0, f1, amp) = sweep;
-    let dt = 0.01;
-    let train: Vec<_> = (0..3)
-        .map(|i| {
-            let a = amp * (0.8 + 0.2 * i as f64);
-            record(truth, &format!("train{i}"), f0, f1, a, 30.0, dt, seed + i)
-        })
-        .collect();
-    let test = record(truth, "test", f0, f1, amp * 0.9, 30.0, dt, seed + 50);
+    let (train, test) = train_and_test(truth, sweep, seed);
     let opts = DiagnoseOptions::default();
     let start = refit(&structure(spec), &train, &opts).unwrap();
     let ex = explain(&start, &train, &Catalogue::standard(7), &opts).unwrap();

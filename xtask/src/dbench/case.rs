@@ -182,6 +182,16 @@ fn libraries(b: &Baseline, hides: &[Hide]) -> Result<Vec<String>> {
         .collect()
 }
 
+/// Coordinate `dof` of `q` (displacements or velocities of the masses) relative to the mass
+/// below it (the ground for the first).
+fn relative(q: &[Vec<f64>], dof: usize) -> Vec<f64> {
+    if dof == 0 {
+        q[0].clone()
+    } else {
+        q[dof].iter().zip(&q[dof - 1]).map(|(a, b)| a - b).collect()
+    }
+}
+
 /// Realised share of each hidden effect over the training records.
 fn realised(b: &Baseline, hides: &[Hide], clean: &[truth::Clean]) -> Vec<f64> {
     let mut slot = 0;
@@ -212,36 +222,21 @@ fn realised(b: &Baseline, hides: &[Hide], clean: &[truth::Clean]) -> Vec<f64> {
                         .zip(&c.u)
                         .map(|(f, u)| b.gain * (f - u))
                         .collect()
-                } else if h.effect == "linear-damping" {
-                    // The baseline's own dashpot.
-                    let coef = h.params["coef"].as_f64().unwrap_or(0.0);
-                    let v = &c.motion.v[h.dof];
-                    let rel: Vec<f64> = if h.dof == 0 {
-                        v.clone()
-                    } else {
-                        v.iter()
-                            .zip(&c.motion.v[h.dof - 1])
-                            .map(|(a, b)| a - b)
-                            .collect()
-                    };
-                    rel.iter().map(|v| coef * v).collect()
                 } else {
-                    // The baseline's own stiffness power.
-                    let p = h.params["own_term"]
-                        .as_str()
-                        .and_then(|t| t.rsplit_once('^').map(|(_, p)| p.parse().unwrap_or(1)))
-                        .unwrap_or(1);
+                    // The baseline's own term: its dashpot `coef·v` or stiffness power
+                    // `coef·x^p`, on the element's (relative) coordinate.
                     let coef = h.params["coef"].as_f64().unwrap_or(0.0);
-                    let x = &c.motion.x[h.dof];
-                    let base = if h.dof == 0 {
-                        x.clone()
+                    if h.effect == "linear-damping" {
+                        let v = relative(&c.motion.v, h.dof);
+                        v.iter().map(|v| coef * v).collect()
                     } else {
-                        x.iter()
-                            .zip(&c.motion.x[h.dof - 1])
-                            .map(|(a, b)| a - b)
-                            .collect()
-                    };
-                    base.iter().map(|v| coef * v.powi(p)).collect()
+                        let p = h.params["own_term"]
+                            .as_str()
+                            .and_then(|t| t.rsplit_once('^').map(|(_, p)| p.parse().unwrap_or(1)))
+                            .unwrap_or(1);
+                        let x = relative(&c.motion.x, h.dof);
+                        x.iter().map(|v| coef * v.powi(p)).collect()
+                    }
                 };
                 let r = spread(&f);
                 num += r * r;

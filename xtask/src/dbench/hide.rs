@@ -58,6 +58,20 @@ fn own_damping(b: &Baseline, cell: usize) -> f64 {
     }
 }
 
+/// Hiding one of the baseline's own terms (`term`, coefficient `coef` per unit mass): it is
+/// removed from the start library, its size is the baseline's.
+fn own_term(name: &str, term: String, coef: f64, dofs: Vec<String>, cell: usize) -> Hide {
+    Hide {
+        effect: name.into(),
+        placed: vec![],
+        exciter: vec![],
+        drop: vec![term.clone()],
+        dofs,
+        dof: cell,
+        params: json!({"own_term": term, "coef": coef}),
+    }
+}
+
 /// The coordinate (and its velocity) of cell `i` along the pilot.
 fn coordinate(m: &Clean, on: On) -> (Vec<f64>, Vec<f64>) {
     let x = &m.motion.x;
@@ -262,16 +276,8 @@ pub fn hide(
             // The baseline's own dashpot, removed from the start library: its size is the
             // baseline's, not drawn.
             let term = format!("{coord}'");
-            drop.push(term.clone());
-            return Ok(Some(Hide {
-                effect: name.into(),
-                placed: vec![],
-                exciter: vec![],
-                drop,
-                dofs,
-                dof: cell,
-                params: json!({"own_term": term, "coef": -own_damping(b, cell)}),
-            }));
+            let coef = -own_damping(b, cell);
+            return Ok(Some(own_term(name, term, coef, dofs, cell)));
         }
         "input-delay" | "input-filter" => {
             let sig = &b.excitations[0];
@@ -319,16 +325,7 @@ pub fn hide(
             if let Some(own) = own_power(b, cell, p) {
                 // The baseline's own term, removed from the start library: its size is the
                 // baseline's, not drawn.
-                drop.push(term.clone());
-                return Ok(Some(Hide {
-                    effect: name.into(),
-                    placed: vec![],
-                    exciter: vec![],
-                    drop,
-                    dofs,
-                    dof: cell,
-                    params: json!({"own_term": term, "coef": own}),
-                }));
+                return Ok(Some(own_term(name, term, own, dofs, cell)));
             }
             if in_library {
                 drop.push(term.clone());

@@ -109,3 +109,18 @@ pub fn clean_named(
     let rec = measured(name, dt, ("x", &x), ("xb_acc", &u), None, 0).unwrap();
     (rec, x)
 }
+
+/// Three training records (sweeps f0→f1 Hz at 0.8, 1.0 and 1.2 × `amp`) and a held-out one
+/// (0.9 × `amp`), 30 s at 100 Hz with 40 dB noise, noise seeds drawn from `seed`.
+pub fn train_and_test(truth: &Truth, sweep: (f64, f64, f64), seed: u64) -> (Vec<Record>, Record) {
+    let (f0, f1, amp) = sweep;
+    let dt = 0.01;
+    let train = (0..3)
+        .map(|i| {
+            let a = amp * (0.8 + 0.2 * i as f64);
+            record(truth, &format!("train{i}"), f0, f1, a, 30.0, dt, seed + i)
+        })
+        .collect();
+    let test = record(truth, "test", f0, f1, amp * 0.9, 30.0, dt, seed + 50);
+    (train, test)
+}
