@@ -16,6 +16,7 @@ use std::sync::Arc;
 
 use tfs_basin::{ChainWells, WellInfo};
 use tfs_library::{Coord, Model, Restoring, Var};
+use tfs_origami::Chain;
 
 use crate::error::{Context, Result};
 use crate::invalid;
@@ -211,7 +212,34 @@ pub fn model_chain(label: &str, model: &Model, search: (f64, f64)) -> Result<Cha
     let masses = fit_masses(model);
     let (laws, cells): (Vec<CellLaw>, Vec<CellStates>) =
         cell_laws(label, model, search)?.into_iter().unzip();
-    let (stable, saddles) = products(&cells);
+    let weights = masses.clone();
+    let potentials: Vec<CellPotential> = laws
+        .into_iter()
+        .zip(weights)
+        .map(|(law, m)| Arc::new(move |h: f64| m * law.potential(h)) as CellPotential)
+        .collect();
+    let wells = chain_wells(label, &cells, masses.clone(), potentials, search)?;
+    Ok(ChainModel {
+        cells,
+        masses,
+        wells,
+        tied: is_tied(model),
+    })
+}
+
+/// One cell's share of the chain's potential energy as a function of its height.
+type CellPotential = Arc<dyn Fn(f64) -> f64 + Send + Sync>;
+
+/// The chain's wells from its cells' equilibria, the masses and each cell's potential energy:
+/// the stable states are the products of stable heights, the barrier the lowest saddle.
+fn chain_wells(
+    label: &str,
+    cells: &[CellStates],
+    masses: Vec<f64>,
+    potentials: Vec<CellPotential>,
+    search: (f64, f64),
+) -> Result<ChainWells> {
+    let (stable, saddles) = products(cells);
     if stable.is_empty() {
         invalid!(
             "{label}: no stable state of the chain on cell heights {search:?} (a cell without a stable height there: {}); choose the range with --search",
@@ -224,12 +252,11 @@ pub fn model_chain(label: &str, model: &Model, search: (f64, f64)) -> Result<Cha
                 .join(", ")
         );
     }
-    let m2 = masses.clone();
     let potential = Arc::new(move |x: &[f64]| {
         (0..x.len())
             .map(|i| {
                 let h = if i == 0 { x[0] } else { x[i] - x[i - 1] };
-                m2[i] * laws[i].potential(h)
+                potentials[i](h)
             })
             .sum::<f64>()
     });
@@ -239,12 +266,48 @@ pub fn model_chain(label: &str, model: &Model, search: (f64, f64)) -> Result<Cha
         let p = potential.clone();
         Some(ChainWells::barrier_from_saddles(|x| p(x), &saddles)?)
     };
-    let wells = ChainWells::new(stable, masses.clone(), move |x| potential(x), barrier)?;
+    Ok(ChainWells::new(
+        stable,
+        masses,
+        move |x| potential(x),
+        barrier,
+    )?)
+}
+
+/// A simulated chain's own cells and wells (the truth a chain model is judged against): each
+/// cell's equilibria from its force law on `search`, the stable states and barrier as for a
+/// model ([`model_chain`]), the cells' masses.
+pub fn truth_chain(chain: &Chain, search: (f64, f64)) -> Result<ChainModel> {
+    let mut cells = Vec::new();
+    let mut potentials: Vec<CellPotential> = Vec::new();
+    for (i, c) in chain.cells().iter().enumerate() {
+        let (f, p, v) = (
+            c.force_law().clone(),
+            c.force_law().clone(),
+            c.force_law().clone(),
+        );
+        let w = WellInfo::from_force(
+            move |h| f.force(h),
+            move |h| p.potential(h),
+            search,
+            c.mass(),
+        )
+        .with_context(|| format!("the truth's cell {} on heights {search:?}", i + 1))?;
+        cells.push(CellStates {
+            stable: w.stable().to_vec(),
+            unstable: w.unstable().to_vec(),
+            coupling_at_rest: 0.0,
+            by_next: Vec::new(),
+        });
+        potentials.push(Arc::new(move |h| v.potential(h)));
+    }
+    let masses: Vec<f64> = chain.cells().iter().map(|c| c.mass()).collect();
+    let wells = chain_wells("the truth", &cells, masses.clone(), potentials, search)?;
     Ok(ChainModel {
         cells,
         masses,
         wells,
-        tied: is_tied(model),
+        tied: false,
     })
 }
 
