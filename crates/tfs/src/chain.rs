@@ -163,7 +163,7 @@ fn cell_laws(label: &str, model: &Model, search: (f64, f64)) -> Result<Vec<(Cell
         let states = CellStates {
             stable: w.stable().to_vec(),
             unstable: w.unstable().to_vec(),
-            coupling_at_rest: -shift,
+            coupling_at_rest: 0.0 - shift,
             by_next,
         };
         out.push((law, states));

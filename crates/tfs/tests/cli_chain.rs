@@ -237,6 +237,21 @@ fn the_readme_chain_is_identified_from_the_cli_clean_and_at_30_db() {
         text.contains("with cell 2's terms in x1'' taken where cell 2 rests"),
         "{text}"
     );
+    // `--json` holds the same cells.
+    let mut args = vec!["identify", "--no-tie", "--json"];
+    args.extend(clean.iter().map(String::as_str));
+    let v: serde_json::Value = serde_json::from_str(&ok(&args)).unwrap();
+    let printed = printed_states(&text);
+    for (cell, want) in printed.iter().enumerate() {
+        let got: Vec<f64> = v["cells"][cell]["stable"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
+        assert_eq!(got.len(), want.len(), "{}", v["cells"]);
+        assert!(got.iter().zip(want).all(|(a, b)| (a - b).abs() < 1e-4));
+    }
     // `basin` reads the untied model's cells the same way.
     let u = untied.display().to_string();
     judge(

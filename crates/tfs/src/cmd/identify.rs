@@ -168,6 +168,7 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(out) = &args.out {
         write_model(&identified.model, out, "--out")?;
     }
+    let is_chain = plan.dofs.len() > 1 && !tfs::criteria::chain_ties(&plan.spec)?.is_empty();
     if args.json {
         print_json(&serde_json::json!({
             "model": identified.model.to_json_value()?,
@@ -175,6 +176,7 @@ pub fn run(args: Args) -> Result<()> {
             "refine": refine_report.as_ref().map(RefineReport::to_json),
             "offsets": offsets_report.to_json(),
             "warnings": identified.warnings,
+            "cells": if is_chain { chain_cells_json(&identified.model) } else { serde_json::Value::Null },
         }))?;
     } else {
         // The data cannot support the library: say so before anything else.
@@ -202,7 +204,7 @@ pub fn run(args: Args) -> Result<()> {
                 "chain: each element's force law is tied between the two equations it enters (the default for a chain; --no-tie fits each equation on its own)"
             );
         }
-        if plan.dofs.len() > 1 && !tfs::criteria::chain_ties(&plan.spec)?.is_empty() {
+        if is_chain {
             print_chain_cells(&identified.model)?;
         }
         print_trace(&identified.trace);
@@ -232,6 +234,25 @@ fn print_chain_cells(model: &tfs::library::Model) -> Result<()> {
         Err(e) => println!("cells: not read ({})", tfs::one_line(&e)),
     }
     Ok(())
+}
+
+/// A chain model's cells for `--json` (as [`print_chain_cells`] prints them): per cell the
+/// stable and unstable heights, the next cell's force taken where it rests and the stable
+/// heights for each of its states; a string saying why when they cannot be read.
+fn chain_cells_json(model: &tfs::library::Model) -> serde_json::Value {
+    let search = match super::parse_range(super::chain_basin::DEFAULT_SEARCH, "--search") {
+        Ok(s) => s,
+        Err(e) => return serde_json::json!(format!("not read ({e})")),
+    };
+    match tfs::chain::cell_states("the model", model, search) {
+        Ok(cells) => serde_json::json!(cells.iter().map(|c| serde_json::json!({
+            "stable": c.stable,
+            "unstable": c.unstable,
+            "coupling_at_rest": c.coupling_at_rest,
+            "stable_by_next_state": c.by_next.iter().map(|(z, h)| serde_json::json!({"next": z, "stable": h})).collect::<Vec<_>>(),
+        })).collect::<Vec<_>>()),
+        Err(e) => serde_json::json!(format!("not read ({})", tfs::one_line(&e))),
+    }
 }
 
 /// Prints what was done with the channel offsets, one line per record.
