@@ -357,9 +357,11 @@ pub(crate) fn best_variant(
         }
     }
     match best {
-        Some(b) => Ok(Some(crate::polish::polish(b, variants, &|v| {
-            score_variant(states, layout, idx, base, v)
-        })?)),
+        Some(b) => {
+            let dt = states.first().map_or(0.0, |s| s.record.dt());
+            let score = |v: &Variant| score_variant(states, layout, idx, base, v);
+            Ok(Some(crate::polish::polish(b, variants, &score, dt)?))
+        }
         None => Ok(None),
     }
 }

@@ -117,11 +117,15 @@ fn from_coords(law: &StateLaw, u: &[f64]) -> Option<StateLaw> {
 }
 
 /// Refines `best`, the best of the scanned `variants` (see the module docs), with `score`
-/// scoring a variant; other variants are returned as they are.
+/// scoring a variant; other variants are returned as they are. A Maxwell element's τ is not
+/// taken below the sampling interval `dt`: a relaxation faster than the sampling is not resolved
+/// by the data, and there the state is a dashpot (with a little stiffness) standing in for
+/// `linear-damping` or the model's own `x'`.
 pub(crate) fn polish(
     best: Scored,
     variants: &[Variant],
     score: &dyn Fn(&Variant) -> Result<Scored>,
+    dt: f64,
 ) -> Result<Scored> {
     if let Some(input) = InputFamily::of(&best.variant) {
         return polish_input(best, &input, variants, score);
@@ -136,9 +140,12 @@ pub(crate) fn polish(
     let step: Vec<f64> = (0..u.len())
         .map(|k| if k == 0 { 0.55 } else { 0.25 })
         .collect();
-    let Some(bounds) = scan_bounds(&best.variant, variants, &step) else {
+    let Some(mut bounds) = scan_bounds(&best.variant, variants, &step) else {
         return Ok(best);
     };
+    if matches!(law, StateLaw::Maxwell { .. }) && dt > 0.0 {
+        bounds[0].0 = bounds[0].0.max(dt.ln());
+    }
     let make = |v: &Variant, u: &[f64]| from_coords(&law, u).and_then(|l| with_law(v, l));
     pattern_search(best, u, step, &bounds, &make, score)
 }
