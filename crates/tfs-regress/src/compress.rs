@@ -7,13 +7,14 @@
 //! New rows and other blocks' factors are zeroed into an existing factor by Householder
 //! reflections that keep its triangular structure (see [`Compressed::append`]).
 
+use crate::absorb::absorb_rows;
 use crate::error::{RegressError, Result};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::qr::no_pivoting::factor as qr_factor;
-use faer::{Mat, MatRef, Par};
+use faer::{ColRef, Mat, MatMut, MatRef, Par};
 
 /// Rows per chunk when compressing (keeps each QR's working set in cache).
-const CHUNK_ROWS: usize = 2048;
+pub(crate) const CHUNK_ROWS: usize = 2048;
 
 /// A least-squares problem `min ‖Aξ − b‖²` reduced to its triangular factor.
 ///
@@ -28,6 +29,12 @@ pub struct Compressed {
     m: usize,
 }
 
+/// Whether every value is finite: a fold without early exit, which vectorises (the common case
+/// is a clean column; where it is not, the caller looks for the entry).
+fn all_finite(v: &[f64]) -> bool {
+    v.iter().fold(true, |ok, x| ok & x.is_finite())
+}
+
 /// Check every entry of `a` and `b` is finite and sizes agree.
 pub(crate) fn check_rows(a: MatRef<'_, f64>, b: &[f64]) -> Result<()> {
     if a.nrows() != b.len() {
@@ -38,16 +45,20 @@ pub(crate) fn check_rows(a: MatRef<'_, f64>, b: &[f64]) -> Result<()> {
         });
     }
     for j in 0..a.ncols() {
-        for i in 0..a.nrows() {
-            let v = a[(i, j)];
-            if !v.is_finite() {
-                return Err(RegressError::NonFinite {
-                    what: "A",
-                    row: i,
-                    col: j,
-                    value: v,
-                });
-            }
+        let col = a.col(j);
+        // A contiguous column is scanned as a slice (vectorised); a strided one entry by entry.
+        let bad = match col.try_as_col_major() {
+            Some(c) if all_finite(c.as_slice()) => None,
+            Some(c) => c.as_slice().iter().position(|v| !v.is_finite()),
+            None => (0..a.nrows()).find(|&i| !col[i].is_finite()),
+        };
+        if let Some(i) = bad {
+            return Err(RegressError::NonFinite {
+                what: "A",
+                row: i,
+                col: j,
+                value: col[i],
+            });
         }
     }
     if let Some((i, &v)) = b.iter().enumerate().find(|(_, v)| !v.is_finite()) {
@@ -57,6 +68,30 @@ pub(crate) fn check_rows(a: MatRef<'_, f64>, b: &[f64]) -> Result<()> {
             col: 0,
             value: v,
         });
+    }
+    Ok(())
+}
+
+/// Checks that every entry of a chunk `[A | b]` of rows `start..` is finite (the last column is
+/// `b`); the error counts rows from the first row of the whole problem.
+fn check_chunk(chunk: MatRef<'_, f64>, start: usize) -> Result<()> {
+    let n = chunk.ncols() - 1;
+    for j in 0..=n {
+        let col = chunk.col(j);
+        if col
+            .try_as_col_major()
+            .is_some_and(|c| all_finite(c.as_slice()))
+        {
+            continue;
+        }
+        if let Some(i) = (0..chunk.nrows()).find(|&i| !col[i].is_finite()) {
+            return Err(RegressError::NonFinite {
+                what: if j < n { "A" } else { "b" },
+                row: start + i,
+                col: if j < n { j } else { 0 },
+                value: col[i],
+            });
+        }
     }
     Ok(())
 }
@@ -95,190 +130,12 @@ fn triangular_factor(mut aug: Mat<f64>) -> Mat<f64> {
 }
 
 /// Rows per chunk up to which [`Compressed::append`] zeroes new rows into the current factor
-/// with [`absorb_rows`] (~2(k+1)n² flops for `k` rows) instead of one dense QR of the stacked
+/// with [`absorb_rows`](crate::absorb::absorb_rows) (~2(k+1)n² flops for `k` rows) instead of one dense QR of the stacked
 /// `(n+1+k)×(n+1)` matrix (~2(n+k)n² − ⅔n³, blocked): every chunk. Measured for 39 columns: the
 /// structured update is 10× faster for 2 rows, 2.5× for 64 and 1.2× for 512; from 96 rows it
-/// applies its reflections a panel at a time ([`absorb_rows_blocked`]), and faer's dense QR
+/// applies its reflections a panel at a time (a panel of reflections at a time), and faer's dense QR
 /// spent three quarters of its time in its overflow-safe Householder norms.
 const ABSORB_MAX_ROWS: usize = CHUNK_ROWS;
-
-/// Column entries beyond which (or, when non-zero, below which) the unscaled sums of squares
-/// of [`absorb_rows`] could overflow or underflow; such input goes to the dense QR.
-const ABSORB_SAFE: (f64, f64) = (1e-140, 1e140);
-
-/// One column's Householder step of [`absorb_rows_unblocked`] and [`absorb_rows_blocked`]:
-/// the reflection that zeroes the `a` rows of `B` (rows `n1..n1+a`) below the triangle's entry
-/// `(j, j)` of column `j` of `w` (leading dimension `ld`), applied to the next `later` columns.
-/// Returns `None` when an entry is outside [`ABSORB_SAFE`], `Some(0.0)` when the column of `B`
-/// is already zero (no reflection), else `Some(τ)`; the reflection's vector is left in `B`.
-fn absorb_column(
-    w: &mut [f64],
-    (n1, ld, a): (usize, usize, usize),
-    j: usize,
-    later: usize,
-) -> Option<f64> {
-    use crate::kernels::{dot, sub_scaled};
-    let (lo, hi) = ABSORB_SAFE;
-    let outside = |v: f64| {
-        let a = v.abs();
-        a > hi || (a != 0.0 && a < lo) || !a.is_finite()
-    };
-    let (head, tail) = w.split_at_mut((j + 1) * ld);
-    let colj = &mut head[j * ld..];
-    let alpha = colj[j];
-    let v = &mut colj[n1..n1 + a];
-    if outside(alpha) || v.iter().any(|&x| outside(x)) {
-        return None;
-    }
-    let Some((beta, tau)) = crate::fit::householder(alpha, v) else {
-        return Some(0.0);
-    };
-    colj[j] = beta;
-    let v = &colj[n1..n1 + a];
-    for col in tail.chunks_exact_mut(ld).take(later) {
-        let (t, b) = col.split_at_mut(n1);
-        let b = &mut b[..a];
-        let s = tau * (t[j] + dot(v, b));
-        t[j] -= s;
-        sub_scaled(b, s, v);
-    }
-    Some(tau)
-}
-
-/// Columns per panel of [`absorb_rows_blocked`].
-const ABSORB_PANEL: usize = 12;
-
-/// Rows from which [`absorb_rows`] applies the reflections a panel at a time.
-const ABSORB_BLOCKED_MIN_ROWS: usize = 96;
-
-/// Zero `k` rows into an upper-triangular factor (see [`absorb_rows_unblocked`] for the layout
-/// and the contract): many rows in blocks of reflections ([`absorb_rows_blocked`]), few (or
-/// another factor's trapezoid) one reflection at a time.
-fn absorb_rows(w: &mut [f64], n1: usize, ld: usize, k: usize, trapezoid: bool) -> bool {
-    if trapezoid || k < ABSORB_BLOCKED_MIN_ROWS || n1 <= ABSORB_PANEL {
-        absorb_rows_unblocked(w, n1, ld, k, trapezoid)
-    } else {
-        absorb_rows_blocked(w, n1, ld, k)
-    }
-}
-
-/// [`absorb_rows_unblocked`] for `k` full rows, the reflections of `ABSORB_PANEL` columns at a
-/// time (LAPACK's triangular-pentagonal QR, `dtpqrt`, with a pentagon of zero height). Each
-/// panel is reduced column by column on its own columns; its reflections
-/// `H_i = I − τ_i·u_i·u_iᵀ`, `u_i = e_{j_i} + v_i` (`v_i` in the rows of `B`), are then applied
-/// to all later columns at once as `I − V·Tᵀ·Vᵀ` (compact WY): `W = C_T + V_Bᵀ·C_B`,
-/// `W ← Tᵀ·W`, `C_T −= W`, `C_B −= V_B·W`, two matrix products where one reflection per column
-/// made a pass over every later column of `B` for each column of the panel. The unit parts
-/// `e_{j_i}` are orthogonal, so `T` needs only the `B` parts: `T_ii = τ_i`,
-/// `T[..i, i] = −τ_i·T[..i, ..i]·(V_B[:, ..i]ᵀ·v_i)`. Same reflections as the unblocked form, so
-/// the same factor to rounding.
-fn absorb_rows_blocked(w: &mut [f64], n1: usize, ld: usize, k: usize) -> bool {
-    use crate::kernels::dot;
-    use faer::linalg::matmul::matmul;
-    use faer::{Accum, MatMut};
-    debug_assert!(ld >= n1 + k && w.len() == ld * n1);
-    let mut tau = [0.0f64; ABSORB_PANEL];
-    let mut t = Mat::<f64>::zeros(ABSORB_PANEL, ABSORB_PANEL);
-    let mut z = [0.0f64; ABSORB_PANEL];
-    let mut j0 = 0;
-    while j0 < n1 {
-        let nb = ABSORB_PANEL.min(n1 - j0);
-        let j1 = j0 + nb;
-        // The panel, one reflection per column on the panel's own columns (a column of `B`
-        // that is already zero gets τ = 0 and keeps its zero vector in V).
-        for j in j0..j1 {
-            match absorb_column(w, (n1, ld, k), j, j1 - j - 1) {
-                Some(tj) => tau[j - j0] = tj,
-                None => return false,
-            }
-        }
-        if j1 < n1 {
-            let (head, tail) = w.split_at_mut(j1 * ld);
-            let vcol = |i: usize| &head[(j0 + i) * ld + n1..(j0 + i) * ld + n1 + k];
-            // T of the panel (upper triangular, nb×nb).
-            for i in 0..nb {
-                for (p, zp) in z.iter_mut().enumerate().take(i) {
-                    *zp = dot(vcol(p), vcol(i));
-                }
-                for p in 0..i {
-                    let s: f64 = (p..i).map(|q| t[(p, q)] * z[q]).sum();
-                    t[(p, i)] = -tau[i] * s;
-                }
-                t[(i, i)] = tau[i];
-            }
-            let m = n1 - j1;
-            let vb =
-                faer::MatRef::from_column_major_slice_with_stride(&head[j0 * ld + n1..], k, nb, ld);
-            let trailing = MatMut::from_column_major_slice_with_stride_mut(
-                &mut tail[j0..],
-                n1 + k - j0,
-                m,
-                ld,
-            );
-            let (mut ct, rest) = trailing.split_at_row_mut(nb);
-            let (_, mut cb) = rest.split_at_row_mut(n1 - j1);
-            // W = C_T + V_Bᵀ·C_B, then W ← Tᵀ·W.
-            let mut wm = ct.to_owned();
-            matmul(
-                wm.as_mut(),
-                Accum::Add,
-                vb.transpose(),
-                cb.as_ref(),
-                1.0,
-                Par::Seq,
-            );
-            let tt = t.as_ref().get(..nb, ..nb);
-            let mut w2 = Mat::<f64>::zeros(nb, m);
-            faer::linalg::matmul::triangular::matmul(
-                w2.as_mut(),
-                faer::linalg::matmul::triangular::BlockStructure::Rectangular,
-                Accum::Replace,
-                tt.transpose(),
-                faer::linalg::matmul::triangular::BlockStructure::TriangularLower,
-                wm.as_ref(),
-                faer::linalg::matmul::triangular::BlockStructure::Rectangular,
-                1.0,
-                Par::Seq,
-            );
-            // C_T −= W, C_B −= V_B·W.
-            for c in 0..m {
-                for r in 0..nb {
-                    ct[(r, c)] -= w2[(r, c)];
-                }
-            }
-            matmul(cb.as_mut(), Accum::Add, vb, w2.as_ref(), -1.0, Par::Seq);
-        }
-        j0 = j1;
-    }
-    true
-}
-
-/// Zero `k` rows into an upper-triangular factor with one Householder reflection per column,
-/// in place: `w` is column-major with leading dimension `ld ≥ n1 + k`, rows `0..n1` hold the
-/// upper-triangular `T` and rows `n1..n1+k` the rows `B` (rows below are not read). Afterwards rows `0..n1` hold the
-/// upper-triangular factor of `[T; B]` (the rows of `B` are left as Householder vectors).
-///
-/// The reflection for column `j` acts on row `j` of `T` and on the rows of `B` still non-zero
-/// in that column: all `k` of them, or, with `trapezoid` (row `i` of `B` is zero left of column
-/// `i`, as in another block's factor), the first `min(j+1, k)`. No other entry changes: the
-/// rows of `T` are never mixed with each other, which is what makes this cheaper than a QR of
-/// the stacked matrix (which does not know `T` is already triangular).
-///
-/// Returns `false` when an entry is outside [`ABSORB_SAFE`] (the caller then uses the
-/// dense QR, whose norms are scaled); `w` is then partly updated and must be discarded.
-fn absorb_rows_unblocked(w: &mut [f64], n1: usize, ld: usize, k: usize, trapezoid: bool) -> bool {
-    debug_assert!(ld >= n1 + k && w.len() == ld * n1);
-    for j in 0..n1 {
-        let a = if trapezoid { (j + 1).min(k) } else { k };
-        if a == 0 {
-            continue;
-        }
-        if absorb_column(w, (n1, ld, a), j, n1 - j - 1).is_none() {
-            return false;
-        }
-    }
-    true
-}
 
 impl Compressed {
     /// The compression of zero rows with `n` columns (the neutral element of [`Compressed::merge`]).
@@ -392,49 +249,106 @@ impl Compressed {
         Ok(())
     }
 
-    /// Append rows in cache-sized chunks (a sequential TSQR, so the m-row data is read once and
-    /// every update works in cache): each chunk is zeroed into the current factor by
-    /// [`absorb_rows`], or (entries it declines, or fewer rows in all than columns) stacked under
-    /// it and re-factored by a dense QR.
+    /// Append rows in cache-sized chunks (see [`Compressed::append_with`]), copied from `(A, b)`.
     fn append_unchecked(&mut self, a: MatRef<'_, f64>, b: &[f64]) {
         let n = self.ncols();
-        let total = a.nrows();
+        let fill = |start: usize, mut chunk: MatMut<'_, f64>| -> Result<()> {
+            let k = chunk.nrows();
+            chunk
+                .as_mut()
+                .get_mut(.., ..n)
+                .copy_from(a.subrows(start, k));
+            chunk
+                .col_mut(n)
+                .copy_from(ColRef::from_slice(&b[start..start + k]));
+            Ok(())
+        };
+        // The rows were checked by the caller; a copy cannot fail.
+        let _ = self.append_with(a.nrows(), false, fill);
+    }
+
+    /// Compresses `m` rows that `fill` writes a chunk at a time, so that the rows never exist
+    /// all at once (a library built straight into its compression): `fill(start, chunk)` writes
+    /// rows `start..start + k` of `[A | b]` into the `k × (n+1)` view `chunk` (columns `0..n`
+    /// of `A`, then `b`). A chunk may be asked for twice (when its entries are too large or
+    /// too small for the structured update, it is stacked and factored again), and must then
+    /// be written the same. Same factor, to the bit, as [`Compressed::from_rows`] of the rows
+    /// stacked.
+    ///
+    /// Errors: `n = 0`; an error of `fill`; a non-finite entry (row counted from the first
+    /// row, column `n` meaning `b`), found chunk by chunk before that chunk is compressed.
+    pub fn from_chunks<E: From<RegressError>>(
+        n: usize,
+        m: usize,
+        fill: impl FnMut(usize, MatMut<'_, f64>) -> std::result::Result<(), E>,
+    ) -> std::result::Result<Self, E> {
+        if n == 0 {
+            return Err(RegressError::Empty {
+                what: "A has no columns; give at least one library column",
+            }
+            .into());
+        }
+        let mut out = Self::empty(n);
+        out.append_with(m, true, fill)?;
+        Ok(out)
+    }
+
+    /// Appends `total` rows in cache-sized chunks written by `fill` (as in
+    /// [`Compressed::from_chunks`]; a sequential TSQR, so the m-row data is read once and every
+    /// update works in cache): each chunk is zeroed into the current factor by [`absorb_rows`],
+    /// or (entries it declines, or fewer rows in all than columns) stacked under it and
+    /// re-factored by a dense QR. With `check`, each chunk's entries must be finite.
+    fn append_with<E: From<RegressError>>(
+        &mut self,
+        total: usize,
+        check: bool,
+        mut fill: impl FnMut(usize, MatMut<'_, f64>) -> std::result::Result<(), E>,
+    ) -> std::result::Result<(), E> {
+        let n = self.ncols();
+        let n1 = n + 1;
+        // One buffer for every chunk: a fresh one each time (600 kB for 36 columns) cost more
+        // in page faults and zeroing than the chunk's reflections.
+        let mut buf: Vec<f64> = Vec::new();
         let mut start = 0;
         while start < total {
             let k = CHUNK_ROWS.min(total - start);
             // Fewer rows in all than n+1: the factor has only that many rows, which the dense
             // QR gives directly (the reflections of the later columns would scatter rounding —
             // or, for rank-deficient rows, more — into rows that `merge` then drops).
+            let mut checked = false;
             if k <= ABSORB_MAX_ROWS && self.m + k > n {
-                let (n1, ld) = (n + 1, n + 1 + k);
-                let mut buf = vec![0.0; ld * n1];
-                self.write_augmented(1.0, n1, &mut buf, ld, 0);
-                for j in 0..n {
-                    let col = &mut buf[j * ld + n1..(j + 1) * ld];
-                    for (i, v) in col.iter_mut().enumerate() {
-                        *v = a[(start + i, j)];
-                    }
+                let ld = n1 + k;
+                if buf.len() < ld * n1 {
+                    buf.resize(ld * n1, 0.0);
                 }
-                buf[n * ld + n1..].copy_from_slice(&b[start..start + k]);
-                if absorb_rows(&mut buf, n1, ld, k, false) {
-                    *self = Self::from_buffer(&buf, n1, ld, self.m + k);
+                let w = &mut buf[..ld * n1];
+                self.write_augmented(1.0, n1, w, ld, 0);
+                let chunk =
+                    MatMut::from_column_major_slice_with_stride_mut(&mut w[n1..], k, n1, ld);
+                fill(start, chunk)?;
+                if check {
+                    let chunk = MatRef::from_column_major_slice_with_stride(&w[n1..], k, n1, ld);
+                    check_chunk(chunk, start)?;
+                    checked = true;
+                }
+                if absorb_rows(w, n1, ld, k, false) {
+                    *self = Self::from_buffer(w, n1, ld, self.m + k);
                     start += k;
                     continue;
                 }
             }
-            let mut aug = Mat::<f64>::zeros(n + 1 + k, n + 1);
+            let mut aug = Mat::<f64>::zeros(n1 + k, n1);
             aug.as_mut()
-                .get_mut(..n + 1, ..)
+                .get_mut(..n1, ..)
                 .copy_from(self.augmented(1.0));
-            aug.as_mut()
-                .get_mut(n + 1.., ..n)
-                .copy_from(a.subrows(start, k));
-            for (i, &v) in b[start..start + k].iter().enumerate() {
-                aug[(n + 1 + i, n)] = v;
+            fill(start, aug.as_mut().get_mut(n1.., ..))?;
+            if check && !checked {
+                check_chunk(aug.as_ref().get(n1.., ..), start)?;
             }
             *self = Self::from_factor(triangular_factor(aug), self.m + k);
             start += k;
         }
+        Ok(())
     }
 
     /// The compression of all rows of several blocks stacked (blocks with equal column counts).

@@ -264,6 +264,7 @@ pub(crate) fn subset_solve(
 /// The Householder reflection `I − τ·u·uᵀ`, `u = [1; v]`, that maps the vector `[alpha; v]` to
 /// `[beta; 0]` (LAPACK's sign convention: `beta` opposite to `alpha`). Overwrites `v` with the
 /// tail of `u` and returns `(beta, τ)`; `None` when `v` is zero (nothing to reflect).
+#[inline(always)]
 pub(crate) fn householder(alpha: f64, v: &mut [f64]) -> Option<(f64, f64)> {
     let sigma = dot(v, v);
     if sigma == 0.0 {

@@ -28,6 +28,7 @@
 
 #![warn(missing_docs)]
 
+mod absorb;
 mod bagging;
 mod compress;
 mod error;
