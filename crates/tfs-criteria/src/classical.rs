@@ -3,8 +3,10 @@
 
 use std::time::Instant;
 
+use faer::{ColRef, MatMut};
+use rayon::prelude::*;
 use tfs_data::Record;
-use tfs_library::{Equation, ModelTerm};
+use tfs_library::{Equation, Library, ModelTerm};
 use tfs_regress::{Compressed, Regressor, Stlsq, lambda_path, lstsq_support};
 
 use crate::blocks::{blocks_of, check_record, raw_columns_sg};
@@ -29,30 +31,13 @@ pub fn identify_sindy(records: &[Record], spec: &IdentifySpec) -> Result<Identif
     let mut timing = Vec::new();
     for (d, lib) in libs.iter().enumerate() {
         let t0 = Instant::now();
-        let mut comps = Vec::new();
-        for r in &blocks {
-            let dt = check_record(r, &spec.dofs)?;
-            let (cs, acc) = match opt.savitzky_golay {
-                Some(sg) => raw_columns_sg(r, &spec.dofs, d, dt, sg)?,
-                None => {
-                    let mut cs = tfs_library::ColumnSet::new(r as &dyn tfs_data::Columns);
-                    let mut acc = Vec::new();
-                    for (i, dn) in spec.dofs.iter().enumerate() {
-                        let x = r.column(dn).expect("checked");
-                        cs.insert(format!("{dn}'"), tfs_signal::central_difference(x, dt, 1)?)?;
-                        if i == d {
-                            acc = tfs_signal::central_difference(x, dt, 2)?;
-                        }
-                    }
-                    (cs, acc)
-                }
-            };
-            let a = lib.evaluate(&cs)?;
-            let trim = opt.savitzky_golay.map_or(1, |s| s.0);
-            let m = a.nrows() - 2 * trim;
-            let at = a.as_ref().subrows(trim, m);
-            comps.push(Compressed::from_rows(at, &acc[trim..trim + m])?);
-        }
+        // Each record is compressed on its own, so the records go in parallel (collected in
+        // order, the first error in record order: the same result on any number of threads).
+        let comps: Vec<Result<Compressed>> = blocks
+            .par_iter()
+            .map(|r| record_compressed(r, spec, d, lib))
+            .collect();
+        let comps = comps.into_iter().collect::<Result<Vec<_>>>()?;
         timing.push((format!("{}: library and compression", spec.dofs[d]), ms(t0)));
         let t0 = Instant::now();
         let nb = comps.len();
@@ -125,4 +110,47 @@ pub fn identify_sindy(records: &[Record], spec: &IdentifySpec) -> Result<Identif
         timing,
         t_all,
     )
+}
+
+/// The compression of one record's rows for DOF `d`: numerical derivatives, then the library
+/// built a chunk of rows at a time straight into the compression (the whole library matrix of
+/// the record never exists; same factor, to the bit), or whole when a term has an internal
+/// state (which needs the record's history).
+fn record_compressed(
+    r: &Record,
+    spec: &IdentifySpec,
+    d: usize,
+    lib: &Library,
+) -> Result<Compressed> {
+    let opt = &spec.sindy;
+    let dt = check_record(r, &spec.dofs)?;
+    let (cs, acc) = match opt.savitzky_golay {
+        Some(sg) => raw_columns_sg(r, &spec.dofs, d, dt, sg)?,
+        None => {
+            let mut cs = tfs_library::ColumnSet::new(r as &dyn tfs_data::Columns);
+            let mut acc = Vec::new();
+            for (i, dn) in spec.dofs.iter().enumerate() {
+                let x = r.column(dn).expect("checked");
+                cs.insert(format!("{dn}'"), tfs_signal::central_difference(x, dt, 1)?)?;
+                if i == d {
+                    acc = tfs_signal::central_difference(x, dt, 2)?;
+                }
+            }
+            (cs, acc)
+        }
+    };
+    let trim = opt.savitzky_golay.map_or(1, |s| s.0);
+    let m = r.len() - 2 * trim;
+    if !lib.is_row_local() {
+        let a = lib.evaluate(&cs)?;
+        let at = a.as_ref().subrows(trim, m);
+        return Ok(Compressed::from_rows(at, &acc[trim..trim + m])?);
+    }
+    let n = lib.len();
+    Compressed::from_chunks(n, m, |start, mut chunk: MatMut<'_, f64>| -> Result<()> {
+        let rows = trim + start..trim + start + chunk.nrows();
+        lib.evaluate_rows(&cs, rows.clone(), chunk.as_mut().get_mut(.., ..n))?;
+        chunk.col_mut(n).copy_from(ColRef::from_slice(&acc[rows]));
+        Ok(())
+    })
 }

@@ -2,7 +2,7 @@
 
 use std::borrow::Cow;
 
-use faer::Mat;
+use faer::{Mat, MatMut};
 use tfs_data::Columns;
 
 use crate::term::{Factor, Term, Var};
@@ -139,6 +139,104 @@ impl Library {
             evaluate_term_into(t, cols, &mut powers, m.col_as_slice_mut(j))?;
         }
         Ok(m)
+    }
+
+    /// Whether every term's value on a row depends on that row alone: true unless a term has
+    /// an internal state (whose value integrates its drive over the record's history). A
+    /// row-local library can be evaluated a block of rows at a time ([`Library::evaluate_rows`]).
+    pub fn is_row_local(&self) -> bool {
+        self.terms
+            .iter()
+            .all(|t| t.factors().iter().all(|f| f.state_law().is_none()))
+    }
+
+    /// Evaluates every term on the rows `rows` of `cols` into `out` (`rows.len() × len`, row `i`
+    /// of `out` = row `rows.start + i`): the same values, to the bit, as those rows of
+    /// [`Library::evaluate`], without the matrix of every row (so a tall library can be built
+    /// and compressed a cache-sized block at a time). Errors as [`Library::evaluate`] (the row
+    /// of a non-finite value is counted in `cols`), and for a library that is not
+    /// [row-local](Library::is_row_local) or rows beyond `cols`.
+    pub fn evaluate_rows(
+        &self,
+        cols: &dyn Columns,
+        rows: std::ops::Range<usize>,
+        mut out: MatMut<'_, f64>,
+    ) -> Result<()> {
+        let invalid = |message: String| LibraryError::Invalid {
+            field: "rows".into(),
+            message,
+        };
+        if !self.is_row_local() {
+            return Err(invalid(
+                "a term with an internal state depends on the whole record; evaluate the library on every row".into(),
+            ));
+        }
+        if rows.start > rows.end
+            || rows.end > cols.rows()
+            || out.shape() != (rows.len(), self.len())
+        {
+            return Err(invalid(format!(
+                "rows {}..{} into a {}×{} block: the record has {} rows and the library {} terms",
+                rows.start,
+                rows.end,
+                out.nrows(),
+                out.ncols(),
+                cols.rows(),
+                self.len()
+            )));
+        }
+        // Every column a term reads is checked on the whole record first, so that a missing or
+        // short column is reported as `evaluate` reports it.
+        for t in &self.terms {
+            for c in t.required_columns() {
+                fetch(cols, &c, t)?;
+            }
+        }
+        let window = RowWindow {
+            base: cols,
+            rows: rows.clone(),
+        };
+        let mut powers = PowerCache::new();
+        let mut scratch = Vec::new();
+        for (j, t) in self.terms.iter().enumerate() {
+            let res = match out.as_mut().col_mut(j).try_as_col_major_mut() {
+                Some(col) => evaluate_term_into(t, &window, &mut powers, col.as_slice_mut()),
+                None => {
+                    scratch.resize(rows.len(), 0.0);
+                    let r = evaluate_term_into(t, &window, &mut powers, &mut scratch);
+                    for (i, v) in scratch.iter().enumerate() {
+                        out[(i, j)] = *v;
+                    }
+                    r
+                }
+            };
+            if let Err(LibraryError::NonFinite { term, row }) = res {
+                return Err(LibraryError::NonFinite {
+                    term,
+                    row: rows.start + row,
+                });
+            }
+            res?;
+        }
+        Ok(())
+    }
+}
+
+/// The rows `rows` of every column of `base` (which [`Library::evaluate_rows`] has checked to
+/// hold every row).
+struct RowWindow<'a> {
+    base: &'a dyn Columns,
+    rows: std::ops::Range<usize>,
+}
+
+impl Columns for RowWindow<'_> {
+    fn column(&self, name: &str) -> Option<&[f64]> {
+        self.base
+            .column(name)
+            .map(|c| c.get(self.rows.clone()).unwrap_or(c))
+    }
+    fn rows(&self) -> usize {
+        self.rows.len()
     }
 }
 
