@@ -24,11 +24,11 @@ fn absorb_column(
 ) -> Option<f64> {
     use crate::kernels::{dot, sub_scaled};
     let (lo, hi) = ABSORB_SAFE;
-    // Without branches (`!(a <= hi)` also holds for ∞ and NaN), so that the test of a whole
-    // column vectorises.
+    // Without branches (`a > hi` also holds for ∞), so that the test of a whole column
+    // vectorises.
     let outside = |v: f64| {
         let a = v.abs();
-        !(a <= hi) | ((a != 0.0) & (a < lo))
+        (a > hi) | ((a != 0.0) & (a < lo)) | a.is_nan()
     };
     let (head, tail) = w.split_at_mut((j + 1) * ld);
     let colj = &mut head[j * ld..];
