@@ -220,6 +220,77 @@ impl Library {
         }
         Ok(())
     }
+
+    /// The first term, in library order, that is not finite on some row of `cols`, and its first
+    /// such row (`(term index, row)`), as [`Library::evaluate`] would report it; `None` when every
+    /// term is finite everywhere. Terms that cannot be evaluated (a missing column) are skipped:
+    /// evaluation reports those.
+    ///
+    /// Far cheaper than evaluating the library: a term that is a product of powers, `abs`,
+    /// `sign`, `tanh` and contact factors is bounded by the same product of its variables'
+    /// largest magnitudes (one pass over each variable, shared by every term), and a term whose
+    /// bound is far below overflow (≤ 1e300, so the few roundings of the evaluation cannot
+    /// reach it) is finite on every row. Only a term with a larger bound, or an internal state,
+    /// is evaluated to find the row.
+    pub fn first_non_finite(&self, cols: &dyn Columns) -> Option<(usize, usize)> {
+        let mut largest: Vec<(Var, Option<f64>)> = Vec::new();
+        let mut powers = PowerCache::new();
+        for (j, t) in self.terms.iter().enumerate() {
+            if term_bound(t, cols, &mut largest).is_some_and(|b| b <= FINITE_BOUND) {
+                continue;
+            }
+            if let Err(LibraryError::NonFinite { row, .. }) =
+                evaluate_term_cached(t, cols, &mut powers)
+            {
+                return Some((j, row));
+            }
+        }
+        None
+    }
+}
+
+/// A bound of a term's magnitude at or below which its evaluation is finite (see
+/// [`Library::first_non_finite`]).
+const FINITE_BOUND: f64 = 1e300;
+
+/// An upper bound of `|term|` over every row of `cols` from its variables' largest magnitudes
+/// (cached in `largest`; `None` for a variable that cannot be read); `None` when the term has an
+/// internal state, a variable cannot be read or is not finite somewhere.
+fn term_bound(
+    term: &Term,
+    cols: &dyn Columns,
+    largest: &mut Vec<(Var, Option<f64>)>,
+) -> Option<f64> {
+    let mut bound = 1.0f64;
+    for f in term.factors() {
+        if matches!(f, Factor::State(..)) {
+            return None;
+        }
+        let v = f.var();
+        let m = match largest.iter().find(|(w, _)| w == v) {
+            Some((_, m)) => *m,
+            None => {
+                let m = var_values(v, cols, term).ok().and_then(|vals| {
+                    let (mut m, mut finite) = (0.0f64, true);
+                    for x in vals.iter() {
+                        finite &= x.is_finite();
+                        m = m.max(x.abs());
+                    }
+                    finite.then_some(m)
+                });
+                largest.push((v.clone(), m));
+                m
+            }
+        }?;
+        bound *= match f {
+            Factor::Pow(_, k) => m.powi(*k as i32),
+            Factor::Abs(_) => m,
+            Factor::Sign(_) | Factor::Tanh(..) => 1.0,
+            Factor::Below(_, c) | Factor::Above(_, c) => c.abs() + m,
+            Factor::State(..) => return None,
+        };
+    }
+    Some(bound)
 }
 
 /// The rows `rows` of every column of `base` (which [`Library::evaluate_rows`] has checked to

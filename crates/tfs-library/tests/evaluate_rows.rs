@@ -80,3 +80,55 @@ fn errors_name_the_record_row_and_refuse_what_blocks_cannot_do() {
     assert!(!state.is_row_local());
     assert!(state.evaluate_rows(&rec, 0..10, block.as_mut()).is_err());
 }
+
+/// `first_non_finite` (bounds first, evaluation only where a bound is large) finds what
+/// evaluating every term finds: the first term in library order and its first row.
+#[test]
+fn first_non_finite_agrees_with_evaluating_every_term() {
+    let t: Vec<f64> = (0..200).map(|i| i as f64 * 0.01).collect();
+    let dofs = ["x1".to_string(), "x2".to_string()];
+    let lib = Library::parse(
+        "x1^1..7, x1', (x2-x1)^1..5, abs(x1)*x1', sign(x1'), below(x1, 0.2)*x1, xb_acc",
+        &dofs,
+    )
+    .unwrap();
+    // Largest magnitudes from ordinary to just past the overflow of x1^7 (≈ 2.6e44).
+    for (big, row) in [
+        (1.0, 50),
+        (1e40, 120),
+        (1e44, 7),
+        (3e44, 199),
+        (1e150, 0),
+        (1e200, 33),
+    ] {
+        let x1: Vec<f64> = t
+            .iter()
+            .enumerate()
+            .map(|(i, s)| if i == row { big } else { s.sin() })
+            .collect();
+        let x2: Vec<f64> = t.iter().map(|s| (0.5 * s).cos()).collect();
+        let rec = Record::new(
+            "r",
+            t.clone(),
+            vec![
+                ("x1".into(), x1.clone()),
+                ("x2".into(), x2),
+                ("xb_acc".into(), vec![0.1; 200]),
+            ],
+        )
+        .unwrap();
+        let mut cols = ColumnSet::new(&rec);
+        cols.insert("x1'", x1.iter().map(|v| 0.5 * v).collect())
+            .unwrap();
+        let want = lib.terms().iter().enumerate().find_map(|(j, term)| {
+            match tfs_library::evaluate_term(term, &cols) {
+                Err(LibraryError::NonFinite { row, .. }) => Some((j, row)),
+                _ => None,
+            }
+        });
+        assert_eq!(lib.first_non_finite(&cols), want, "largest |x1| = {big:e}");
+        if big >= 3e44 {
+            assert!(want.is_some(), "x1^7 of {big:e} overflows");
+        }
+    }
+}
