@@ -6,7 +6,8 @@
 //! identified cells are judged against the truss truth: cell 1 monostable, cell 2 bistable, each
 //! stable state within 0.05 of the truth's, as `identify` prints them (tied and untied, clean, at
 //! 30 and 60 dB) and as `basin` reads them from the untied and the refitted model; the refit of a
-//! tied model keeps the ties, and its basins on the paper's slice agree with the truth's.
+//! tied model keeps the ties, and its basins on the paper's slice agree with the truth's;
+//! `refit --refine` (which re-estimates each equation alone) says so and drops the ties.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -281,6 +282,28 @@ fn the_readme_chain_is_identified_from_the_cli_clean_and_at_30_db() {
     args.extend(clean.iter().map(String::as_str));
     ok(&args);
     ties_hold(Path::new(&refit));
+    // `--refine` re-estimates each equation on its own: the refined file must not claim ties,
+    // and the user is told (one record keeps it short).
+    let refined = dir.path().join("refined.json").display().to_string();
+    let last = clean[clean.len() - 1].as_str();
+    let out = tfs(&[
+        "refit", "--model", &m, "--add", "stop@x1", "--refine", "--out", &refined, last,
+    ]);
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(out.status.success(), "{text}");
+    assert!(
+        text.contains("tied terms") && text.contains("no longer hold"),
+        "{text}"
+    );
+    let model = Model::from_json_str(&std::fs::read_to_string(&refined).unwrap()).unwrap();
+    assert!(
+        model.trace.get("ties").is_none(),
+        "a refined chain claims ties"
+    );
     let mut args = vec!["compare", "--model", &refit];
     args.extend(clean.iter().map(String::as_str));
     let c = ok(&args);
