@@ -67,8 +67,12 @@ impl Band {
         }
         let k = self.mirror_len / 2;
         let nn = self.mirror_len as f64;
-        let top = (self.floor_log_a + self.floor_beta * (k as f64).ln()).exp();
-        2.0 * top * k as f64 / (nn * nn)
+        2.0 * self.floor_at(k) * k as f64 / (nn * nn)
+    }
+
+    /// The fitted floor `N̂_k` at bin `k` of the mirror spectrum.
+    fn floor_at(&self, k: usize) -> f64 {
+        (self.floor_log_a + self.floor_beta * (k as f64).ln()).exp()
     }
 
     /// Estimated variance of the whole-band noise of the raw signal: the fitted floor summed over
@@ -78,9 +82,7 @@ impl Band {
             return 0.0;
         }
         let nn = self.mirror_len as f64;
-        let sum: f64 = (1..=self.mirror_len / 2)
-            .map(|k| (self.floor_log_a + self.floor_beta * (k as f64).ln()).exp())
-            .sum();
+        let sum: f64 = (1..=self.mirror_len / 2).map(|k| self.floor_at(k)).sum();
         2.0 * sum / (nn * nn)
     }
 }

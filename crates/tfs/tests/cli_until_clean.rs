@@ -60,9 +60,9 @@ fn until_clean_adds_effects_until_none_is_significant() {
             "m.json",
         ],
     );
-    let json = ok(
-        d,
-        &[
+    // The same loop with each output: `refit m.json k-1.csv k-2.csv --until-clean 4 --out OUT`.
+    let until_clean = |out: &str, extra: &[&str]| -> String {
+        let mut args = vec![
             "refit",
             "--model",
             "m.json",
@@ -71,10 +71,12 @@ fn until_clean_adds_effects_until_none_is_significant() {
             "--until-clean",
             "4",
             "--out",
-            "r.json",
-            "--json",
-        ],
-    );
+            out,
+        ];
+        args.extend_from_slice(extra);
+        ok(d, &args)
+    };
+    let json = until_clean("r.json", &["--json"]);
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     let rounds = v["rounds"].as_array().unwrap();
     let added: Vec<&str> = rounds.iter().filter_map(|r| r["added"].as_str()).collect();
@@ -104,20 +106,7 @@ fn until_clean_adds_effects_until_none_is_significant() {
         m["equations"][0]["terms"].as_array().unwrap().len()
     };
     assert!(model("r.json") > model("m.json"));
-    let human = ok(
-        d,
-        &[
-            "refit",
-            "--model",
-            "m.json",
-            "k-1.csv",
-            "k-2.csv",
-            "--until-clean",
-            "4",
-            "--out",
-            "r2.json",
-        ],
-    );
+    let human = until_clean("r2.json", &[]);
     assert!(human.contains("round 1: added"), "{human}");
     assert!(human.contains("the loop stops"), "{human}");
 
