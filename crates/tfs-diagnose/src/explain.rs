@@ -16,9 +16,13 @@
 //! Blocks are long enough — four cut-off periods or more — to be nearly independent. The
 //! combined p-value is Bonferroni-corrected over every variant of every effect tested. An effect is significant when the corrected p-value is below
 //! `alpha`, the held-out error falls, and its size (RMS change of the fitted force over the RMS of
-//! `x''`) is at least `min_share`. Significant effects are ranked by the held-out simulation
-//! R-MSE of the refitted model (an equation-error gain that does not survive simulation ranks
-//! lower), the rest by held-out equation-error improvement.
+//! `x''`) is at least `min_share`, and the judge of held-out predictions ([`crate::judge`]) does not
+//! find that it predicts worse by more than the judge resolves. Significant effects are ordered
+//! by the free-run R-MSE where the free run judges and shows skill (below 1), otherwise by the
+//! held-out equation error; the rest by held-out simulation R-MSE, then equation error. A
+//! significant effect that the ordering's own evidence does not tell from the top one (paired
+//! block test of their held-out equation errors, and no free run with skill between them) is
+//! reported as tied with it: the records cannot say which of the two is missing.
 
 use faer::Mat;
 use rayon::prelude::*;
@@ -28,7 +32,7 @@ use tfs_library::{ColumnSet, Equation, Model, ModelTerm, Term, evaluate_term};
 use tfs_regress::{Compressed, LeastSquares, Regressor};
 
 use crate::effects::{Catalogue, EffectColumn, EffectContext, Variant};
-use crate::judge::Judge;
+use crate::judge::{Candidate, Heldout, Judge, mark_ties, order};
 use crate::prepare::{DiagnoseOptions, Layout, RecordStates, rms};
 use crate::simulate::BaseRun;
 use crate::stats::{block_wald_p_value, bootstrap_interval, paired_p_value};
@@ -68,6 +72,10 @@ pub struct RankedEffect {
     /// Held-out prediction R-MSE after adding the effect, by `judge` (None if a simulation
     /// failed).
     pub r_mse_after: Option<f64>,
+    /// Significant, and neither the held-out equation error nor the judge tells it apart from
+    /// the top-ranked effect of its DOF (paired tests over the held-out blocks, and over the
+    /// judge's units or pieces, at `alpha`): the records cannot say which of the two is missing.
+    pub tied_with_top: bool,
     /// Why it is (not) significant, in words.
     pub reason: String,
 }
@@ -75,8 +83,9 @@ pub struct RankedEffect {
 /// Result of [`explain`]: ranked effects and the verdict.
 #[derive(Debug, Clone, Serialize)]
 pub struct Explanation {
-    /// Effects ranked: significant first, then by held-out simulation R-MSE after adding the
-    /// effect (the error the user will see), then by held-out equation-error improvement.
+    /// Effects ranked: significant first; among them by the free-run R-MSE where the free run
+    /// judges and shows skill, else by held-out equation-error improvement; the rest by
+    /// held-out simulation R-MSE, then equation-error improvement (see the module docs).
     pub ranked: Vec<RankedEffect>,
     /// One sentence: the top significant effect, or "no significant missing effect".
     pub verdict: String,
@@ -367,10 +376,10 @@ pub(crate) fn best_variant(
 }
 
 /// The held-out analysis of one (effect, DOF) pair before the multiple-comparison correction.
-struct Raw {
+pub(crate) struct Raw {
     effect: String,
-    dof_idx: usize,
-    scored: Scored,
+    pub dof_idx: usize,
+    pub scored: Scored,
     p_raw: f64,
     delta: f64,
     coef: f64,
@@ -507,26 +516,28 @@ fn entry(model: &Model, raw: &Raw, tests: usize, opts: &DiagnoseOptions) -> Rank
         judge: None,
         r_mse_before: None,
         r_mse_after: None,
+        tied_with_top: false,
         reason,
     }
 }
 
 /// Judges every candidate's refitted per-fold models on held-out data ([`crate::judge`]) and
-/// takes significance away from one that predicts worse than the model without it. Returns the
-/// judge of each DOF with its reason.
+/// takes significance away from one that predicts worse than the model without it by more than
+/// the judge can resolve. Returns the judge of each DOF with its reason.
 fn judge_candidates(
     model: &Model,
     setups: &[DofSetup],
     states: &[RecordStates],
     layout: &Layout,
     opts: &DiagnoseOptions,
-    ranked: &mut [(RankedEffect, Raw)],
+    ranked: &mut [Candidate],
     runs: &[BaseRun],
 ) -> Vec<(String, Judge, String)> {
-    let (judge, why) = crate::judge::choose(model, states, opts, runs);
+    let choice = crate::judge::choose(model, states, opts, runs);
+    let judge = choice.judge;
     let dt = states[0].record.dt();
     let horizon = |d: &DofSetup| ((2.0 * d.scales.period / dt).round() as usize).max(16);
-    let before: Vec<Option<f64>> = setups
+    let before: Vec<Option<Heldout>> = setups
         .par_iter()
         .map(|d| {
             let cols: Vec<EffectColumn> = d
@@ -541,11 +552,11 @@ fn judge_candidates(
             )
         })
         .collect();
-    ranked.par_iter_mut().for_each(|(r, raw)| {
+    ranked.par_iter_mut().for_each(|c| {
+        let (r, raw) = (&mut c.entry, &c.raw);
         let d = &setups[raw.dof_idx];
         r.judge = Some(judge);
-        r.r_mse_before = before[raw.dof_idx];
-        r.r_mse_after = crate::judge::heldout_error(
+        c.heldout = crate::judge::heldout_error(
             judge,
             model,
             raw.dof_idx,
@@ -556,23 +567,35 @@ fn judge_candidates(
             opts,
             horizon(d),
         );
+        let before = &before[raw.dof_idx];
+        r.r_mse_before = before.as_ref().map(|h| h.mean);
+        r.r_mse_after = c.heldout.as_ref().map(|h| h.mean);
         // An effect whose refitted model predicts the held-out data worse than the model
         // without it is not a discovered effect, however well it fits the equation error
         // (a flexible term can soak up the residual of a slightly mis-sized true effect).
+        // Worse means worse by more than the judge resolves: a difference a fresh draw of the
+        // input's noise makes, or one the pieces do not bear out, decides nothing.
         if r.significant
-            && let Some(before) = r.r_mse_before
+            && let Some(before) = before
         {
-            let worse = match r.r_mse_after {
-                Some(after) => after >= before,
+            let worse = match &c.heldout {
+                Some(after) => crate::judge::predicts_worse(
+                    judge,
+                    before,
+                    after,
+                    choice.resolution,
+                    opts.alpha,
+                ),
                 None => true,
             };
             if worse {
                 r.significant = false;
                 r.reason = match r.r_mse_after {
                     Some(after) => format!(
-                        "held-out equation error falls {:.1} %, but the refitted model predicts the held-out data worse ({} R-MSE {after:.3e} vs {before:.3e})",
+                        "held-out equation error falls {:.1} %, but the refitted model predicts the held-out data worse ({} R-MSE {after:.3e} vs {:.3e})",
                         100.0 * r.delta_heldout,
-                        judge.describe()
+                        judge.describe(),
+                        before.mean
                     ),
                     None => format!(
                         "held-out equation error falls {:.1} %, but the refitted model cannot be simulated on the held-out data",
@@ -584,7 +607,7 @@ fn judge_candidates(
     });
     setups
         .iter()
-        .map(|d| (model.dofs[d.idx].clone(), judge, why.clone()))
+        .map(|d| (model.dofs[d.idx].clone(), judge, choice.why.clone()))
         .collect()
 }
 
@@ -637,9 +660,13 @@ pub(crate) fn explain_with_runs(
         .into_iter()
         .flatten()
         .collect();
-    let mut ranked: Vec<(RankedEffect, Raw)> = raws
+    let mut ranked: Vec<Candidate> = raws
         .into_iter()
-        .map(|raw| (entry(model, &raw, tests, opts), raw))
+        .map(|raw| Candidate {
+            entry: entry(model, &raw, tests, opts),
+            raw,
+            heldout: None,
+        })
         .collect();
     let judges = if opts.simulate {
         let made;
@@ -663,28 +690,10 @@ pub(crate) fn explain_with_runs(
             })
             .collect()
     };
-    // Significant first; among equals, the lower held-out free-run error (failed simulations
-    // last), then the larger held-out equation-error drop.
-    let sim_key = |r: &RankedEffect| r.r_mse_after.unwrap_or(f64::INFINITY);
-    ranked.sort_by(|a, b| {
-        b.0.significant
-            .cmp(&a.0.significant)
-            .then(sim_key(&a.0).total_cmp(&sim_key(&b.0)))
-            .then(b.0.delta_heldout.total_cmp(&a.0.delta_heldout))
-    });
-    let mut ranked: Vec<RankedEffect> = ranked.into_iter().map(|(r, _)| r).collect();
-    // Where the free run cannot rank, the short-horizon prediction only vetoes (a candidate that
-    // predicts worse is not significant): over two dominant periods of chaotic motion its error
-    // is mostly divergence, too coarse to order candidates that all predict better, so the
-    // significant ones are ordered by the held-out equation error, the evidence that did not
-    // need a simulation.
-    if !opts.simulate || judges.iter().any(|(_, j, _)| *j != Judge::FreeRun) {
-        ranked.sort_by(|a, b| {
-            b.significant
-                .cmp(&a.significant)
-                .then(b.delta_heldout.total_cmp(&a.delta_heldout))
-        });
-    }
+    let judge = judges.first().map_or(Judge::EquationError, |j| j.1);
+    order(&mut ranked, judge);
+    mark_ties(&mut ranked, judge, opts.alpha);
+    let ranked: Vec<RankedEffect> = ranked.into_iter().map(|c| c.entry).collect();
     let verdict = verdict(&ranked, &judges, opts);
     Ok(Explanation {
         ranked,
@@ -715,8 +724,22 @@ fn verdict(
                     )
                 })
                 .unwrap_or_default();
+            let tied: Vec<&str> = ranked
+                .iter()
+                .filter(|r| r.tied_with_top && r.dof == top.dof)
+                .map(|r| r.name.as_str())
+                .collect();
+            let ties = if tied.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; indistinguishable on these records from {} (the held-out equation error does not tell them apart at alpha {}, nor does the judge): the data cannot say which is missing",
+                    tied.join(", "),
+                    opts.alpha
+                )
+            };
             format!(
-                "missing effect: {} ({}){judged}; add it with --add {}",
+                "missing effect: {} ({}){ties}{judged}; add it with --add {}",
                 top.name, top.reason, top.name
             )
         }

@@ -4,14 +4,17 @@
 //! the default. It cannot rank models when a fresh draw of the measured input's own noise moves
 //! the simulation about as far as the model's error (a multi-stable structure swept through
 //! chaotic snap-through: which well it is in decides the error, and the noise decides the well;
-//! `tfs_refine::noise_dominated`). Then the candidates are judged by **short-horizon
-//! prediction**: held-out data cut into pieces of two dominant periods, each simulated from the
-//! smoothed measured state at its start (internal states from the record), the squared error
-//! summed over the pieces — the model's error over a horizon the input noise cannot take over.
-//! That judge vetoes a candidate that predicts worse; the significant ones are then ordered by
-//! their held-out equation error (`explain`), as chaotic divergence over the pieces is too coarse
-//! to order candidates that all predict better.
-//! When neither can be simulated the equation error alone decides.
+//! `tfs_refine::noise_dominated`) on any record. Then the candidates are judged by
+//! **short-horizon prediction**: held-out data cut into pieces of two dominant periods, each
+//! simulated from the smoothed measured state at its start (internal states from the record), the
+//! squared error summed over the pieces — the model's error over a horizon the input noise cannot
+//! take over. When neither can be simulated the equation error alone decides.
+//!
+//! A judge vetoes a candidate only when it predicts worse by more than the judge resolves
+//! ([`predicts_worse`]): for the free run, by more than a fresh draw of the input's noise moves
+//! the model's score; for the short horizon, when paired tests over the pieces bear it out.
+//! Over chaotic divergence the short-horizon error is too coarse to order candidates, so the
+//! significant ones are then ordered by their held-out equation error (`explain`).
 
 use rayon::prelude::*;
 use serde::Serialize;
@@ -19,9 +22,10 @@ use tfs_dynamics::{Dopri5, Integrator, SampledInput, SimulateOptions};
 use tfs_library::{Factor, Model, Term, evaluate_term};
 
 use crate::effects::EffectColumn;
-use crate::explain::{Cv, with_equation};
+use crate::explain::{Cv, RankedEffect, Raw, with_equation};
 use crate::prepare::{DiagnoseOptions, Layout, RecordStates};
 use crate::simulate::BaseRun;
+use crate::stats::paired_p_value;
 
 /// What ranked the held-out predictions of the candidates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -46,52 +50,102 @@ impl Judge {
     }
 }
 
-/// The judge for `model` on `states`: short-horizon prediction when on most records the free-run
-/// error is dominated by the input's own noise, free-run otherwise; with the reason in words.
-/// `runs` are the model's own simulations of the records ([`crate::simulate::base_runs`]).
+/// The judge of the held-out predictions chosen for a model on its records.
+pub(crate) struct Choice {
+    /// The judge.
+    pub judge: Judge,
+    /// Why it was chosen, in words.
+    pub why: String,
+    /// The free-run R-MSE difference the judge cannot resolve: the mean over records of the
+    /// squared input-noise spread of the model's free run over the measured displacement's
+    /// variance (how far a fresh draw of the input's own noise moves the score; 0 when no
+    /// input could be perturbed).
+    pub resolution: f64,
+}
+
+/// The judge for `model` on `states`: short-horizon prediction when on any record the free-run
+/// error is dominated by the input's own noise, free-run otherwise; with the reason in words and
+/// the free run's resolution. One such record is enough: the free-run score is a mean over the
+/// held-out units, and a unit the input noise dominates adds noise of its own size to every
+/// candidate's mean. `runs` are the model's own simulations of the records
+/// ([`crate::simulate::base_runs`]).
 pub(crate) fn choose(
     model: &Model,
     states: &[RecordStates],
     opts: &DiagnoseOptions,
     runs: &[BaseRun],
-) -> (Judge, String) {
+) -> Choice {
     let sim = SimulateOptions::default();
-    let verdicts: Vec<Option<bool>> = states
+    let probes: Vec<Option<(bool, f64)>> = states
         .par_iter()
         .zip(runs)
         .map(|(s, run)| {
             let rec = crate::simulate::augment_record(model, &s.record, opts).ok()?;
             let tr = run.as_ref()?.as_ref().ok()?;
-            let err: Vec<f64> = model
+            let measured: Vec<&[f64]> = model
                 .dofs
                 .iter()
-                .enumerate()
-                .map(|(i, d)| {
-                    rec.column(d)
-                        .and_then(|m| tfs_dynamics::rms_error(m, &tr.x[i]).ok())
-                        .unwrap_or(f64::INFINITY)
-                })
+                .map(|d| rec.column(d))
+                .collect::<Option<_>>()?;
+            let err: Vec<f64> = measured
+                .iter()
+                .zip(&tr.x)
+                .map(|(m, x)| tfs_dynamics::rms_error(m, x).unwrap_or(f64::INFINITY))
                 .collect();
             let spread = tfs_refine::input_noise_spread_from(model, &rec, &sim, tr).ok()??;
             let noise = tfs_refine::displacement_noise_var(model, &rec);
-            Some(tfs_refine::noise_dominated(&spread, &err, &noise))
+            let shift = spread
+                .iter()
+                .zip(&measured)
+                .map(|(sp, m)| sp * sp / variance(m).max(f64::MIN_POSITIVE))
+                .sum::<f64>()
+                / spread.len().max(1) as f64;
+            Some((tfs_refine::noise_dominated(&spread, &err, &noise), shift))
         })
         .collect();
-    let dominated = verdicts.iter().filter(|v| **v == Some(true)).count();
-    if 2 * dominated > states.len() {
-        (
-            Judge::ShortHorizon,
-            format!(
+    let dominated = probes.iter().flatten().filter(|p| p.0).count();
+    let shifts: Vec<f64> = probes.iter().flatten().map(|p| p.1).collect();
+    let resolution = if shifts.is_empty() {
+        0.0
+    } else {
+        let m = shifts.iter().sum::<f64>() / shifts.len() as f64;
+        if m.is_finite() { m } else { f64::INFINITY }
+    };
+    if dominated > 0 {
+        Choice {
+            judge: Judge::ShortHorizon,
+            why: format!(
                 "free-run simulation cannot rank models on these records: on {dominated} of {} a fresh draw of the measured input's noise moves it about as far as the model's error",
                 states.len()
             ),
-        )
+            resolution,
+        }
     } else {
-        (
-            Judge::FreeRun,
-            "free-run simulation under the measured input".to_string(),
-        )
+        Choice {
+            judge: Judge::FreeRun,
+            why: "free-run simulation under the measured input".to_string(),
+            resolution,
+        }
     }
+}
+
+/// The variance of `x` about its mean.
+fn variance(x: &[f64]) -> f64 {
+    let n = x.len().max(1) as f64;
+    let m = x.iter().sum::<f64>() / n;
+    x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / n
+}
+
+/// A held-out prediction score: its mean (what is reported) and the parts it is the mean of —
+/// per held-out unit for the free run, per piece for the short horizon — for paired tests
+/// between two models scored on the same parts.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Heldout {
+    /// The R-MSE reported (mean over held-out units).
+    pub mean: f64,
+    /// Per unit (free run) or per piece (short horizon, each piece's squared error over its
+    /// length times its unit's variance).
+    pub parts: Vec<f64>,
 }
 
 /// The held-out error of the per-fold models of equation `dof_idx` with columns `cols` under
@@ -108,7 +162,7 @@ pub(crate) fn heldout_error(
     layout: &Layout,
     opts: &DiagnoseOptions,
     horizon: usize,
-) -> Option<f64> {
+) -> Option<Heldout> {
     match judge {
         Judge::FreeRun => heldout_r_mse(model, dof_idx, cols, cv, states, layout, opts),
         Judge::ShortHorizon => {
@@ -118,7 +172,7 @@ pub(crate) fn heldout_error(
     }
 }
 
-/// Held-out simulation R-MSE of the per-fold models (mean over held-out units; None on failure).
+/// Held-out simulation R-MSE of the per-fold models (per held-out unit; None on failure).
 /// The units are simulated side by side and summed in fold order, so the mean is the same on
 /// any number of threads; the first failure stops the units not yet started.
 fn heldout_r_mse(
@@ -129,7 +183,7 @@ fn heldout_r_mse(
     states: &[RecordStates],
     layout: &Layout,
     opts: &DiagnoseOptions,
-) -> Option<f64> {
+) -> Option<Heldout> {
     // Per fold its model; per held-out unit (fold, record, rows: the whole record or a segment).
     let mut models = Vec::with_capacity(layout.folds);
     let mut units = Vec::new();
@@ -165,7 +219,10 @@ fn heldout_r_mse(
     for s in &scores {
         sum += s;
     }
-    (!scores.is_empty()).then(|| sum / scores.len() as f64)
+    (!scores.is_empty()).then(|| Heldout {
+        mean: sum / scores.len() as f64,
+        parts: scores,
+    })
 }
 
 /// Short-horizon prediction R-MSE of the per-fold models on their held-out blocks (see the
@@ -182,9 +239,10 @@ fn short_horizon(
     layout: &Layout,
     opts: &DiagnoseOptions,
     horizon: usize,
-) -> Option<f64> {
+) -> Option<Heldout> {
     let mut sum = 0.0;
     let mut count = 0usize;
+    let mut parts = Vec::new();
     for f in 0..layout.folds {
         let m = with_equation(model, dof_idx, cols, &cv.coefs[f]).ok()?;
         for (r, s) in states.iter().enumerate() {
@@ -197,22 +255,28 @@ fn short_horizon(
                 continue;
             };
             let range = s.margin + first.start..s.margin + last.start + last.len;
-            sum += predict_pieces(&m, s, range, horizon, opts)?;
+            let (r, pieces) = predict_pieces(&m, s, range, horizon, opts)?;
+            sum += r;
+            parts.extend(pieces);
             count += 1;
         }
     }
-    (count > 0).then(|| sum / count as f64)
+    (count > 0).then(|| Heldout {
+        mean: sum / count as f64,
+        parts,
+    })
 }
 
 /// R-MSE (mean over DOFs) of `model`'s predictions over pieces of `horizon` samples covering
-/// `range` of the record behind `s`, each started from the smoothed measured state.
+/// `range` of the record behind `s`, each started from the smoothed measured state; and per
+/// piece its mean squared error over the range's variance (mean over DOFs).
 fn predict_pieces(
     model: &Model,
     s: &RecordStates,
     range: std::ops::Range<usize>,
     horizon: usize,
     opts: &DiagnoseOptions,
-) -> Option<f64> {
+) -> Option<(f64, Vec<f64>)> {
     let rec = crate::simulate::augment_record(model, &s.record, opts).ok()?;
     let compiled = model.compile().ok()?;
     let t = rec.t();
@@ -255,6 +319,7 @@ fn predict_pieces(
         .map(|m| m[range.clone()].iter().sum::<f64>() / range.len().max(1) as f64)
         .collect();
     let mut k0 = range.start;
+    let mut pieces: Vec<Vec<f64>> = Vec::new();
     while k0 + 1 < range.end {
         let k1 = (k0 + horizon).min(range.end);
         let mut x0: Vec<f64> = xs.iter().map(|x| x[k0]).collect();
@@ -264,19 +329,245 @@ fn predict_pieces(
         let tr = integrator
             .integrate(&compiled, &input, &x0, &v0, &t[k0..k1])
             .ok()?;
+        let mut piece = vec![0.0; n];
         for i in 0..n {
             for (j, k) in (k0..k1).enumerate() {
-                num[i] += (tr.x[i][j] - measured[i][k]).powi(2);
+                let e = (tr.x[i][j] - measured[i][k]).powi(2);
+                num[i] += e;
+                piece[i] += e / (k1 - k0) as f64;
                 den[i] += (measured[i][k] - means[i]).powi(2);
             }
         }
+        pieces.push(piece);
         k0 = k1;
     }
+    let len = range.len().max(1) as f64;
+    let parts: Vec<f64> = pieces
+        .iter()
+        .map(|p| {
+            p.iter()
+                .zip(&den)
+                .map(|(a, b)| a * len / b.max(f64::MIN_POSITIVE))
+                .sum::<f64>()
+                / n.max(1) as f64
+        })
+        .collect();
     let r: f64 = num
         .iter()
         .zip(&den)
         .map(|(a, b)| a / b.max(f64::MIN_POSITIVE))
         .sum::<f64>()
         / n.max(1) as f64;
-    r.is_finite().then_some(r)
+    (r.is_finite() && parts.iter().all(|p| p.is_finite())).then_some((r, parts))
+}
+
+/// True when the model scored `after` predicts the held-out data worse than the one scored
+/// `before` by more than `judge` can resolve. Free run: its mean R-MSE is higher by more than
+/// `resolution` (what a fresh draw of the input's noise moves it). Short horizon: the paired
+/// one-sided tests over the pieces — of the difference and of the log-ratio, Bonferroni over the
+/// two — put the worsening below `alpha`. The equation error judges nothing here (false).
+pub(crate) fn predicts_worse(
+    judge: Judge,
+    before: &Heldout,
+    after: &Heldout,
+    resolution: f64,
+    alpha: f64,
+) -> bool {
+    match judge {
+        Judge::FreeRun => after.mean > before.mean + resolution,
+        Judge::ShortHorizon => {
+            if before.parts.len() != after.parts.len() {
+                return after.mean > before.mean;
+            }
+            let pairs = before.parts.iter().zip(&after.parts);
+            let diffs: Vec<f64> = pairs.clone().map(|(b, a)| a - b).collect();
+            let logs: Vec<f64> = pairs
+                .map(|(b, a)| (a.max(f64::MIN_POSITIVE) / b.max(f64::MIN_POSITIVE)).ln())
+                .collect();
+            2.0 * paired_p_value(&diffs).min(paired_p_value(&logs)) < alpha
+        }
+        Judge::EquationError => false,
+    }
+}
+
+/// A ranked effect with its analysis and its held-out prediction score.
+pub(crate) struct Candidate {
+    /// What is reported.
+    pub entry: RankedEffect,
+    /// The equation-error analysis.
+    pub raw: Raw,
+    /// The held-out prediction score by the judge.
+    pub heldout: Option<Heldout>,
+}
+
+/// Orders the candidates: significant first. Among the significant, with the free run as judge,
+/// by its held-out R-MSE where it shows skill and by the held-out equation error where it does
+/// not: an R-MSE of 1 or more (on the measured displacement's variance) predicts no better than
+/// the mean position, so every such candidate scores the same, "no skill" ([`skill_key`]).
+/// With the short horizon or the equation error alone, by the equation error (over chaotic
+/// divergence the short-horizon error vetoes but is too coarse to order). The rest by the
+/// free-run R-MSE (failed simulations last), then the equation error.
+pub(crate) fn order(ranked: &mut [Candidate], judge: Judge) {
+    let sim_key = |c: &Candidate| c.entry.r_mse_after.unwrap_or(f64::INFINITY);
+    let key = |c: &Candidate| {
+        if !c.entry.significant {
+            sim_key(c)
+        } else if judge == Judge::FreeRun {
+            skill_key(c.entry.r_mse_after)
+        } else {
+            0.0
+        }
+    };
+    ranked.sort_by(|a, b| {
+        b.entry
+            .significant
+            .cmp(&a.entry.significant)
+            .then(key(a).total_cmp(&key(b)))
+            .then(b.entry.delta_heldout.total_cmp(&a.entry.delta_heldout))
+    });
+}
+
+/// A free-run R-MSE as an ordering key: the R-MSE while it shows skill (below 1), 1 for every
+/// score that does not (an R-MSE of 1 is the error of predicting the mean position), infinite
+/// for a failed simulation.
+fn skill_key(r_mse: Option<f64>) -> f64 {
+    r_mse.map_or(f64::INFINITY, |r| r.min(1.0))
+}
+
+/// Marks the significant candidates that the ordering's own evidence does not tell apart from
+/// the top-ranked one of their DOF ([`RankedEffect::tied_with_top`]): the paired one-sided tests
+/// over the held-out blocks (the RSS difference and its log-ratio, Bonferroni over the two) do
+/// not put the top's advantage below `alpha`, and — when the free run judges — neither of the
+/// two free runs shows skill ([`skill_key`]). (The short-horizon judge only vetoes; it does not
+/// order, so it does not separate either.)
+pub(crate) fn mark_ties(ranked: &mut [Candidate], judge: Judge, alpha: f64) {
+    let mut tops: Vec<(String, Vec<f64>, f64)> = Vec::new();
+    for c in ranked.iter_mut().filter(|c| c.entry.significant) {
+        let Some((_, top_rss, top_key)) = tops.iter().find(|t| t.0 == c.entry.dof) else {
+            tops.push((
+                c.entry.dof.clone(),
+                c.raw.scored.cv.heldout.clone(),
+                skill_key(c.entry.r_mse_after),
+            ));
+            continue;
+        };
+        let pairs = top_rss.iter().zip(&c.raw.scored.cv.heldout);
+        let diffs: Vec<f64> = pairs.clone().map(|(t, o)| o - t).collect();
+        let logs: Vec<f64> = pairs
+            .map(|(t, o)| (o.max(f64::MIN_POSITIVE) / t.max(f64::MIN_POSITIVE)).ln())
+            .collect();
+        let equation_ties = 2.0 * paired_p_value(&diffs).min(paired_p_value(&logs)) >= alpha;
+        let judge_ties =
+            judge != Judge::FreeRun || (*top_key == 1.0 && skill_key(c.entry.r_mse_after) == 1.0);
+        c.entry.tied_with_top = equation_ties && judge_ties;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+    use rand_distr::{Distribution, Exp1};
+
+    /// Pieces of chaotic prediction error: heavy-tailed (exponential) around `scale`, per
+    /// piece one shared draw (the piece's own difficulty) times a model factor.
+    fn pieces(n: usize, factor: f64, noise: f64, seed: u64) -> (Heldout, Heldout) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        for _ in 0..n {
+            let hard: f64 = Exp1.sample(&mut rng);
+            let ea: f64 = Exp1.sample(&mut rng);
+            let eb: f64 = Exp1.sample(&mut rng);
+            a.push(hard * (1.0 + noise * ea));
+            b.push(factor * hard * (1.0 + noise * eb));
+        }
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        (
+            Heldout {
+                mean: mean(&a),
+                parts: a,
+            },
+            Heldout {
+                mean: mean(&b),
+                parts: b,
+            },
+        )
+    }
+
+    #[test]
+    fn short_horizon_vetoes_only_a_worsening_the_pieces_bear_out() {
+        // The same model quality, noisy pieces: a higher mean by chance is not a veto. Over 40
+        // draws at alpha 0.01 (two looks), at most a few may say "worse" (expected 0.8).
+        let vetoed = (0..40)
+            .filter(|s| {
+                let (before, after) = pieces(60, 1.0, 1.0, *s);
+                predicts_worse(Judge::ShortHorizon, &before, &after, 0.0, 0.01)
+            })
+            .count();
+        assert!(vetoed <= 4, "{vetoed} of 40 equal models vetoed");
+        // The mean comparison the judge used before vetoes about half of them.
+        let by_mean = (0..40)
+            .filter(|s| {
+                let (before, after) = pieces(60, 1.0, 1.0, *s);
+                after.mean >= before.mean
+            })
+            .count();
+        assert!(by_mean >= 10, "{by_mean}");
+        // A model twice as wrong on every piece is vetoed.
+        let (before, after) = pieces(60, 2.0, 0.3, 7);
+        assert!(predicts_worse(
+            Judge::ShortHorizon,
+            &before,
+            &after,
+            0.0,
+            0.01
+        ));
+        assert!(!predicts_worse(
+            Judge::ShortHorizon,
+            &after,
+            &before,
+            0.0,
+            0.01
+        ));
+    }
+
+    #[test]
+    fn free_run_vetoes_only_beyond_its_resolution() {
+        let score = |mean: f64| Heldout {
+            mean,
+            parts: vec![mean],
+        };
+        // Within what a fresh draw of the input's noise moves the score: no veto.
+        assert!(!predicts_worse(
+            Judge::FreeRun,
+            &score(0.70),
+            &score(0.96),
+            0.4,
+            0.01
+        ));
+        // Beyond it, or with a judge that resolves everything: vetoed.
+        assert!(predicts_worse(
+            Judge::FreeRun,
+            &score(0.70),
+            &score(1.2),
+            0.4,
+            0.01
+        ));
+        assert!(predicts_worse(
+            Judge::FreeRun,
+            &score(0.70),
+            &score(0.71),
+            0.0,
+            0.01
+        ));
+        // The equation error vetoes nothing.
+        assert!(!predicts_worse(
+            Judge::EquationError,
+            &score(0.1),
+            &score(9.0),
+            0.0,
+            0.01
+        ));
+    }
 }

@@ -4,8 +4,10 @@
 //! simulation cannot rank models here (a fresh draw of the input's noise moves it as far as the
 //! model's error), so the diagnosis must say it judged by something else.
 //!
-//! Dry friction and a Maxwell element run in CI; the whole catalogue with
-//! `cargo test -p tfs-diagnose --test chaotic -- --ignored --nocapture`.
+//! Dry friction, a Maxwell element and the cases that once failed run in CI; the whole catalogue
+//! with `cargo test -p tfs-diagnose --test chaotic -- --ignored --nocapture` (another noise
+//! draw: `TFS_CHAOTIC_SEED=700`). Effects the records cannot tell apart count as found when the
+//! verdict names the hidden one as indistinguishable from the top one.
 
 mod common;
 
@@ -21,9 +23,18 @@ fn double_well(hidden: Vec<Hidden>) -> Truth {
     }
 }
 
+/// The first noise seed of the three records: 500, or `TFS_CHAOTIC_SEED` to repeat the study on
+/// another noise draw.
+fn first_seed() -> u64 {
+    std::env::var("TFS_CHAOTIC_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(500)
+}
+
 /// Three 200 s sweeps 0.05 → 0.4 Hz of base acceleration (amplitudes 0.40, 0.45, 0.50) at
-/// 20 samples a second, 40 dB on displacement and input.
-fn records(truth: &Truth) -> Vec<tfs_data::Record> {
+/// 20 samples a second, 40 dB on displacement and input (noise seeds `seed`, `seed + 1`, …).
+fn records(truth: &Truth, seed: u64) -> Vec<tfs_data::Record> {
     (0..3)
         .map(|i| {
             record(
@@ -34,15 +45,50 @@ fn records(truth: &Truth) -> Vec<tfs_data::Record> {
                 0.40 + 0.05 * i as f64,
                 200.0,
                 0.05,
-                500 + i as u64,
+                seed + i as u64,
             )
         })
         .collect()
 }
 
-/// Diagnoses the truth hiding `hidden` and returns (top effect, significant, judge, verdict).
-fn case(label: &str, hidden: Hidden) -> (String, bool, Option<Judge>, String) {
-    let train = records(&double_well(vec![hidden]));
+/// What the diagnosis said about one hidden effect.
+struct Outcome {
+    top: String,
+    significant: bool,
+    /// The expected effect is significant and indistinguishable from the top one.
+    tied: bool,
+    judge: Option<Judge>,
+    verdict: String,
+}
+
+impl Outcome {
+    /// The hidden effect is reported first and significant, alone or with effects the records
+    /// cannot tell from it (named in the verdict).
+    fn found(&self, expect: &str) -> bool {
+        (self.top == expect && self.significant) || self.tied
+    }
+}
+
+fn row(label: &str, r: &tfs_diagnose::RankedEffect) {
+    println!(
+        "{label}:   {:<18} sig={} tied={} delta={:.3} p={:.1e} share={:.3} {:?} judge={:?} {:?} -> {:?}",
+        r.name,
+        r.significant,
+        r.tied_with_top,
+        r.delta_heldout,
+        r.p_value,
+        r.share,
+        r.terms,
+        r.judge,
+        r.r_mse_before,
+        r.r_mse_after
+    );
+}
+
+/// Diagnoses the truth hiding `hidden` (expected to be found as `expect`) on the noise draw
+/// `seed`.
+fn case(label: &str, hidden: Hidden, expect: &str, seed: u64) -> Outcome {
+    let train = records(&double_well(vec![hidden]), seed);
     let opts = DiagnoseOptions::default();
     let start = refit(&structure("x, x^3, x', xb_acc"), &train, &opts).unwrap();
     let t0 = std::time::Instant::now();
@@ -52,38 +98,32 @@ fn case(label: &str, hidden: Hidden) -> (String, bool, Option<Judge>, String) {
         t0.elapsed().as_secs_f64(),
         d.verdict
     );
-    for r in d.ranked.iter().take(4) {
-        println!(
-            "{label}:   {:<18} sig={} delta={:.3} p={:.1e} share={:.3} {:?} judge={:?} {:?} -> {:?}",
-            r.name,
-            r.significant,
-            r.delta_heldout,
-            r.p_value,
-            r.share,
-            r.terms,
-            r.judge,
-            r.r_mse_before,
-            r.r_mse_after
-        );
+    for r in d.ranked.iter().take(6) {
+        row(label, r);
+    }
+    if let Some(r) = d.ranked.iter().skip(6).find(|r| r.name == expect) {
+        row(label, r);
+        println!("{label}:     {}", r.reason);
     }
     println!("{label}: residual {}", d.residual_summary[0]);
     let top = &d.ranked[0];
-    (
-        top.name.clone(),
-        top.significant,
-        top.judge,
-        d.verdict.clone(),
-    )
+    Outcome {
+        top: top.name.clone(),
+        significant: top.significant,
+        tied: d.ranked.iter().any(|r| r.name == expect && r.tied_with_top),
+        judge: top.judge,
+        verdict: d.verdict.clone(),
+    }
 }
 
-fn check(label: &str, hidden: Hidden, expect: &str) {
-    let (top, sig, judge, verdict) = case(label, hidden);
-    assert_eq!(top, expect, "{label}: {verdict}");
-    assert!(sig, "{label}: {verdict}");
+fn check(label: &str, hidden: Hidden, expect: &str, seed: u64) -> Outcome {
+    let o = case(label, hidden, expect, seed);
+    assert!(o.found(expect), "{label}: {}", o.verdict);
     // Whatever judged, the verdict names it when it is not the free run.
-    if judge != Some(Judge::FreeRun) {
-        assert!(verdict.contains("ranked by"), "{label}: {verdict}");
+    if o.judge != Some(Judge::FreeRun) {
+        assert!(o.verdict.contains("ranked by"), "{label}: {}", o.verdict);
     }
+    o
 }
 
 #[test]
@@ -95,6 +135,7 @@ fn hidden_dry_friction() {
             eps: 0.01,
         },
         "dry-friction",
+        500,
     );
 }
 
@@ -104,6 +145,75 @@ fn hidden_maxwell() {
         "chaotic/maxwell",
         Hidden::Maxwell { k: 0.1, tau: 1.0 },
         "maxwell",
+        500,
+    );
+}
+
+/// On the second noise draw the short-horizon judge's mean over the pieces was higher with dry
+/// friction than without (2.78 against 2.28), and that vetoed it; the pieces do not bear the
+/// difference out (paired tests), so it is no veto.
+#[test]
+fn hidden_dry_friction_second_draw() {
+    check(
+        "chaotic/dry-friction@700",
+        Hidden::DryFriction {
+            force: 0.05,
+            eps: 0.01,
+        },
+        "dry-friction",
+        700,
+    );
+}
+
+/// Quadratic and cubic damping are nearly collinear over this motion (each hidden, the other
+/// lowers the held-out equation error about as much): the verdict must say the records cannot
+/// tell them apart rather than pick one.
+#[test]
+fn hidden_quadratic_damping_is_reported_with_its_ties() {
+    let o = check(
+        "chaotic/quadratic-damping",
+        Hidden::Quadratic(0.3),
+        "quadratic-damping",
+        500,
+    );
+    assert!(o.verdict.contains("indistinguishable"), "{}", o.verdict);
+}
+
+/// No record is dominated by the input noise here, so the free run judges; but every
+/// significant candidate's free run is worse than predicting the mean position (R-MSE above
+/// 1), so it cannot order them: the equation error does (the end stop came first by free run).
+#[test]
+fn hidden_input_delay_with_a_free_run_without_skill() {
+    check(
+        "chaotic/input-delay",
+        Hidden::Delay(0.3),
+        "input-delay",
+        500,
+    );
+}
+
+/// The end stop's free run is worse than the model's without it (R-MSE 0.96 against 0.70), by
+/// less than a fresh draw of the input's noise moves it: no veto.
+#[test]
+fn hidden_stop_within_the_free_run_resolution() {
+    check(
+        "chaotic/stop",
+        Hidden::Stop { k: 20.0, at: -1.2 },
+        "stop",
+        500,
+    );
+}
+
+/// One of the three records is dominated by the input noise: the free-run mean carries that
+/// noise, so the short horizon judges (by free run hysteresis came first, cubic damping's R-MSE
+/// was 4.1).
+#[test]
+fn hidden_cubic_damping_second_draw() {
+    check(
+        "chaotic/cubic-damping@700",
+        Hidden::CubicDamping(0.3),
+        "cubic-damping",
+        700,
     );
 }
 
@@ -139,11 +249,43 @@ fn every_catalogue_effect() {
     let mut failures = Vec::new();
     for (hidden, expect) in cases {
         let label = format!("chaotic/{expect}");
-        let (top, sig, judge, verdict) = case(&label, hidden);
-        println!("{label}: top {top} sig {sig} judge {judge:?}");
-        if top != expect || !sig {
-            failures.push(format!("{label}: {verdict}"));
+        let o = case(&label, hidden, expect, first_seed());
+        println!(
+            "{label}: top {} sig {} tied {} judge {:?}",
+            o.top, o.significant, o.tied, o.judge
+        );
+        if !o.found(expect) {
+            failures.push(format!("{label}: {}", o.verdict));
         }
     }
     assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// The double well with nothing hidden, on four noise draws: nothing should be significant.
+/// It is not so, before this test was written as after: a fifth or seventh stiffness power and a
+/// stop near the largest displacement lower the held-out equation error by 1-7 % on every draw
+/// (corrected p 1e-6..8e-3, sizes 2.5-5 % of the force RMS) and predict no worse over the short
+/// horizon. The model holds the truth's terms exactly, so this is a bias of the equation error
+/// itself on this motion, not a missing effect (see docs/DECISIONS.md); ignored until the tests
+/// are calibrated for it. `TFS_CONTROL_PRINT_ONLY=1` prints without asserting.
+#[test]
+#[ignore = "known false positives on the chaotic control (equation-error bias); run with --ignored"]
+fn control_has_no_significant_effect() {
+    for seed in [700, 900, 1100, 500] {
+        let train = records(&double_well(Vec::new()), seed);
+        let opts = DiagnoseOptions::default();
+        let start = refit(&structure("x, x^3, x', xb_acc"), &train, &opts).unwrap();
+        let d = diagnose(&start, &train, &opts).unwrap();
+        println!("chaotic/control@{seed}: {}", d.verdict);
+        for r in d.ranked.iter().take(3) {
+            row(&format!("chaotic/control@{seed}"), r);
+        }
+        if std::env::var("TFS_CONTROL_PRINT_ONLY").is_err() {
+            assert!(
+                d.ranked.iter().all(|r| !r.significant),
+                "control@{seed}: {}",
+                d.verdict
+            );
+        }
+    }
 }
