@@ -64,8 +64,8 @@ pub struct Round {
     pub top_parameter: Option<(String, f64)>,
     /// The diagnosis's verdict.
     pub verdict: String,
-    /// The three best-ranked candidates (name, significant, held-out equation-error drop, why).
-    pub ranked: Vec<(String, bool, f64, String)>,
+    /// The five best-ranked candidates.
+    pub ranked: Vec<Ranked>,
     /// Held-out R-MSE of the model before the round.
     pub before: Option<f64>,
     /// Held-out R-MSE after adding the top effect (= before when nothing was added).
@@ -74,6 +74,23 @@ pub struct Round {
     pub failure: Option<String>,
     /// Seconds spent in diagnose and refit.
     pub seconds: f64,
+}
+
+/// One ranked candidate of a round, as the diagnosis scored it.
+#[derive(Debug, Clone, Serialize)]
+pub struct Ranked {
+    /// `name` as `--add` takes it.
+    pub name: String,
+    /// Passed the test, the size threshold and the prediction veto.
+    pub significant: bool,
+    /// Relative drop of the held-out equation error.
+    pub delta: f64,
+    /// Corrected p-value.
+    pub p: f64,
+    /// Held-out prediction R-MSE (the diagnosis's judge) without and with the candidate.
+    pub r_mse: (Option<f64>, Option<f64>),
+    /// Why it is (not) significant.
+    pub reason: String,
 }
 
 /// The outcome of one case.
@@ -296,14 +313,14 @@ fn round(
             ranked: d
                 .ranked
                 .iter()
-                .take(3)
-                .map(|r| {
-                    (
-                        r.name.clone(),
-                        r.significant,
-                        r.delta_heldout,
-                        r.reason.clone(),
-                    )
+                .take(5)
+                .map(|r| Ranked {
+                    name: r.name.clone(),
+                    significant: r.significant,
+                    delta: r.delta_heldout,
+                    p: r.p_value,
+                    r_mse: (r.r_mse_before, r.r_mse_after),
+                    reason: r.reason.clone(),
                 })
                 .collect(),
             before: before.ok(),
