@@ -32,7 +32,7 @@ pub mod memory;
 
 pub(crate) use computed::round3;
 pub use computed::{ComputedColumn, computed_columns, delayed, lowpass, upgrade_legacy};
-pub use input::{InputDelay, InputFilter};
+pub use input::{CONTRACT_INPUTS, InputDelay, InputFilter, lost_inputs};
 pub(crate) use input::{input_variant, linear_inputs};
 pub use memory::{DahlFriction, Hysteresis, Maxwell};
 
@@ -220,6 +220,10 @@ pub struct EffectContext<'a> {
     /// input on the time scale of the input, whatever the response does (a cell drifting
     /// between wells has its spectral peak at the record's length). NaN without an input.
     pub input_period: f64,
+    /// Inputs the records carry that the model lost (no equation uses them; see
+    /// [`lost_inputs`]), offered back by the input effects when this equation uses no input
+    /// linearly; empty otherwise.
+    pub lost_inputs: Vec<String>,
 }
 
 /// The coordinates of an equation with terms `terms` that `keep` selects: `own` first, then
@@ -259,6 +263,7 @@ impl<'a> EffectContext<'a> {
             displacement_rms: scales.rms.clone(),
             shortest_record: scales.shortest_record,
             input_period: scales.input_period,
+            lost_inputs: scales.lost_inputs.clone(),
         }
     }
 

@@ -198,21 +198,28 @@ fn pattern_search(
 }
 
 /// An input effect's variant: every replacement a computed column of the same kind with the same
-/// parameter (`"delay"` or `"tau"`), nothing added.
+/// parameter (`"delay"` or `"tau"`), nothing added — or, for an input the model lost, every
+/// added column such a computed column, nothing replaced (`added`).
 struct InputFamily {
     inputs: Vec<String>,
     parameter: &'static str,
     value: f64,
+    added: bool,
 }
 
 impl InputFamily {
     fn of(v: &Variant) -> Option<Self> {
-        if !v.add.is_empty() || v.replace.is_empty() {
+        let added = v.replace.is_empty();
+        let cols: Vec<&EffectColumn> = if added {
+            v.add.iter().collect()
+        } else if v.add.is_empty() {
+            v.replace.iter().map(|(_, c)| c).collect()
+        } else {
             return None;
-        }
+        };
         let mut inputs = Vec::new();
         let mut kind: Option<(&'static str, f64)> = None;
-        for (_, c) in &v.replace {
+        for c in cols {
             let this = match c.computed.as_ref()? {
                 ComputedColumn::Delayed { input, delay } => {
                     inputs.push(input.clone());
@@ -233,6 +240,7 @@ impl InputFamily {
             inputs,
             parameter,
             value,
+            added,
         })
     }
 }
@@ -251,7 +259,9 @@ fn polish_input(
     let mut scanned: Vec<f64> = variants
         .iter()
         .filter_map(InputFamily::of)
-        .filter(|f| f.parameter == family.parameter && f.inputs == family.inputs)
+        .filter(|f| {
+            f.parameter == family.parameter && f.inputs == family.inputs && f.added == family.added
+        })
         .map(|f| f.value.ln())
         .collect();
     scanned.sort_by(f64::total_cmp);
@@ -265,10 +275,10 @@ fn polish_input(
     };
     let (lo, hi) = (scanned[0] - step, scanned[scanned.len() - 1] + step);
     let inputs = family.inputs.clone();
-    let parameter = family.parameter;
+    let (parameter, added) = (family.parameter, family.added);
     let make = move |_: &Variant, u: &[f64]| {
         let value = round3(u[0].exp());
-        (value > 0.0).then(|| input_variant(&inputs, parameter, value))
+        (value > 0.0).then(|| input_variant(&inputs, parameter, value, added))
     };
     pattern_search(best, vec![u0], vec![step], &[(lo, hi)], &make, score)
 }

@@ -221,6 +221,12 @@ impl RecordStates {
                 .ok_or_else(|| missing(model, record, inp))?;
             cols.push((inp.clone(), spectral_derivative(u, dt, 0, Some(fc))?));
         }
+        // Inputs the record carries that the model lost, for the input effects to offer back.
+        for inp in crate::effects::lost_inputs(model, |c| record.column(c).is_some()) {
+            if let Some(u) = record.column(&inp) {
+                cols.push((inp, spectral_derivative(u, dt, 0, Some(fc))?));
+            }
+        }
         for c in &computed {
             let src = c.source();
             if !cols.iter().any(|(n, _)| *n == src) {
@@ -411,8 +417,12 @@ pub(crate) struct DataScales {
     /// Duration of the shortest record (s).
     pub shortest_record: f64,
     /// Median over records of the RMS-frequency period ([`rms_frequency_period`]) of the
-    /// smoothed inputs the equation uses linearly (s); NaN without such an input.
+    /// smoothed inputs the equation uses linearly, else of its lost inputs (s); NaN without
+    /// either.
     pub input_period: f64,
+    /// The inputs every record carries that the model lost ([`crate::effects::lost_inputs`]),
+    /// when this equation uses no input linearly; empty otherwise.
+    pub lost_inputs: Vec<String>,
 }
 
 impl DataScales {
@@ -429,7 +439,15 @@ impl DataScales {
         let mut vel = Vec::new();
         let mut periods = Vec::new();
         let mut input_periods = Vec::new();
-        let inputs = crate::effects::linear_inputs(terms);
+        let mut inputs = crate::effects::linear_inputs(terms);
+        let lost_inputs = if inputs.is_empty() {
+            crate::effects::lost_inputs(model, |c| states.iter().all(|s| s.column(c).is_some()))
+        } else {
+            Vec::new()
+        };
+        if inputs.is_empty() {
+            inputs = lost_inputs.clone();
+        }
         let (mut xsum, mut xn) = (0.0, 0usize);
         let vars = crate::effects::coordinates(
             tfs_library::Var::Disp(dof.clone()),
@@ -478,6 +496,7 @@ impl DataScales {
             .map(|s| s.record.dt() * s.record.len().saturating_sub(1) as f64)
             .fold(f64::INFINITY, f64::min);
         Ok(Self {
+            lost_inputs,
             shortest_record,
             input_period: input_periods
                 .get(input_periods.len() / 2)

@@ -3,14 +3,21 @@
 //! its coefficient, the gain); it is never added beside it. Both are scanned on the input's own
 //! time scale ([`EffectContext::input_period`]) and refined between grid values
 //! (`crate::polish`).
+//!
+//! A model can have lost its input: when the input reaches the structure late or filtered, the
+//! plain input may explain so little that the fit drops it, and then no term is left for the
+//! effect to act on. When no equation of the model uses an input the records carry (by the data
+//! contract's names, [`CONTRACT_INPUTS`]), the input effects offer that input, delayed or
+//! filtered, as an added column instead ([`EffectContext::lost_inputs`]).
 
-use tfs_library::{Factor, Term, Var};
+use tfs_library::{Factor, Model, Term, Var};
 
 use super::{ComputedColumn, Effect, EffectColumn, EffectContext, Variant, round3};
 
 /// Input delay and gain (shaker dynamics, a base motion that reaches the structure late): every
 /// input term `u` is replaced by `u(t − δ)` — the delayed input takes the input's place (and its
-/// coefficient, the gain), it is not added beside it. δ is scanned over whole samples on a
+/// coefficient, the gain), it is not added beside it; a model that lost the input gets `u(t − δ)`
+/// added. δ is scanned over whole samples on a
 /// geometric grid (ratio about 1.25) from one sample up to half the input's RMS-frequency period
 /// ([`EffectContext::input_period`]): a longer delay is a sign flip of a narrow-band input. The
 /// best δ is then refined between samples (`crate::polish`).
@@ -38,7 +45,7 @@ impl Effect for InputDelay {
         "input delay and gain: u(t) replaced by u(t - delta), delta scanned from one sample up to half the input's period, then refined between samples".into()
     }
     fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
-        let inputs = linear_inputs(&ctx.terms);
+        let (inputs, added) = acted_on(ctx);
         if inputs.is_empty() || ctx.dt.is_nan() || ctx.dt <= 0.0 {
             return Vec::new();
         }
@@ -49,14 +56,56 @@ impl Effect for InputDelay {
         };
         delay_grid(max)
             .into_iter()
-            .map(|n| input_variant(&inputs, "delay", round3(n as f64 * ctx.dt)))
+            .map(|n| input_variant(&inputs, "delay", round3(n as f64 * ctx.dt), added))
             .collect()
     }
 }
 
-/// The variant replacing every input in `inputs` by its computed column with parameter `value`
-/// (`"delay"` or `"tau"`).
-pub(crate) fn input_variant(inputs: &[String], parameter: &str, value: f64) -> Variant {
+/// The inputs an input effect acts on in the equation of `ctx`: the ones it uses linearly
+/// (replaced), else the inputs the model lost (added, `true`).
+fn acted_on(ctx: &EffectContext<'_>) -> (Vec<String>, bool) {
+    let inputs = linear_inputs(&ctx.terms);
+    if inputs.is_empty() {
+        (ctx.lost_inputs.clone(), true)
+    } else {
+        (inputs, false)
+    }
+}
+
+/// Input columns by the data contract: a base acceleration `xb_acc`, a force or drive `u`,
+/// `force` or `voltage`.
+pub const CONTRACT_INPUTS: [&str; 4] = ["xb_acc", "u", "force", "voltage"];
+
+/// The inputs the records carry (by [`CONTRACT_INPUTS`]; `has` says whether every record has a
+/// column) that no equation of `model` uses, not even through a delayed or filtered copy: the
+/// inputs a fit dropped. Empty when the model uses any contract input, so the equations of a
+/// chain that are driven through their neighbours are not offered the base's input.
+pub fn lost_inputs(model: &Model, has: impl Fn(&str) -> bool) -> Vec<String> {
+    let used = |name: &str| {
+        model
+            .inputs
+            .iter()
+            .any(|i| i == name || ComputedColumn::parse(i).is_some_and(|c| c.source() == name))
+    };
+    if CONTRACT_INPUTS.iter().any(|n| used(n)) {
+        return Vec::new();
+    }
+    CONTRACT_INPUTS
+        .iter()
+        .filter(|n| has(n))
+        .map(|n| n.to_string())
+        .collect()
+}
+
+/// The variant putting the computed column with parameter `value` (`"delay"` or `"tau"`) of
+/// every input in `inputs` in the equation: in the input's place, or added beside the
+/// equation's terms when `added` (an input the model lost).
+pub(crate) fn input_variant(
+    inputs: &[String],
+    parameter: &str,
+    value: f64,
+    added: bool,
+) -> Variant {
     let column = |input: &String| {
         if parameter == "delay" {
             ComputedColumn::Delayed {
@@ -70,6 +119,15 @@ pub(crate) fn input_variant(inputs: &[String], parameter: &str, value: f64) -> V
             }
         }
     };
+    if added {
+        return Variant::adding(
+            Some((parameter.into(), value)),
+            inputs
+                .iter()
+                .map(|i| EffectColumn::computed(column(i)))
+                .collect(),
+        );
+    }
     Variant {
         parameter: Some((parameter.into(), value)),
         add: Vec::new(),
@@ -100,7 +158,7 @@ pub(crate) fn linear_inputs(terms: &[Term]) -> Vec<String> {
 }
 
 /// Input filter and gain (exciter or amplifier dynamics): every input term `u` is replaced by
-/// `u` low-pass filtered with time constant τ, τ scanned over 1 %..50 % of the input's
+/// `u` low-pass filtered with time constant τ (added, for a model that lost the input), τ scanned over 1 %..50 % of the input's
 /// RMS-frequency period ([`EffectContext::input_period`]) and then refined (`crate::polish`);
 /// the gain is the refitted input coefficient.
 #[derive(Debug, Clone, Copy)]
@@ -113,7 +171,7 @@ impl Effect for InputFilter {
         "input filter and gain: u replaced by u low-pass filtered with time constant tau (first-order exciter/amplifier dynamics), tau scanned over 1 %..50 % of the input's period, then refined".into()
     }
     fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
-        let inputs = linear_inputs(&ctx.terms);
+        let (inputs, added) = acted_on(ctx);
         if inputs.is_empty() || !(ctx.input_period.is_finite() && ctx.input_period > 0.0) {
             return Vec::new();
         }
@@ -121,7 +179,7 @@ impl Effect for InputFilter {
             .iter()
             .map(|r| round3(r * ctx.input_period))
             .filter(|&tau| tau >= 0.1 * ctx.dt)
-            .map(|tau| input_variant(&inputs, "tau", tau))
+            .map(|tau| input_variant(&inputs, "tau", tau, added))
             .collect()
     }
 }
