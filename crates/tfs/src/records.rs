@@ -397,7 +397,7 @@ pub fn guess_dofs(columns: &[String]) -> Vec<String> {
 
 /// Input columns by the data contract: `xb_acc`, else `u`, `force` or `voltage`, whichever exist.
 pub fn guess_inputs(columns: &[String]) -> Vec<String> {
-    ["xb_acc", "u", "force", "voltage"]
+    tfs_diagnose::effects::CONTRACT_INPUTS
         .iter()
         .filter(|n| columns.iter().any(|c| c == *n))
         .map(|s| s.to_string())
