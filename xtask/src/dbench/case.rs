@@ -66,6 +66,8 @@ pub struct Round {
     pub verdict: String,
     /// The five best-ranked candidates.
     pub ranked: Vec<Ranked>,
+    /// Effects (`name` as `--add` takes it) the diagnosis reports as tied with the top one.
+    pub tied: Vec<String>,
     /// Held-out R-MSE of the model before the round.
     pub before: Option<f64>,
     /// Held-out R-MSE after adding the top effect (= before when nothing was added).
@@ -89,6 +91,8 @@ pub struct Ranked {
     pub p: f64,
     /// Held-out prediction R-MSE (the diagnosis's judge) without and with the candidate.
     pub r_mse: (Option<f64>, Option<f64>),
+    /// Reported as tied with the top effect (the records cannot tell the two apart).
+    pub tied_with_top: bool,
     /// Why it is (not) significant.
     pub reason: String,
 }
@@ -162,9 +166,26 @@ impl CaseResult {
     /// Which hidden effect round `r` named (index), if it named one on an admissible DOF.
     pub fn named_hidden(&self, r: usize) -> Option<usize> {
         let round = self.rounds.get(r)?;
-        let effect = round.top_effect.as_ref()?;
-        let top = round.top.as_ref()?;
-        let dof = top.split_once('@').map(|(_, d)| d);
+        self.hidden_index(round.top.as_ref()?)
+    }
+
+    /// Round 1 named a hidden effect first, or reported one as tied with the effect it named
+    /// first (the records could not tell the two apart).
+    pub fn top1_or_tied(&self) -> bool {
+        self.top1_correct()
+            || self
+                .rounds
+                .first()
+                .is_some_and(|r| r.tied.iter().any(|t| self.hidden_index(t).is_some()))
+    }
+
+    /// The hidden effect (index) that `name` (`effect` or `effect@dof`) stands for, on a DOF
+    /// whose equation may hold it.
+    fn hidden_index(&self, name: &str) -> Option<usize> {
+        let (effect, dof) = match name.split_once('@') {
+            Some((e, d)) => (e, Some(d)),
+            None => (name, None),
+        };
         self.spec.hidden.iter().enumerate().find_map(|(i, h)| {
             let dof_ok = match dof {
                 None => true,
@@ -320,8 +341,15 @@ fn round(
                     delta: r.delta_heldout,
                     p: r.p_value,
                     r_mse: (r.r_mse_before, r.r_mse_after),
+                    tied_with_top: r.tied_with_top,
                     reason: r.reason.clone(),
                 })
+                .collect(),
+            tied: d
+                .ranked
+                .iter()
+                .filter(|r| r.tied_with_top)
+                .map(|r| r.name.clone())
                 .collect(),
             before: before.ok(),
             after,

@@ -326,6 +326,8 @@ impl Summary<'_> {
             let (d, failed) = self.drop(g, None);
             let _ = writeln!(s, "\n{name}:");
             let _ = writeln!(s, "  top-1 correct                  {}", cell(c, n));
+            let (ct, nt) = self.top1_or_tied(g);
+            let _ = writeln!(s, "  first or tied with the first   {}", cell(ct, nt));
             let _ = writeln!(s, "  false alarms on controls       {}", cell(fa, nc));
             let _ = writeln!(
                 s,
@@ -494,6 +496,7 @@ impl Summary<'_> {
                 json!({
                     "noise": name,
                     "top1_correct": c, "top1_cases": n, "top1": num(c as f64 / n.max(1) as f64),
+                    "top1_or_tied": self.top1_or_tied(g).0,
                     "false_alarms": fa, "controls": nc,
                     "median_drop": num(d), "drop_failed": failed,
                     "pairs_both_found": pb, "pairs": pn, "pairs_median_drop": num(pd),

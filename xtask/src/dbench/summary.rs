@@ -123,6 +123,12 @@ impl<'a> Summary<'a> {
         (v.iter().filter(|c| c.top1_correct()).count(), v.len())
     }
 
+    /// (named first or tied with the first, total) over counted single cases of noise group `g`.
+    pub fn top1_or_tied(&self, g: &[Option<f64>]) -> (usize, usize) {
+        let v = self.counted(g);
+        (v.iter().filter(|c| c.top1_or_tied()).count(), v.len())
+    }
+
     /// (alarms, controls) of noise group `g`, optionally one baseline.
     pub fn false_alarms(&self, g: &[Option<f64>], kind: Option<Kind>) -> (usize, usize) {
         let v: Vec<_> = self
@@ -292,6 +298,7 @@ mod tests {
             top_parameter: None,
             verdict: String::new(),
             ranked: Vec::new(),
+            tied: Vec::new(),
             before: Some(before),
             after: Some(after),
             failure: None,
@@ -366,6 +373,24 @@ mod tests {
         assert!(csv.contains("≥40 dB,control,none,3\n"), "{csv}");
         assert!(csv.contains("≥40 dB,c,c,2\n"), "{csv}");
         assert_eq!(s.cases_csv().lines().count(), cases.len() + 1);
+    }
+
+    /// A hidden effect reported as tied with the one named first counts as "first or tied",
+    /// not as top-1; a tie on the wrong DOF of a chain counts as neither.
+    #[test]
+    fn ties_count_apart_from_top1() {
+        let cat: Vec<String> = ["a", "b"].map(String::from).to_vec();
+        let s40 = Some(40.0);
+        let mut tied = case(Group::Single, &["a"], s40, 0.3, Some("b"), 1.0, 0.5);
+        tied.rounds[0].tied = vec!["a".into()];
+        let mut wrong_dof = case(Group::Single, &["a"], s40, 0.3, Some("b"), 1.0, 0.5);
+        wrong_dof.rounds[0].tied = vec!["a@x2".into()];
+        let right = case(Group::Single, &["b"], s40, 0.3, Some("b"), 1.0, 0.5);
+        let cases = vec![tied, wrong_dof, right];
+        let s = Summary::new(&cases, &cat);
+        let g = GROUPS[0].1;
+        assert_eq!(s.top1(g, None, None), (1, 3));
+        assert_eq!(s.top1_or_tied(g), (2, 3));
     }
 
     #[test]
