@@ -387,7 +387,7 @@ impl PyModel {
         Ok(PyModel {
             inner: r.model,
             report: serde_json::json!({
-                "ladder": r.ladder, "warnings": r.warnings,
+                "ladder": r.ladder, "warnings": r.warnings, "stops": r.stops,
                 "refine": r.refine.as_ref().map(RefineReport::to_json),
                 "offsets": offsets_report.to_json(),
             }),

@@ -26,6 +26,7 @@
 
 pub mod chain;
 pub mod compare;
+pub mod contact;
 mod error;
 pub mod identify;
 pub mod records;

@@ -11,6 +11,7 @@ use tfs_diagnose::{
 };
 use tfs_library::{Library, Model};
 
+use crate::contact::{StopRescan, rescan_stop};
 use crate::error::{Context, Result};
 use crate::identify::set_offsets;
 use crate::invalid;
@@ -29,6 +30,9 @@ pub struct Refitted {
     pub refine: Option<RefineReport>,
     /// The rounds of the diagnosis loop (empty without `until_clean`).
     pub rounds: Vec<LoopRound>,
+    /// Each added stop's position re-scanned by the model's own method
+    /// ([`crate::contact::rescan_stop`]), in the order the stops were added.
+    pub stops: Vec<StopRescan>,
 }
 
 /// One round of the diagnosis loop: what the diagnosis said and what was added.
@@ -67,6 +71,40 @@ pub fn until_clean(
     max_rounds: usize,
     opts: &DiagnoseOptions,
 ) -> Result<(Model, Vec<LoopRound>)> {
+    let mut stops = Vec::new();
+    until_clean_with(model, records, max_rounds, opts, &mut stops)
+}
+
+/// Adds effect `name` to `model` (refitting on `records`), keeps a tied chain's ties, and for a
+/// stop on a one-DOF T-F-S model re-scans its position by T-F-S (pushing what was done to
+/// `stops`).
+fn add_one(
+    model: &Model,
+    name: &str,
+    records: &[Record],
+    catalogue: &Catalogue,
+    opts: &DiagnoseOptions,
+    stops: &mut Vec<StopRescan>,
+) -> Result<Model> {
+    let added = add_effect_with(model, name, records, catalogue, opts)?;
+    let added = keep_ties(added, records, opts)?;
+    match rescan_stop(model, &added, records)? {
+        Some((m, report)) => {
+            stops.push(report);
+            Ok(m)
+        }
+        None => Ok(added),
+    }
+}
+
+/// [`until_clean`], pushing each added stop's re-scan to `stops`.
+fn until_clean_with(
+    model: &Model,
+    records: &[Record],
+    max_rounds: usize,
+    opts: &DiagnoseOptions,
+    stops: &mut Vec<StopRescan>,
+) -> Result<(Model, Vec<LoopRound>)> {
     let catalogue = Catalogue::standard(opts.max_power);
     let mut model = model.clone();
     let mut rounds = Vec::new();
@@ -81,9 +119,8 @@ pub fn until_clean(
             });
             break;
         };
-        model = add_effect_with(&model, &top.name, records, &catalogue, opts)
+        model = add_one(&model, &top.name, records, &catalogue, opts, stops)
             .with_context(|| format!("--until-clean: adding {} in round {round}", top.name))?;
-        model = keep_ties(model, records, opts)?;
         rounds.push(LoopRound {
             round,
             added: Some(top.name.clone()),
@@ -238,14 +275,14 @@ pub fn refit_with(
     let opts = DiagnoseOptions::default();
     let catalogue = Catalogue::standard(opts.max_power);
     let mut model = model.clone();
+    let mut stops = Vec::new();
     for name in &req.add {
-        model = add_effect_with(&model, name, records, &catalogue, &opts)
+        model = add_one(&model, name, records, &catalogue, &opts, &mut stops)
             .with_context(|| format!("--add {name}"))?;
-        model = keep_ties(model, records, &opts)?;
     }
     let mut rounds = Vec::new();
     if let Some(max) = req.until_clean {
-        (model, rounds) = until_clean(&model, records, max, &opts)?;
+        (model, rounds) = until_clean_with(&model, records, max, &opts, &mut stops)?;
     }
     let (refine, mut held_out) = (req.refine, req.held_out.clone());
     let mut report = None;
@@ -291,6 +328,7 @@ pub fn refit_with(
         warnings,
         refine: report,
         rounds,
+        stops,
     })
 }
 

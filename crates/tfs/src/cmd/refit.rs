@@ -87,6 +87,7 @@ pub fn run(args: Args) -> Result<()> {
         tfs::refit::refit_with(&model, &records, &req, &offsets_report)
     })?;
     let rounds = refitted.rounds;
+    let stops = refitted.stops;
     let (model, ladder, warnings) = (refitted.model, refitted.ladder, refitted.warnings);
     let refine_report = refitted.refine;
     super::write_model(&model, &args.out, "--out")?;
@@ -122,6 +123,7 @@ pub fn run(args: Args) -> Result<()> {
             "offsets": offsets_report.to_json(),
             "refine": refine_report.as_ref().map(RefineReport::to_json),
             "rounds": rounds,
+            "stops": stops,
             "warnings": warnings,
         }))?;
     } else {
@@ -136,6 +138,9 @@ pub fn run(args: Args) -> Result<()> {
                 "the loop stopped after {} rounds with effects still significant; run it again to continue",
                 rounds.len()
             );
+        }
+        for s in &stops {
+            println!("stop {} -> {}: {}", s.from, s.to, s.why);
         }
         println!("{}", model.equation_string());
         print!("{}", ladder_table(&ladder));
