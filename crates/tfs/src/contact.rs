@@ -63,8 +63,11 @@ fn at(term: &Term, c: f64) -> Term {
     Term::new(vec![f])
 }
 
+/// A model's mean free-run R-MSE over the records, with the score of each.
+type Scores = (f64, Vec<RecordScore>);
+
 /// Mean free-run R-MSE over `records`, `None` when any record cannot be simulated.
-fn mean_r_mse(model: &Model, records: &[Record]) -> Option<(f64, Vec<RecordScore>)> {
+fn mean_r_mse(model: &Model, records: &[Record]) -> Option<Scores> {
     let mut scores = Vec::with_capacity(records.len());
     for r in records {
         let v = tfs_diagnose::r_mse(model, r).ok()?;
@@ -185,16 +188,17 @@ pub fn rescan_stop(
             },
         )));
     };
-    let fine: Vec<f64> = (0..GRID)
+    let mut fine: Vec<f64> = (0..GRID)
         .map(|i| round(bc - step + 2.0 * step * i as f64 / (GRID - 1) as f64))
         .filter(|c| dir * (c - extreme) >= 0.0 && !coarse.contains(c))
         .collect();
+    fine.dedup();
     scored.extend(scan(&fine));
     // σ on one held-out record barely separates neighbouring positions, while T-F-S's term
     // selection can jump between them; so the few positions with the lowest σ are each
     // simulated on the records and the one that simulates them best is taken.
     scored.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.total_cmp(&b.0)));
-    let shortlist: Vec<(f64, f64, Model, Option<(f64, Vec<RecordScore>)>)> = {
+    let shortlist: Vec<(f64, f64, Model, Option<Scores>)> = {
         use rayon::prelude::*;
         scored
             .iter()
@@ -210,7 +214,7 @@ pub fn rescan_stop(
             .collect()
     };
     let Some((c, sigma, mut model, ours)) = shortlist.into_iter().min_by(|a, b| {
-        let key = |s: &Option<(f64, Vec<RecordScore>)>| s.as_ref().map_or(f64::INFINITY, |v| v.0);
+        let key = |s: &Option<Scores>| s.as_ref().map_or(f64::INFINITY, |v| v.0);
         key(&a.3).total_cmp(&key(&b.3)).then(a.1.total_cmp(&b.1))
     }) else {
         return Ok(None);
@@ -227,7 +231,7 @@ pub fn rescan_stop(
         (Some(_), None) => true,
         _ => false,
     };
-    let fmt = |m: &Option<(f64, Vec<RecordScore>)>| match m {
+    let fmt = |m: &Option<Scores>| match m {
         Some((v, _)) => format!("{v:.4e}"),
         None => "a failed simulation".to_string(),
     };
