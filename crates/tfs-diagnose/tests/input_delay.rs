@@ -84,9 +84,8 @@ fn kresling_cell_27_ms() {
 /// A hardening oscillator with a degree-7 restoring force `−k(x + x³/2 + x⁵/4 + x⁷/8)`, 55 ms.
 #[test]
 fn degree_seven_oscillator_55_ms() {
-    let k = 4.0 * std::f64::consts::PI.powi(2);
     let truth = Truth {
-        restoring: vec![(1, -k), (3, -0.5 * k), (5, -0.25 * k), (7, -0.125 * k)],
+        restoring: degree_seven_restoring(),
         damping: 0.5,
         hidden: vec![Hidden::Delay(0.055)],
         x0: 0.0,

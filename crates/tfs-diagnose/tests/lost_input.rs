@@ -85,9 +85,8 @@ fn duffing_lost_input_delayed_150_ms() {
 /// A degree-7 restoring force, another damping, sweep and noise draw, 90 ms.
 #[test]
 fn degree_seven_lost_input_delayed_90_ms() {
-    let k = 4.0 * std::f64::consts::PI.powi(2);
     let truth = Truth {
-        restoring: vec![(1, -k), (3, -0.5 * k), (5, -0.25 * k), (7, -0.125 * k)],
+        restoring: degree_seven_restoring(),
         damping: 0.8,
         hidden: vec![Hidden::Delay(0.09)],
         x0: 0.0,

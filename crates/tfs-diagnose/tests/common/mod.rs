@@ -43,6 +43,12 @@ pub fn duffing_restoring() -> Vec<(u32, f64)> {
     vec![(1, -k()), (3, -k())]
 }
 
+/// A hardening degree-7 restoring force `−k(x + x³/2 + x⁵/4 + x⁷/8)`, `k = 4π²`.
+pub fn degree_seven_restoring() -> Vec<(u32, f64)> {
+    let k = k();
+    vec![(1, -k), (3, -0.5 * k), (5, -0.25 * k), (7, -0.125 * k)]
+}
+
 /// `−k x`.
 pub fn duffing_linear_only() -> Vec<(u32, f64)> {
     vec![(1, -k())]
