@@ -39,7 +39,7 @@ mod scalar;
 mod wells;
 
 pub use chain::{ChainWells, Slice, SliceAxis, VectorFn, basin_chain, classify_chain};
-pub use compare::{BoaComparison, boa_error, compare};
+pub use compare::{BoaComparison, boa_error, compare, relabel_to_nearest};
 pub use error::{BasinError, Result};
 pub use grid::{
     BasinConfig, BasinMap, Label, MAX_CELLS, MAX_STEPS, Method, Progress, basin_sdof,

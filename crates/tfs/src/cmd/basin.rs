@@ -6,7 +6,8 @@ use std::time::{Duration, Instant};
 use anyhow::{Result, anyhow, bail};
 use serde_json::json;
 use tfs::basin::{
-    BasinConfig, BasinError, BasinMap, Label, WellInfo, basin_sdof, compare, step_limit_sdof,
+    BasinConfig, BasinError, BasinMap, Label, WellInfo, basin_sdof, compare, relabel_to_nearest,
+    step_limit_sdof,
 };
 use tfs::dynamics::SecondOrderSystem;
 
@@ -111,7 +112,34 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(spec) = &args.truth {
         let truth = truth_sdof(spec, search)?;
         let tmap = run_map(&*truth.system, &truth.wells, &cfg, "truth")?;
-        let cmp = compare(&map, &tmap)?;
+        // States are compared by index, which only means the same thing when both have the
+        // same stable states; otherwise each model state counts as the truth state nearest it.
+        let cmp = if map.states.len() == tmap.states.len() {
+            compare(&map, &tmap)?
+        } else {
+            let (renamed, to) = relabel_to_nearest(&map, &tmap.states);
+            let pairs: Vec<String> = to
+                .iter()
+                .enumerate()
+                .map(|(k, t)| {
+                    format!(
+                        "model S{} (x = {:.4}) as truth S{} (x = {:.4})",
+                        k + 1,
+                        sdof.wells.stable()[k],
+                        t + 1,
+                        truth.wells.stable()[*t]
+                    )
+                })
+                .collect();
+            out["state_matching"] = json!(format!(
+                "the model has {} stable state{} and the truth {}: each model state is counted as the truth state nearest it ({})",
+                map.states.len(),
+                if map.states.len() == 1 { "" } else { "s" },
+                tmap.states.len(),
+                pairs.join("; ")
+            ));
+            compare(&renamed, &tmap)?
+        };
         out["boa_error"] = json!(cmp.error);
         out["truth"] = json!({"spec": spec, "label": truth.label, "stable": truth.wells.stable(),
             "shares": tmap.shares, "seconds": tmap.seconds});
@@ -164,6 +192,9 @@ pub fn run(args: Args) -> Result<()> {
              search range {:.4}:{:.4} by --t-max {}: a longer --t-max or a wider --search may settle it)",
             map.unsettled_count, map.diverged_count, search.0, search.1, args.t_max
         );
+    }
+    if let Some(note) = out.get("state_matching").and_then(|n| n.as_str()) {
+        println!("{note}");
     }
     if let Some(e) = out.get("boa_error").and_then(|e| e.as_f64()) {
         println!(
