@@ -5,26 +5,9 @@
 //! must find the contact where the truth has it (h = 0), with the truth's contact stiffness,
 //! and lower the mean R-MSE below the equation-error fit's rung of the ladder.
 
-use std::path::Path;
-use std::process::{Command, Output};
-
-fn tfs(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tfs"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn ok(dir: &Path, args: &[&str]) -> String {
-    let out = tfs(dir, args);
-    assert!(
-        out.status.success(),
-        "tfs {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
+#[path = "common/run.rs"]
+mod run;
+use run::ok;
 
 fn json(s: &str) -> serde_json::Value {
     serde_json::from_str(s).unwrap_or_else(|e| panic!("{e}: {s}"))

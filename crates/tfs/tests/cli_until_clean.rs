@@ -4,26 +4,9 @@
 //! once nothing is significant, and the model it writes holds the added terms. `--until-clean 0`
 //! is refused naming the flag.
 
-use std::path::Path;
-use std::process::{Command, Output};
-
-fn tfs(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tfs"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn ok(dir: &Path, args: &[&str]) -> String {
-    let out = tfs(dir, args);
-    assert!(
-        out.status.success(),
-        "tfs {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
+#[path = "common/run.rs"]
+mod run;
+use run::{ok, tfs};
 
 #[test]
 fn until_clean_adds_effects_until_none_is_significant() {
