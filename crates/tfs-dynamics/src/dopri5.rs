@@ -205,6 +205,19 @@ fn deriv<S: SecondOrderSystem + ?Sized>(
     out: &mut [f64],
 ) {
     input.eval(t, u);
+    deriv_at(sys, u, n, t, y, out);
+}
+
+/// [`deriv`] with the input `u` already evaluated at `t`.
+#[inline(always)]
+fn deriv_at<S: SecondOrderSystem + ?Sized>(
+    sys: &S,
+    u: &[f64],
+    n: usize,
+    t: f64,
+    y: &[f64],
+    out: &mut [f64],
+) {
     out[..n].copy_from_slice(&y[n..]);
     let (x, v) = y.split_at(n);
     sys.accel(t, x, v, u, &mut out[n..]);
@@ -378,17 +391,13 @@ impl<'a, S: SecondOrderSystem + ?Sized> Dopri5Solver<'a, S> {
                     }
                     self.ytmp[i] = self.y[i] + h * acc;
                 }
-                let (done, rest) = self.k.split_at_mut(s);
-                let _ = done;
-                deriv(
-                    self.sys,
-                    self.input,
-                    &mut self.u,
-                    self.n,
-                    self.t + C[s] * h,
-                    &self.ytmp,
-                    &mut rest[0],
-                );
+                let (_, rest) = self.k.split_at_mut(s);
+                let ts = self.t + C[s] * h;
+                // Stages 6 and 7 are at the same time (C[5] = C[6] = 1): the same input.
+                if s != 6 {
+                    self.input.eval(ts, &mut self.u);
+                }
+                deriv_at(self.sys, &self.u, self.n, ts, &self.ytmp, &mut rest[0]);
             }
             self.stats.evals += 6;
             // ytmp after stage 7 holds the 5th-order solution (A[6] are the b weights).

@@ -293,7 +293,7 @@ pub fn fit_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator>(
 ///
 /// Errors: a non-positive `periods`, or the dimension errors of [`fit_initial_state`].
 #[allow(clippy::too_many_arguments)]
-pub fn choose_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator>(
+pub fn choose_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
     how: InitialState,
     sys: &S,
     integrator: &I,
@@ -333,10 +333,12 @@ pub fn choose_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator>(
     let mut len = h;
     while len >= MIN_HORIZON.min(h) {
         let th = &t[..len];
-        let fits = [
-            fit_initial_state(sys, integrator, input, measured, th, &x0, &v0)?,
-            fit_initial_state(sys, integrator, input, measured, th, &xs, &vs)?,
-        ];
+        // The two fits are independent: side by side.
+        let (a, b) = rayon::join(
+            || fit_initial_state(sys, integrator, input, measured, th, &x0, &v0),
+            || fit_initial_state(sys, integrator, input, measured, th, &xs, &vs),
+        );
+        let fits = [a?, b?];
         if let Some(f) = fits
             .into_iter()
             .filter(|f| f.cost.is_finite())

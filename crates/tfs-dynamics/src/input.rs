@@ -41,6 +41,9 @@ pub struct SampledInput {
     channels: Vec<Vec<f64>>,
     /// Spline second derivatives per channel (empty for linear interpolation).
     m: Vec<Vec<f64>>,
+    /// `dt² / 6`, the spline's curvature weight, computed once instead of at every evaluation
+    /// (the same expression, so the same value).
+    h2: f64,
 }
 
 impl SampledInput {
@@ -110,6 +113,7 @@ impl SampledInput {
             interp,
             channels,
             m,
+            h2: dt * dt / 6.0,
         })
     }
 
@@ -122,6 +126,7 @@ impl SampledInput {
             interp: Interpolation::CubicSpline,
             channels: vec![vec![0.0]; k],
             m: vec![vec![0.0]; k],
+            h2: 1.0 / 6.0,
         }
     }
 
@@ -222,7 +227,7 @@ impl SampledInput {
                 }
             }
             Interpolation::CubicSpline => {
-                let h2 = self.dt * self.dt / 6.0;
+                let h2 = self.h2;
                 let wi = (q * q * q - q) * h2;
                 let wj = (r * r * r - r) * h2;
                 for ((o, ch), m) in out.iter_mut().zip(&self.channels).zip(&self.m) {
