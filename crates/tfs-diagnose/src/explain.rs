@@ -536,7 +536,18 @@ fn judge_candidates(
     let choice = crate::judge::choose(model, states, opts, runs);
     let judge = choice.judge;
     let dt = states[0].record.dt();
-    let horizon = |d: &DofSetup| ((2.0 * d.scales.period / dt).round() as usize).max(16);
+    // Pieces of two dominant periods at most; under the short horizon, as long as the start
+    // model's predictions keep their skill ([`crate::judge::divergence_horizon`]), and at least
+    // one cut-off period of the smoothing.
+    let cap = |d: &DofSetup| ((2.0 * d.scales.period / dt).round() as usize).max(16);
+    let skill = (judge == Judge::ShortHorizon).then(|| {
+        let mut fc: Vec<f64> = states.iter().map(|s| s.cutoff_hz).collect();
+        fc.sort_by(f64::total_cmp);
+        let floor = (1.0 / (fc[fc.len() / 2] * dt)).ceil().max(1.0) as usize;
+        let longest = setups.iter().map(cap).max().unwrap_or(16);
+        crate::judge::divergence_horizon(model, states, opts, longest, floor)
+    });
+    let horizon = |d: &DofSetup| skill.map_or(cap(d), |h| h.min(cap(d)));
     let before: Vec<Option<Heldout>> = setups
         .par_iter()
         .map(|d| {
@@ -607,7 +618,17 @@ fn judge_candidates(
     });
     setups
         .iter()
-        .map(|d| (model.dofs[d.idx].clone(), judge, choice.why.clone()))
+        .map(|d| {
+            let why = match skill {
+                Some(_) => format!(
+                    "{}; pieces of {:.4} s, as long as the model's predictions keep their skill",
+                    choice.why,
+                    horizon(d) as f64 * dt
+                ),
+                None => choice.why.clone(),
+            };
+            (model.dofs[d.idx].clone(), judge, why)
+        })
         .collect()
 }
 

@@ -5,10 +5,13 @@
 //! the simulation about as far as the model's error (a multi-stable structure swept through
 //! chaotic snap-through: which well it is in decides the error, and the noise decides the well;
 //! `tfs_refine::noise_dominated`) on any record. Then the candidates are judged by
-//! **short-horizon prediction**: held-out data cut into pieces of two dominant periods, each
-//! simulated from the smoothed measured state at its start (internal states from the record), the
-//! squared error summed over the pieces — the model's error over a horizon the input noise cannot
-//! take over. When neither can be simulated the equation error alone decides.
+//! **short-horizon prediction**: held-out data cut into pieces, each simulated from the smoothed
+//! measured state at its start (internal states from the record), the squared error summed over
+//! the pieces — the model's error over a horizon the input noise cannot take over. The pieces are
+//! as long as the start model's own predictions keep their skill ([`divergence_horizon`]: the
+//! lag at which their error reaches the displacement's variance, the record's own measure of how
+//! fast nearby motions part), at most two dominant periods. When neither can be simulated the
+//! equation error alone decides.
 //!
 //! A judge vetoes a candidate only when it predicts worse by more than the judge resolves
 //! ([`predicts_worse`]): for the free run, by more than a fresh draw of the input's noise moves
@@ -277,81 +280,27 @@ fn predict_pieces(
     horizon: usize,
     opts: &DiagnoseOptions,
 ) -> Option<(f64, Vec<f64>)> {
-    let rec = crate::simulate::augment_record(model, &s.record, opts).ok()?;
-    let compiled = model.compile().ok()?;
-    let t = rec.t();
-    let channels: Vec<Vec<f64>> = compiled
-        .input_names()
-        .iter()
-        .map(|n| rec.column(n).map(<[f64]>::to_vec))
-        .collect::<Option<_>>()?;
-    let input = if channels.is_empty() {
-        SampledInput::zero(0)
-    } else {
-        SampledInput::new(t[0], rec.dt(), channels).ok()?
-    };
-    let n = compiled.dofs();
-    let xs: Vec<&[f64]> = model
-        .dofs
-        .iter()
-        .map(|d| tfs_data::Columns::column(s, d))
-        .collect::<Option<_>>()?;
-    let vs: Vec<&[f64]> = model
-        .dofs
-        .iter()
-        .map(|d| tfs_data::Columns::column(s, &format!("{d}'")))
-        .collect::<Option<_>>()?;
-    let measured: Vec<&[f64]> = model
-        .dofs
-        .iter()
-        .map(|d| rec.column(d))
-        .collect::<Option<_>>()?;
-    // The internal states along the smoothed motion, from rest at the record's start.
-    let tracks: Vec<Vec<f64>> = model
-        .internal_states()
-        .into_iter()
-        .map(|(v, law)| evaluate_term(&Term::new(vec![Factor::State(v, law)]), s).ok())
-        .collect::<Option<_>>()?;
-    let integrator = Dopri5::default();
-    let (mut num, mut den) = (vec![0.0; n], vec![0.0; n]);
-    let means: Vec<f64> = measured
-        .iter()
-        .map(|m| m[range.clone()].iter().sum::<f64>() / range.len().max(1) as f64)
+    let p = Predictor::new(model, s, opts)?;
+    let n = model.dofs.len();
+    let den: Vec<f64> = (0..n)
+        .map(|i| variance(&p.measured(i)[range.clone()]) * range.len() as f64)
         .collect();
+    let mut num = vec![0.0; n];
+    let mut parts = Vec::new();
+    let len = range.len().max(1) as f64;
     let mut k0 = range.start;
-    let mut pieces: Vec<Vec<f64>> = Vec::new();
     while k0 + 1 < range.end {
         let k1 = (k0 + horizon).min(range.end);
-        let mut x0: Vec<f64> = xs.iter().map(|x| x[k0]).collect();
-        let mut v0: Vec<f64> = vs.iter().map(|v| v[k0]).collect();
-        x0.resize(compiled.system_dofs(), 0.0);
-        v0.extend(tracks.iter().map(|z| z[k0]));
-        let tr = integrator
-            .integrate(&compiled, &input, &x0, &v0, &t[k0..k1])
-            .ok()?;
-        let mut piece = vec![0.0; n];
-        for i in 0..n {
-            for (j, k) in (k0..k1).enumerate() {
-                let e = (tr.x[i][j] - measured[i][k]).powi(2);
-                num[i] += e;
-                piece[i] += e / (k1 - k0) as f64;
-                den[i] += (measured[i][k] - means[i]).powi(2);
-            }
+        let errors = p.errors(k0, k1)?;
+        let mut part = 0.0;
+        for (i, e) in errors.iter().enumerate() {
+            let sum: f64 = e.iter().sum();
+            num[i] += sum;
+            part += sum / (k1 - k0) as f64 * len / den[i].max(f64::MIN_POSITIVE);
         }
-        pieces.push(piece);
+        parts.push(part / n.max(1) as f64);
         k0 = k1;
     }
-    let len = range.len().max(1) as f64;
-    let parts: Vec<f64> = pieces
-        .iter()
-        .map(|p| {
-            p.iter()
-                .zip(&den)
-                .map(|(a, b)| a * len / b.max(f64::MIN_POSITIVE))
-                .sum::<f64>()
-                / n.max(1) as f64
-        })
-        .collect();
     let r: f64 = num
         .iter()
         .zip(&den)
@@ -359,6 +308,154 @@ fn predict_pieces(
         .sum::<f64>()
         / n.max(1) as f64;
     (r.is_finite() && parts.iter().all(|p| p.is_finite())).then_some((r, parts))
+}
+
+/// Starts per record of [`divergence_horizon`]'s predictions (evenly spaced).
+const HORIZON_STARTS: usize = 16;
+
+/// The piece length (samples) of the short-horizon judge for `model` on `states`: the lag at
+/// which its predictions from the smoothed measured state lose their skill — their mean squared
+/// error, over [`HORIZON_STARTS`] starts along every record's usable rows, reaches the measured
+/// displacement's variance (an R-MSE of 1, the error of predicting the mean position; beyond
+/// it chaotic divergence, not the model, sets the error). Searched up to `cap` or half the
+/// shortest record's usable rows, whichever is less (that window when the predictions keep
+/// their skill over it), and at least `floor` (a shorter piece sees the smoothing's error, not
+/// the model's).
+pub(crate) fn divergence_horizon(
+    model: &Model,
+    states: &[RecordStates],
+    opts: &DiagnoseOptions,
+    cap: usize,
+    floor: usize,
+) -> usize {
+    let window = states
+        .iter()
+        .map(|s| s.usable() / 2)
+        .min()
+        .unwrap_or(0)
+        .min(cap);
+    if window <= floor.max(1) {
+        return window.max(1);
+    }
+    let per_record: Vec<Option<Vec<f64>>> = states
+        .par_iter()
+        .map(|s| {
+            let p = Predictor::new(model, s, opts)?;
+            let (lo, hi) = (s.margin, s.margin + s.usable());
+            let n = model.dofs.len().max(1) as f64;
+            let vars: Vec<f64> = (0..model.dofs.len())
+                .map(|i| variance(&p.measured(i)[lo..hi]).max(f64::MIN_POSITIVE))
+                .collect();
+            let step = ((hi - lo - window) / (HORIZON_STARTS - 1)).max(1);
+            let mut acc = vec![0.0; window];
+            for j in 0..HORIZON_STARTS {
+                let k0 = lo + j * step;
+                for (e, v) in p.errors(k0, k0 + window)?.iter().zip(&vars) {
+                    for (a, x) in acc.iter_mut().zip(e) {
+                        *a += x / v / n;
+                    }
+                }
+            }
+            Some(acc)
+        })
+        .collect();
+    let mut acc = vec![0.0; window];
+    let mut count = 0usize;
+    for a in per_record.into_iter().flatten() {
+        for (t, x) in acc.iter_mut().zip(a) {
+            *t += x;
+        }
+        count += HORIZON_STARTS;
+    }
+    if count == 0 {
+        return window;
+    }
+    acc.iter()
+        .position(|a| a / count as f64 >= 1.0)
+        .map_or(window, |k| k.max(floor))
+}
+
+/// Predictions of a model along one record, each from the smoothed measured state at its start
+/// (internal states from the record, run from rest along the smoothed motion).
+struct Predictor<'a> {
+    compiled: tfs_library::CompiledModel,
+    input: SampledInput,
+    /// The record with the model's computed input columns.
+    rec: tfs_data::Record,
+    xs: Vec<&'a [f64]>,
+    vs: Vec<&'a [f64]>,
+    tracks: Vec<Vec<f64>>,
+    dofs: Vec<String>,
+}
+
+impl<'a> Predictor<'a> {
+    /// `None` when the record's computed columns or internal states cannot be made.
+    fn new(model: &Model, s: &'a RecordStates, opts: &DiagnoseOptions) -> Option<Self> {
+        let rec = crate::simulate::augment_record(model, &s.record, opts).ok()?;
+        let compiled = model.compile().ok()?;
+        let channels: Vec<Vec<f64>> = compiled
+            .input_names()
+            .iter()
+            .map(|n| rec.column(n).map(<[f64]>::to_vec))
+            .collect::<Option<_>>()?;
+        let input = if channels.is_empty() {
+            SampledInput::zero(0)
+        } else {
+            SampledInput::new(rec.t()[0], rec.dt(), channels).ok()?
+        };
+        let xs = model
+            .dofs
+            .iter()
+            .map(|d| tfs_data::Columns::column(s, d))
+            .collect::<Option<_>>()?;
+        let vs = model
+            .dofs
+            .iter()
+            .map(|d| tfs_data::Columns::column(s, &format!("{d}'")))
+            .collect::<Option<_>>()?;
+        let tracks = model
+            .internal_states()
+            .into_iter()
+            .map(|(v, law)| evaluate_term(&Term::new(vec![Factor::State(v, law)]), s).ok())
+            .collect::<Option<_>>()?;
+        Some(Self {
+            compiled,
+            input,
+            rec,
+            xs,
+            vs,
+            tracks,
+            dofs: model.dofs.clone(),
+        })
+    }
+
+    /// The measured displacement of DOF `i`.
+    fn measured(&self, i: usize) -> &[f64] {
+        self.rec.column(&self.dofs[i]).unwrap_or(&[])
+    }
+
+    /// Per DOF, the squared error of the prediction over samples `k0..k1` against the measured
+    /// displacement; `None` when the integration fails.
+    fn errors(&self, k0: usize, k1: usize) -> Option<Vec<Vec<f64>>> {
+        let mut x0: Vec<f64> = self.xs.iter().map(|x| x[k0]).collect();
+        let mut v0: Vec<f64> = self.vs.iter().map(|v| v[k0]).collect();
+        x0.resize(self.compiled.system_dofs(), 0.0);
+        v0.extend(self.tracks.iter().map(|z| z[k0]));
+        let tr = Dopri5::default()
+            .integrate(&self.compiled, &self.input, &x0, &v0, &self.rec.t()[k0..k1])
+            .ok()?;
+        Some(
+            (0..self.dofs.len())
+                .map(|i| {
+                    let m = self.measured(i);
+                    (k0..k1)
+                        .enumerate()
+                        .map(|(j, k)| (tr.x[i][j] - m[k]).powi(2))
+                        .collect()
+                })
+                .collect(),
+        )
+    }
 }
 
 /// True when the model scored `after` predicts the held-out data worse than the one scored

@@ -217,11 +217,19 @@ fn hidden_cubic_damping_second_draw() {
     );
 }
 
-/// Every other effect of the catalogue, hidden in turn.
+/// Every effect of the catalogue, hidden in turn, on the noise draw `TFS_CHAOTIC_SEED` (500).
 #[test]
 #[ignore = "full study, a few minutes; run with --ignored"]
 fn every_catalogue_effect() {
     let cases = [
+        (
+            Hidden::DryFriction {
+                force: 0.05,
+                eps: 0.01,
+            },
+            "dry-friction",
+        ),
+        (Hidden::Maxwell { k: 0.1, tau: 1.0 }, "maxwell"),
         (Hidden::Quadratic(0.3), "quadratic-damping"),
         (Hidden::CubicDamping(0.3), "cubic-damping"),
         (Hidden::AmplitudeDamping(0.3), "amplitude-damping"),
@@ -261,25 +269,56 @@ fn every_catalogue_effect() {
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
-/// The double well with nothing hidden, on four noise draws: nothing should be significant.
-/// It is not so, before this test was written as after: a fifth or seventh stiffness power and a
-/// stop near the largest displacement lower the held-out equation error by 1-7 % on every draw
-/// (corrected p 1e-6..8e-3, sizes 2.5-5 % of the force RMS) and predict no worse over the short
-/// horizon. The model holds the truth's terms exactly, so this is a bias of the equation error
-/// itself on this motion, not a missing effect (see docs/DECISIONS.md); ignored until the tests
-/// are calibrated for it. `TFS_CONTROL_PRINT_ONLY=1` prints without asserting.
+/// Fits the double well with nothing hidden on the noise draw `seed` and prints the top rows.
+fn control(seed: u64) -> tfs_diagnose::Diagnosis {
+    let train = records(&double_well(Vec::new()), seed);
+    let opts = DiagnoseOptions::default();
+    let start = refit(&structure("x, x^3, x', xb_acc"), &train, &opts).unwrap();
+    let d = diagnose(&start, &train, &opts).unwrap();
+    println!("chaotic/control@{seed}: {}", d.verdict);
+    for r in d.ranked.iter().take(3) {
+        row(&format!("chaotic/control@{seed}"), r);
+    }
+    d
+}
+
+/// The double well with nothing hidden: no stiffness power is significant. A fifth or seventh
+/// power lowers the held-out equation error by 3-7 % on every draw (corrected p 2e-3..8e-3) and
+/// was reported while the short-horizon pieces were two dominant periods long — on this record
+/// 400 s, the whole held-out record, where every prediction has lost its skill. Over the
+/// start model's own predictability horizon (about 20-30 s here) it predicts worse and is
+/// vetoed.
 #[test]
-#[ignore = "known false positives on the chaotic control (equation-error bias); run with --ignored"]
+fn control_reports_no_stiffness_power() {
+    for seed in [500, 700] {
+        let d = control(seed);
+        let powers: Vec<&str> = d
+            .ranked
+            .iter()
+            .filter(|r| r.significant && r.effect.starts_with("stiffness-x^"))
+            .map(|r| r.name.as_str())
+            .collect();
+        assert!(
+            powers.is_empty(),
+            "control@{seed}: {powers:?}; {}",
+            d.verdict
+        );
+        assert!(d.verdict.contains("pieces of"), "{}", d.verdict);
+    }
+}
+
+/// The double well with nothing hidden, on four noise draws: nothing should be significant. It
+/// is not so: a stop near the largest displacement (`above(x, 1.43)`) lowers the held-out
+/// equation error by 1.6-3.1 % on every draw (corrected p 5e-7..2e-5, 2.5 % of the force RMS,
+/// just above the size threshold) and its short-horizon predictions are not significantly worse.
+/// The model holds the truth's terms exactly, so this is a bias of the equation error itself on
+/// this motion (see docs/DECISIONS.md); ignored until the tests are calibrated for it.
+/// `TFS_CONTROL_PRINT_ONLY=1` prints without asserting.
+#[test]
+#[ignore = "known false positive on the chaotic control (equation-error bias); run with --ignored"]
 fn control_has_no_significant_effect() {
     for seed in [700, 900, 1100, 500] {
-        let train = records(&double_well(Vec::new()), seed);
-        let opts = DiagnoseOptions::default();
-        let start = refit(&structure("x, x^3, x', xb_acc"), &train, &opts).unwrap();
-        let d = diagnose(&start, &train, &opts).unwrap();
-        println!("chaotic/control@{seed}: {}", d.verdict);
-        for r in d.ranked.iter().take(3) {
-            row(&format!("chaotic/control@{seed}"), r);
-        }
+        let d = control(seed);
         if std::env::var("TFS_CONTROL_PRINT_ONLY").is_err() {
             assert!(
                 d.ranked.iter().all(|r| !r.significant),
