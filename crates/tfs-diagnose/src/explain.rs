@@ -427,13 +427,17 @@ fn analyse(
     let coef_0 = full_fit(&d.base_blocks)?;
     let mut diff2 = 0.0;
     let mut rows = 0usize;
+    // Row by row in a fixed order (a library matrix-vector product splits its sums by the
+    // thread count, which moved `share` in its last digits between 1, 2 and 7 threads).
+    let dot = |a: &Mat<f64>, i: usize, c: &[f64]| -> f64 {
+        c.iter().enumerate().map(|(k, ck)| a[(i, k)] * ck).sum()
+    };
     for r in 0..states.len() {
-        let fc = &s.design.a[r] * faer::col::ColRef::from_slice(&coef_c);
-        let f0 = &d.base_design.a[r] * faer::col::ColRef::from_slice(&coef_0);
-        for i in 0..fc.nrows() {
-            diff2 += (fc[i] - f0[i]).powi(2);
+        let (ac, a0) = (&s.design.a[r], &d.base_design.a[r]);
+        for i in 0..ac.nrows() {
+            diff2 += (dot(ac, i, &coef_c) - dot(a0, i, &coef_0)).powi(2);
         }
-        rows += fc.nrows();
+        rows += ac.nrows();
     }
     let share = (diff2 / rows.max(1) as f64).sqrt() / d.acc_rms.max(f64::MIN_POSITIVE);
     let (coef, interval) = match s.main {

@@ -8,6 +8,7 @@
 use serde::Serialize;
 use tfs_data::{Columns, Record};
 use tfs_library::{ColumnSet, Model, StateLaw, evaluate_term};
+use tfs_regress::{Compressed, LeastSquares, Regressor};
 use tfs_signal::amplitude_spectrum;
 
 use crate::Result;
@@ -374,12 +375,26 @@ fn partial_correlations(r: &[f64], present: &[Vec<f64>], hist: &[Vec<f64>]) -> V
         }))
         .collect();
     let a = faer::Mat::<f64>::from_fn(n, cols.len(), |i, j| cols[j][i]);
-    let qr = a.col_piv_qr();
+    // The least-squares residual by the project's own compression, whose sums run in a fixed
+    // order (a dense QR of the tall matrix splits its work by the thread count, which moved
+    // these correlations in their last digits between 1, 2 and 7 threads). A fit that fails
+    // (non-finite data) leaves `y` as it is.
     let resid = |y: &[f64]| -> Vec<f64> {
-        let b = faer::Mat::<f64>::from_fn(n, 1, |i, _| y[i]);
-        let coef = faer::linalg::solvers::SolveLstsq::solve_lstsq(&qr, &b);
-        let fit = &a * &coef;
-        (0..n).map(|i| y[i] - fit[(i, 0)]).collect()
+        let Ok(fit) =
+            Compressed::from_rows(a.as_ref(), y).and_then(|p| LeastSquares.fit_compressed(&p))
+        else {
+            return y.to_vec();
+        };
+        (0..n)
+            .map(|i| {
+                y[i] - fit
+                    .coef
+                    .iter()
+                    .enumerate()
+                    .map(|(k, c)| a[(i, k)] * c)
+                    .sum::<f64>()
+            })
+            .collect()
     };
     let rr = resid(r);
     hist.iter().map(|h| corr(&rr, &resid(h))).collect()
