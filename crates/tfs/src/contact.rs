@@ -165,10 +165,14 @@ pub fn rescan_stop(
     let coarse: Vec<f64> = (0..GRID)
         .map(|i| round(extreme + dir * step * i as f64))
         .collect();
-    let scan = |cs: &[f64]| -> Vec<(f64, f64)> {
+    // Each kept position with its σ and the model T-F-S fitted there.
+    let scan = |cs: &[f64]| -> Vec<(f64, f64, Model)> {
         use rayon::prelude::*;
         cs.par_iter()
-            .filter_map(|&c| fit_at(&library, &dof, &stop, c, records).map(|(s, _)| (c, s)))
+            .filter_map(|&c| {
+                fit_at(&library, &dof, &stop, c, records)
+                    .map(|(s, id)| (c, s, id.model_with_trace()))
+            })
             .collect()
     };
     let mut scored = scan(&coarse);
@@ -197,19 +201,16 @@ pub fn rescan_stop(
     // σ on one held-out record barely separates neighbouring positions, while T-F-S's term
     // selection can jump between them; so the few positions with the lowest σ are each
     // simulated on the records and the one that simulates them best is taken.
+    let positions = scored.len();
     scored.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.total_cmp(&b.0)));
+    scored.truncate(SHORTLIST);
     let shortlist: Vec<(f64, f64, Model, Option<Scores>)> = {
         use rayon::prelude::*;
         scored
-            .iter()
-            .take(SHORTLIST)
-            .collect::<Vec<_>>()
-            .par_iter()
-            .filter_map(|&&(c, sigma)| {
-                let (_, id) = fit_at(&library, &dof, &stop, c, records)?;
-                let m = id.model_with_trace();
+            .into_par_iter()
+            .map(|(c, sigma, m)| {
                 let score = mean_r_mse(&m, records);
-                Some((c, sigma, m, score))
+                (c, sigma, m, score)
             })
             .collect()
     };
@@ -237,7 +238,7 @@ pub fn rescan_stop(
     };
     let why = format!(
         "T-F-S with the stop at {} positions from the data's extreme ({extreme:.4}) past the loop's choice ({c0}): of the {SHORTLIST} with the lowest held-out residual, c = {c} simulates the records best (σ = {sigma:.4}), stiffness {coef:.4e}; mean R-MSE {} against {} for the equation-error fit, so {}",
-        scored.len(),
+        positions,
         fmt(&ours),
         fmt(&theirs),
         if kept {
