@@ -93,7 +93,7 @@ const STUDIES: [(&str, &str, StudyFn); 6] = [
     ),
 ];
 
-const PREAMBLE: &str = "Every number below is recomputed by the tfs crates (tfs-origami simulators, tfs-criteria identification, tfs-dynamics simulation, tfs-basin basins and MED). Each is judged against the truth it estimates (our simulators are the truth here), with the paper's number beside it and both differences: Table 1 coefficients within 2% (60 dB) and 5% (30 dB) of the truth with no extra terms; every BOA error below 3% of the grid; the chain's stable states within 0.05 of the truth's; T-F-S beats classical SINDy in test R-MSE and time; all eight deployment tests predicted as the truth behaves. A failed check is listed under Verdict and makes `cargo xtask reproduce-paper` exit with status 1. Rows without a check are informational (verdict `info`).";
+const PREAMBLE: &str = "Every number below is recomputed by the tfs crates (tfs-origami simulators, tfs-criteria identification, tfs-dynamics simulation, tfs-basin basins and MED). Each is judged against the truth it estimates (our simulators are the truth here), with the paper's number beside it and both differences: Table 1 coefficients within 2% (60 dB) and 5% (30 dB) of the truth with no extra terms; every BOA error below 3% of the grid; the chain's stable states within 0.05 of the truth's; T-F-S beats classical SINDy in test R-MSE and regresses on a smaller matrix (times are shown, not judged); all eight deployment tests predicted as the truth behaves. A failed check is listed under Verdict and makes `cargo xtask reproduce-paper` exit with status 1. Rows without a check are informational (verdict `info`).";
 
 fn main() {
     let cli = Cli::parse();
