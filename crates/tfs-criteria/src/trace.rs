@@ -222,6 +222,10 @@ impl Trace {
 /// What the trace tells the user when the data do not support the library.
 pub(crate) const NOT_SUPPORTED_ADVICE: &str = "the model below is not a reliable identification. What to do: measure longer or repeat the test (more records), raise the excitation level or lower the sensor noise, or use a smaller library (fewer high powers)";
 
+/// The second half of a verdict on records whose spectra show no noise floor (see
+/// [`NoiseCause::NoNoiseFloor`]).
+pub(crate) const NO_FLOOR_ADVICE: &str = "the records show no noise floor and κ reaches κ0 (criterion 1): if they are as clean as that bound says, noise is not why, but terms that the range the records visit cannot tell apart one by one (nearly collinear powers) or a force not exactly of the library's form, and longer or cleaner records of the same kind would not change that. The sum the terms form (the force law, its stable states) can still be accurate (`tfs compare` on held-out records tells); records that visit a wider range, or a smaller library (fewer high powers), pin the terms down one by one";
+
 /// Why the data do not support the library.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Problem {
@@ -377,6 +381,11 @@ pub enum NoiseCause {
     /// Criterion 1 did not compare the residual with the noise (κ reached κ0, or the noise could
     /// not be carried through): the sentence blames neither.
     Unknown,
+    /// κ reached κ0 and the records' spectra show no noise floor (the SNR estimate is a lower
+    /// bound): if the records are as clean as that bound says, noise is not why terms fail, and
+    /// the sentence says what is left (terms the visited range cannot tell apart one by one, or
+    /// a force not exactly of the library's form) instead of asking for cleaner or longer data.
+    NoNoiseFloor,
 }
 
 impl Support {
@@ -414,6 +423,15 @@ impl fmt::Display for Support {
             } => write!(
                 f,
                 "not supported by these data{}: {problem}; the records' own noise estimate says this is not noise (see criterion 1): the library misses an effect or holds terms the data cannot tell apart. What to do: `tfs diagnose` names missing effects; or use a smaller library",
+                snr_clause(*snr_db)
+            ),
+            Support::NotSupported {
+                snr_db,
+                problem,
+                cause: NoiseCause::NoNoiseFloor,
+            } => write!(
+                f,
+                "not supported term by term{}: {problem}; {NO_FLOOR_ADVICE}",
                 snr_clause(*snr_db)
             ),
             Support::NotSupported {
@@ -629,6 +647,22 @@ mod tests {
             assert!(text.starts_with("not supported by these data"), "{text}");
             assert!(!clean.is_supported());
         }
+        // Records whose spectra show no noise floor: neither noise nor the data's length is
+        // blamed, and the advice to lower the noise or measure longer is not given.
+        let no_floor = Support::NotSupported {
+            snr_db: Some(SnrEstimate {
+                db: 84.11,
+                lower_bound: true,
+            }),
+            problem: first.clone(),
+            cause: NoiseCause::NoNoiseFloor,
+        };
+        let text = no_floor.to_string();
+        assert!(text.starts_with("not supported term by term"), "{text}");
+        for blame in ["noisy", "lower the sensor noise", "measure longer"] {
+            assert!(!text.contains(blame), "{text}");
+        }
+        assert!(text.contains(NO_FLOOR_ADVICE) && !no_floor.is_supported());
         // Records without a visible noise floor state a bound, not a value.
         let bound = Support::Supported {
             snr_db: Some(SnrEstimate {

@@ -107,11 +107,15 @@ pub(crate) fn support_verdict(v: &SupportInput<'_>, c1: &mut Criterion1) {
 
 /// What Criterion 1's comparison of the library's residual with the records' own noise
 /// estimate says about a verdict that the data do not support the library: noise only when
-/// that estimate says the residual is the size of the noise.
+/// that estimate says the residual is the size of the noise; records whose spectra show no
+/// noise floor while κ reaches κ0 get a sentence that does not ask for cleaner data.
 pub(crate) fn noise_cause(c1: &Criterion1) -> NoiseCause {
     match c1.snr {
         SnrVerdict::LowSnr { .. } => NoiseCause::Noise,
         SnrVerdict::ModelError { .. } | SnrVerdict::Derivatives { .. } => NoiseCause::NotNoise,
+        SnrVerdict::High if c1.estimated_snr_db.is_some_and(|s| s.lower_bound) => {
+            NoiseCause::NoNoiseFloor
+        }
         SnrVerdict::High | SnrVerdict::Undetermined { .. } => NoiseCause::Unknown,
     }
 }
