@@ -1,0 +1,152 @@
+//! The pinned PySINDy environment and its runs on the same CSV files.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use anyhow::{Context, Result, anyhow, bail};
+use serde_json::{Value, json};
+use tfs::data::Record;
+use tfs::dynamics::{SimulateOptions, rmse_ratio, simulate_model_on_record};
+use tfs::library::Model;
+
+use super::{PeersArgs, num};
+
+/// Folder of the Python script and requirements.
+pub(super) fn peers_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("peers")
+}
+
+/// Creates (once) the `--venv` environment with the pinned requirements; returns its Python.
+pub(super) fn venv(args: &PeersArgs) -> Result<PathBuf> {
+    let dir = &args.venv;
+    let py = dir.join("bin").join("python");
+    let req = peers_dir().join("requirements.txt");
+    let stamp = dir.join(".tfs-requirements");
+    let want =
+        std::fs::read_to_string(&req).with_context(|| format!("reading {}", req.display()))?;
+    if py.exists() && std::fs::read_to_string(&stamp).is_ok_and(|s| s == want) {
+        return Ok(py);
+    }
+    if !py.exists() {
+        eprintln!("creating {} …", dir.display());
+        if let Some(parent) = dir.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent)
+                .with_context(|| format!("creating {} for --venv", parent.display()))?;
+        }
+        let st = Command::new(&args.python)
+            .args(["-m", "venv"])
+            .arg(dir)
+            .status()
+            .with_context(|| {
+                format!(
+                    "running '{} -m venv'; install Python 3 with venv or pass --no-python",
+                    args.python
+                )
+            })?;
+        if !st.success() {
+            bail!(
+                "'{} -m venv {}' failed ({st}); install python3-venv or pass --no-python",
+                args.python,
+                dir.display()
+            );
+        }
+    }
+    eprintln!("installing {} …", req.display());
+    let st = Command::new(&py)
+        .args(["-m", "pip", "install", "-q", "-r"])
+        .arg(&req)
+        .status()
+        .context("running pip in the virtual environment")?;
+    if !st.success() {
+        bail!(
+            "pip install -r {} failed ({st}); check network access to PyPI or pass --no-python",
+            req.display()
+        );
+    }
+    tfs::data::write_atomic(&stamp, want)?;
+    Ok(py)
+}
+
+/// One method's result: name, (model, fit seconds) or failure text, selection details.
+pub(super) type Fit = (String, std::result::Result<(Model, f64), String>, Value);
+
+/// Runs the PySINDy script on `data`; it writes candidate models (one per setting of its grid)
+/// and `index.json`. For each variant, the candidate with the lowest test R-MSE is kept (the
+/// oracle: the choice uses the test record).
+pub(super) fn pysindy(
+    py: &Path,
+    data: &Path,
+    models_dir: &Path,
+    test: &Record,
+    clean_test: &[f64],
+) -> Result<Vec<Fit>> {
+    let out = models_dir.join("pysindy");
+    std::fs::create_dir_all(&out)?;
+    let script = peers_dir().join("run_pysindy.py");
+    let st = Command::new(py)
+        .arg(&script)
+        .arg("--data")
+        .arg(data)
+        .arg("--out")
+        .arg(&out)
+        .status()
+        .with_context(|| format!("running {}", script.display()))?;
+    if !st.success() {
+        bail!("{} failed ({st})", script.display());
+    }
+    let idx_path = out.join("index.json");
+    let idx: Value = serde_json::from_str(
+        &std::fs::read_to_string(&idx_path)
+            .with_context(|| format!("reading {}", idx_path.display()))?,
+    )
+    .with_context(|| format!("parsing {}", idx_path.display()))?;
+    let mut fits = Vec::new();
+    for (variant, name) in [("weak", "PySINDy weak"), ("classical", "PySINDy classical")] {
+        let cands = idx
+            .get(variant)
+            .and_then(Value::as_array)
+            .cloned()
+            .unwrap_or_default();
+        let mut best: Option<(f64, Model, f64, Value)> = None;
+        let mut tried = Vec::new();
+        for c in cands {
+            let file = c
+                .get("file")
+                .and_then(Value::as_str)
+                .ok_or_else(|| anyhow!("{}: candidate without 'file'", idx_path.display()))?;
+            let secs = c
+                .get("fit_seconds")
+                .and_then(Value::as_f64)
+                .unwrap_or(f64::NAN);
+            let model = Model::from_path(out.join(file))
+                .with_context(|| format!("reading PySINDy model {file}"))?;
+            let r = simulate_model_on_record(&model, test, &SimulateOptions::default())
+                .map_err(anyhow::Error::from)
+                .and_then(|tr| Ok(rmse_ratio(clean_test, &tr.x[0])?))
+                .unwrap_or(f64::INFINITY);
+            let r = if r.is_finite() { r } else { f64::INFINITY };
+            tried.push(json!({"params": c.get("params"), "test_r_mse": num(r)}));
+            if best.as_ref().is_none_or(|b| r < b.0) {
+                best = Some((
+                    r,
+                    model,
+                    secs,
+                    c.get("params").cloned().unwrap_or(Value::Null),
+                ));
+            }
+        }
+        match best {
+            Some((_, model, secs, params)) => fits.push((
+                name.to_string(),
+                Ok((model, secs)),
+                json!({"chosen": params, "grid": tried, "rule": "lowest test R-MSE (oracle)"}),
+            )),
+            None => fits.push((
+                name.to_string(),
+                Err(format!("the script wrote no {variant} candidates")),
+                Value::Null,
+            )),
+        }
+    }
+    Ok(fits)
+}
