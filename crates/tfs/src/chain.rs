@@ -15,7 +15,7 @@
 use std::sync::Arc;
 
 use tfs_basin::{ChainWells, WellInfo};
-use tfs_library::{Coord, Model, Restoring, Var};
+use tfs_library::{Coord, Factor, Model, Restoring, Var};
 use tfs_origami::Chain;
 
 use crate::error::{Context, Result};
@@ -36,6 +36,26 @@ pub struct CellStates {
     /// cell in turn (`(next cell's height, this cell's stable heights)`); empty for the last
     /// cell. They differ when an untied fit's coupling is not the next cell's law.
     pub by_next: Vec<(f64, Vec<f64>)>,
+    /// A stable state of the model at h = 0 that the data do not decide (see
+    /// [`FoldedBalance`]): not among [`CellStates::stable`], though the model's dynamics (and
+    /// its chain wells) have it.
+    pub folded: Option<FoldedBalance>,
+}
+
+/// The model's cell balances at h = 0 (the cell folded flat) because no term of its law pushes
+/// there — a polynomial without a constant term vanishes at 0 whatever the data — and is stable
+/// there only by the sign of its linear term, the one term whose coefficient sets the stiffness
+/// at h = 0, while that coefficient's interval holds both signs: the records do not decide
+/// whether the folded cell is a stable state of the model. A real cell meets its folded stop
+/// there, which no polynomial represents (`tfs refit --add stop@xI` fits it).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FoldedBalance {
+    /// The linear term of the cell's own coordinate (`x1`, `(x2-x1)`).
+    pub term: String,
+    /// Its coefficient in the cell's equation (the stiffness at h = 0 is minus it).
+    pub coef: f64,
+    /// The coefficient's interval as the model file gives it.
+    pub interval: [f64; 2],
 }
 
 /// One cell's force law along its height: its own terms' restoring force plus a constant.
@@ -160,16 +180,49 @@ fn cell_laws(label: &str, model: &Model, search: (f64, f64)) -> Result<Vec<(Cell
         }
         let law = CellLaw { own, shift };
         let w = law.wells(search).with_context(context)?;
+        let folded = folded_balance(&cell_model(model, i), dof, &law, w.stable());
+        let stable = w
+            .stable()
+            .iter()
+            .copied()
+            .filter(|h| folded.is_none() || h.abs() > AT_ZERO)
+            .collect();
         let states = CellStates {
-            stable: w.stable().to_vec(),
+            stable,
             unstable: w.unstable().to_vec(),
             coupling_at_rest: 0.0 - shift,
             by_next,
+            folded,
         };
         out.push((law, states));
     }
     out.reverse();
     Ok(out)
+}
+
+/// How close to 0 a stable height must lie to be the folded balance of [`FoldedBalance`] (the
+/// root finder's tolerance; the balance is exactly at 0).
+const AT_ZERO: f64 = 1e-6;
+
+/// The cell's [`FoldedBalance`], if `stable` (the law's stable heights) holds h = 0 and only the
+/// linear term of `dof` in `cell` (the cell's own terms) sets the stiffness there, with an
+/// interval that holds both signs.
+fn folded_balance(cell: &Model, dof: &str, law: &CellLaw, stable: &[f64]) -> Option<FoldedBalance> {
+    if !stable.iter().any(|h| h.abs() <= AT_ZERO) {
+        return None;
+    }
+    let eq = cell.equation(dof).ok()?;
+    let linear = eq.terms.iter().find(|t| match t.term.factors() {
+        [Factor::Pow(Var::Disp(n), 1)] | [Factor::Pow(Var::RelDisp(n, _), 1)] => n == dof,
+        _ => false,
+    })?;
+    let [lo, hi] = linear.interval?;
+    let alone = (law.own.stiffness(0.0) + linear.coef).abs() <= 1e-9 * linear.coef.abs().max(1.0);
+    (alone && lo <= 0.0 && hi >= 0.0).then(|| FoldedBalance {
+        term: linear.term.to_string(),
+        coef: linear.coef,
+        interval: [lo, hi],
+    })
 }
 
 /// Each cell's equilibria on `search` (`label` names the model in messages), the base cell
@@ -298,6 +351,7 @@ pub fn truth_chain(chain: &Chain, search: (f64, f64)) -> Result<ChainModel> {
             unstable: w.unstable().to_vec(),
             coupling_at_rest: 0.0,
             by_next: Vec::new(),
+            folded: None,
         });
         potentials.push(Arc::new(move |h| v.potential(h)));
     }
@@ -312,12 +366,16 @@ pub fn truth_chain(chain: &Chain, search: (f64, f64)) -> Result<ChainModel> {
 }
 
 /// Every combination of the cells' equilibria as displacements (cumulative heights): the ones of
-/// stable heights only (ordered by the last displacement), and the others (saddles).
+/// stable heights only (ordered by the last displacement), and the others (saddles). A folded
+/// balance the data do not decide is a stable height of the model's dynamics, and counts here.
 fn products(cells: &[CellStates]) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
     let mut combos: Vec<(Vec<f64>, bool)> = vec![(Vec::new(), true)];
     for c in cells {
-        let all: Vec<(f64, bool)> = c
-            .stable
+        let mut heights = c.stable.clone();
+        if c.folded.is_some() {
+            heights.insert(0, 0.0);
+        }
+        let all: Vec<(f64, bool)> = heights
             .iter()
             .map(|h| (*h, true))
             .chain(c.unstable.iter().map(|h| (*h, false)))
@@ -411,6 +469,50 @@ mod tests {
         assert!(close(&c.cells[1].stable, &[0.5, 1.5]), "{:?}", c.cells);
         assert_eq!(c.cells[1].coupling_at_rest, 0.0);
         assert_eq!(cell_states("test", &model, (0.1, 2.0)).unwrap(), c.cells);
+    }
+
+    /// A tied two-cell model whose cell 2, x2'' = −a·h + 1.5·h² − h³ (h = x2 − x1), balances at
+    /// h = 0 by its form and is stable there when a > 0; `interval` is the interval of a's
+    /// term `(x2-x1)`. Cell 1: x1'' = x1 − x1², stable at 1.
+    fn folded_cell(a: f64, interval: [f64; 2]) -> Model {
+        let t = |n: &str, c: f64| serde_json::json!({"term": n, "coef": c});
+        let mut lin = t("(x2-x1)", -a);
+        lin["interval"] = serde_json::json!(interval);
+        let x2 = vec![lin, t("(x2-x1)^2", 1.5), t("(x2-x1)^3", -1.0)];
+        let x1 = vec![
+            t("x1", 1.0),
+            t("x1^2", -1.0),
+            t("(x2-x1)", a),
+            t("(x2-x1)^2", -1.5),
+            t("(x2-x1)^3", 1.0),
+        ];
+        let json = serde_json::json!({"format": "tfs-model/1", "dofs": ["x1", "x2"], "inputs": [],
+            "equations": [{"dof": "x1", "terms": x1}, {"dof": "x2", "terms": x2}], "method": "test",
+            "trace": {"ties": [{"term": "(x2-x1)", "owner": "x2", "partner": "x1", "factor_in_partner": -1.0}]}});
+        Model::from_json_str(&json.to_string()).unwrap()
+    }
+
+    /// The folded balance is a stable state of the cell only where the data decide the sign of
+    /// the linear term; the chain's wells keep it either way (the model's dynamics have it).
+    #[test]
+    fn a_folded_balance_the_data_do_not_decide_is_not_a_stable_state() {
+        let search = (-0.05, 2.0);
+        let undecided = model_chain("test", &folded_cell(0.5, [-0.2, 1.2]), search).unwrap();
+        let c2 = &undecided.cells[1];
+        assert!(close(&c2.stable, &[1.0]), "{c2:?}");
+        let f = c2.folded.as_ref().expect("the folded balance is reported");
+        assert_eq!(f.term, "(x2-x1)");
+        assert_eq!((f.coef, f.interval), (-0.5, [-0.2, 1.2]));
+        assert_eq!(undecided.wells.stable().len(), 2);
+        // The same law with an interval of one sign: stable at 0 and at 1.
+        let decided = model_chain("test", &folded_cell(0.5, [0.3, 0.7]), search).unwrap();
+        let c2 = &decided.cells[1];
+        assert!(c2.folded.is_none() && c2.stable.len() == 2, "{c2:?}");
+        assert!(c2.stable[0].abs() < 1e-6 && (c2.stable[1] - 1.0).abs() < 1e-6);
+        assert_eq!(decided.wells.stable().len(), 2);
+        // Unstable at 0 (a < 0): nothing to report.
+        let open = model_chain("test", &folded_cell(-0.5, [-0.9, 0.1]), search).unwrap();
+        assert!(open.cells[1].folded.is_none(), "{:?}", open.cells[1]);
     }
 
     #[test]

@@ -75,10 +75,18 @@ fn state(x: &[f64]) -> String {
     format!("({})", list(x))
 }
 
+/// A cell's [`tfs::chain::FoldedBalance`] as JSON (`null` without one).
+pub fn folded_json(s: &CellStates) -> Value {
+    s.folded.as_ref().map_or(
+        Value::Null,
+        |f| json!({"h": 0.0, "term": f.term, "coef": f.coef, "interval": f.interval}),
+    )
+}
+
 /// The cells, states and shares as JSON.
 pub fn chain_json(c: &ChainMap) -> Value {
     json!({
-        "cells": c.chain.cells.iter().map(|s| json!({"stable": s.stable, "unstable": s.unstable})).collect::<Vec<_>>(),
+        "cells": c.chain.cells.iter().map(|s| json!({"stable": s.stable, "unstable": s.unstable, "folded_undecided": folded_json(s)})).collect::<Vec<_>>(),
         "masses": c.chain.masses,
         "stable": c.chain.wells.stable(),
         "slice": "x_i(0) = x_i(S1) + dx, v_i(0) = v0",
@@ -108,6 +116,16 @@ pub fn print_cells(cells: &[CellStates], tied: bool) {
             list(&s.stable),
             list(&s.unstable)
         );
+        if let Some(f) = &s.folded {
+            println!(
+                "  h = 0 (folded flat) is a balance of every law this library can form, and the model is stable there only by the sign of {}'s coefficient, {} in [{}, {}], which the records do not decide: not counted as a stable state (the model's simulations can still settle there; `tfs refit --add stop@x{}` fits the folded stop a real cell meets there)",
+                f.term,
+                super::trace_view::sig(f.coef),
+                super::trace_view::sig(f.interval[0]),
+                super::trace_view::sig(f.interval[1]),
+                i + 1
+            );
+        }
         if tied || s.by_next.is_empty() {
             continue;
         }
