@@ -15,7 +15,8 @@ use tfs::identify::{IdentifyOptions, identify, plan};
 use tfs::library::{Library, Model};
 
 use super::hide::{Hide, hide};
-use super::truth::{self, Baseline, Kind, rms, std_dev};
+use super::size;
+use super::truth::{self, Baseline, Kind};
 
 /// What kind of case.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -112,6 +113,10 @@ pub struct CaseResult {
     pub hidden_params: Vec<Value>,
     /// Each hidden effect's realised share (force RMS over acceleration RMS, training records).
     pub realised: Vec<f64>,
+    /// Each hidden effect's unrepresentable part: the RMS of what the start library's best
+    /// least-squares fit leaves of its force (clean training states), over the RMS
+    /// acceleration (see `size::unrepresentable`).
+    pub unrepresentable: Vec<f64>,
     /// The DOFs whose equation may name each hidden effect.
     pub hidden_dofs: Vec<Vec<String>>,
     /// The identified start model.
@@ -136,6 +141,7 @@ impl CaseResult {
             baseline: Value::Null,
             hidden_params: Vec::new(),
             realised: Vec::new(),
+            unrepresentable: Vec::new(),
             hidden_dofs: Vec::new(),
             start: None,
             rounds: Vec::new(),
@@ -216,71 +222,6 @@ fn libraries(b: &Baseline, hides: &[Hide]) -> Result<Vec<String>> {
                 .filter(|t| !hides.iter().any(|h| h.drop.contains(t)))
                 .collect();
             Ok(kept.join(", "))
-        })
-        .collect()
-}
-
-/// Coordinate `dof` of `q` (displacements or velocities of the masses) relative to the mass
-/// below it (the ground for the first).
-fn relative(q: &[Vec<f64>], dof: usize) -> Vec<f64> {
-    if dof == 0 {
-        q[0].clone()
-    } else {
-        q[dof].iter().zip(&q[dof - 1]).map(|(a, b)| a - b).collect()
-    }
-}
-
-/// Realised share of each hidden effect over the training records.
-fn realised(b: &Baseline, hides: &[Hide], clean: &[truth::Clean]) -> Vec<f64> {
-    let mut slot = 0;
-    hides
-        .iter()
-        .map(|h| {
-            let (mut num, mut den) = (0.0, 0.0);
-            for c in clean {
-                let a = std_dev(&c.motion.a[h.dof]);
-                den += a * a;
-                // A force's mean moves the rest state (the model's other terms take it up),
-                // except for an offset, which is nothing but its mean.
-                let spread = |f: &[f64]| {
-                    if h.effect == "offset" {
-                        rms(f)
-                    } else {
-                        std_dev(f)
-                    }
-                };
-                let f: Vec<f64> = if !h.placed.is_empty() {
-                    c.motion.forces[slot]
-                        .iter()
-                        .map(|f| f / b.masses[h.dof])
-                        .collect()
-                } else if !h.exciter.is_empty() {
-                    c.felt
-                        .iter()
-                        .zip(&c.u)
-                        .map(|(f, u)| b.gain * (f - u))
-                        .collect()
-                } else {
-                    // The baseline's own term: its dashpot `coef·v` or stiffness power
-                    // `coef·x^p`, on the element's (relative) coordinate.
-                    let coef = h.params["coef"].as_f64().unwrap_or(0.0);
-                    if h.effect == "linear-damping" {
-                        let v = relative(&c.motion.v, h.dof);
-                        v.iter().map(|v| coef * v).collect()
-                    } else {
-                        let p = h.params["own_term"]
-                            .as_str()
-                            .and_then(|t| t.rsplit_once('^').map(|(_, p)| p.parse().unwrap_or(1)))
-                            .unwrap_or(1);
-                        let x = relative(&c.motion.x, h.dof);
-                        x.iter().map(|v| coef * v.powi(p)).collect()
-                    }
-                };
-                let r = spread(&f);
-                num += r * r;
-            }
-            slot += h.placed.len();
-            (num / den.max(f64::MIN_POSITIVE)).sqrt()
         })
         .collect()
 }
@@ -403,7 +344,10 @@ fn run_into(spec: &CaseSpec, out: &mut CaseResult) -> Result<()> {
             }
         }
     }
-    out.realised = realised(&b, &hides, &clean[..3]);
+    out.realised = size::realised(&b, &hides, &clean[..3]);
+    let libs = libraries(&b, &hides)?;
+    out.unrepresentable =
+        size::unrepresentable(&b, &hides, &libs, &clean[..3]).context("unrepresentable part")?;
     let mut records = Vec::new();
     for (i, c) in clean.iter().enumerate() {
         let name = if i < 3 {
@@ -422,7 +366,6 @@ fn run_into(spec: &CaseSpec, out: &mut CaseResult) -> Result<()> {
     let heldout = records.pop().ok_or_else(|| anyhow!("no held-out record"))?;
     let train = records;
     // identify, as `tfs identify --library ... --offsets ...` does.
-    let libs = libraries(&b, &hides)?;
     let opts = IdentifyOptions {
         library: Some(libs[0].clone()),
         dofs: b.dofs.clone(),

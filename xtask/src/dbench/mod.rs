@@ -8,6 +8,7 @@
 mod case;
 mod hide;
 mod render;
+mod size;
 mod summary;
 mod truth;
 

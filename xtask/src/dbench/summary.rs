@@ -9,6 +9,77 @@ use crate::common::{f4, pct};
 /// The diagnosis's own minimum effect size (share of the force RMS) by default.
 pub const MIN_SHARE: f64 = 0.02;
 
+/// Bins of an effect's size measure in the report: below the diagnosis's minimum size, then
+/// small, medium and large.
+pub const BINS: [(f64, f64); 4] = [
+    (0.0, MIN_SHARE),
+    (MIN_SHARE, 0.05),
+    (0.05, 0.15),
+    (0.15, f64::INFINITY),
+];
+
+/// Which size of a hidden effect a score is binned or thresholded by.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Measure {
+    /// The RMS of its force over the RMS acceleration.
+    Realised,
+    /// The RMS of the part of its force the start library cannot hold, over the RMS
+    /// acceleration.
+    Unrepresentable,
+}
+
+impl Measure {
+    /// The first hidden effect's size of case `c` by this measure.
+    pub fn of(self, c: &CaseResult) -> Option<f64> {
+        match self {
+            Measure::Realised => c.realised.first().copied(),
+            Measure::Unrepresentable => c.unrepresentable.first().copied(),
+        }
+        .filter(|v| v.is_finite())
+    }
+}
+
+/// The detection floor at SNR `snr` (dB; None: noise-free): the larger of the diagnosis's
+/// minimum size and the records' relative noise amplitude `10^(−snr/20)` (the noise RMS over
+/// the signal RMS on each measured channel). An effect whose unrepresentable part is below it
+/// leaves too little for any model from the start library to miss: finding nothing is then an
+/// acceptable answer.
+pub fn floor(snr: Option<f64>) -> f64 {
+    snr.map_or(MIN_SHARE, |s| MIN_SHARE.max(10f64.powf(-s / 20.0)))
+}
+
+/// Whether case `c`'s (first) hidden effect leaves an unrepresentable part at or above the
+/// detection floor of its noise level; cases without the measure count as detectable.
+pub fn detectable(c: &CaseResult) -> bool {
+    Measure::Unrepresentable
+        .of(c)
+        .is_none_or(|u| u >= floor(c.spec.snr))
+}
+
+/// Scores of the single-effect cases whose size lies in one bin.
+#[derive(Debug, Clone, Copy)]
+pub struct Binned {
+    /// Named first.
+    pub correct: usize,
+    /// Cases.
+    pub n: usize,
+    /// Median held-out error factor after round 1.
+    pub drop: f64,
+}
+
+/// The "nothing detectable" reading of a noise group's single-effect cases.
+#[derive(Debug, Clone, Copy)]
+pub struct Detectable {
+    /// Detectable cases named first.
+    pub correct: usize,
+    /// Detectable cases.
+    pub n: usize,
+    /// Undetectable cases answered acceptably (nothing named, or the hidden effect itself).
+    pub quiet: usize,
+    /// Undetectable cases.
+    pub n_quiet: usize,
+}
+
 /// Noise groups of the report.
 pub const GROUPS: [(&str, &[Option<f64>]); 3] = [
     ("≥40 dB", &[None, Some(40.0)]),
@@ -182,13 +253,24 @@ impl<'a> Summary<'a> {
         (both, v.len(), median(drops))
     }
 
-    /// Where detection of `effect` stops at noise levels `g`.
+    /// Where detection of `effect` stops at noise levels `g`, by realised size, 90 % found.
     pub fn threshold(&self, g: &[Option<f64>], effect: &str) -> Threshold {
+        self.threshold_by(g, effect, Measure::Realised, 0.9)
+    }
+
+    /// Where detection of `effect` stops at noise levels `g`, by `measure`: the smallest size
+    /// above which at least the fraction `frac` of the cases are found first.
+    pub fn threshold_by(
+        &self,
+        g: &[Option<f64>],
+        effect: &str,
+        measure: Measure,
+        frac: f64,
+    ) -> Threshold {
         let mut v: Vec<(f64, bool)> = self
             .of(Group::Single, g)
             .filter(|c| c.spec.hidden[0] == effect)
-            .filter_map(|c| Some((*c.realised.first()?, c.top1_correct())))
-            .filter(|(s, _)| s.is_finite())
+            .filter_map(|c| Some((measure.of(c)?, c.top1_correct())))
             .collect();
         v.sort_by(|a, b| a.0.total_cmp(&b.0));
         let smallest_found = v.iter().find(|x| x.1).map_or(f64::NAN, |x| x.0);
@@ -199,7 +281,7 @@ impl<'a> Summary<'a> {
         for &(s, ok) in v.iter().rev() {
             seen += 1;
             found += ok as usize;
-            if found as f64 >= 0.9 * seen as f64 {
+            if found as f64 >= frac * seen as f64 {
                 s90 = s;
             }
         }
@@ -209,6 +291,47 @@ impl<'a> Summary<'a> {
             s90,
             largest_missed,
         }
+    }
+
+    /// Top-1 and median drop over the single-effect cases of noise group `g` whose `measure`
+    /// lies in `[lo, hi)` (every size, not only the counted ones: the bins show the small ones).
+    pub fn binned(&self, g: &[Option<f64>], measure: Measure, (lo, hi): (f64, f64)) -> Binned {
+        let v: Vec<&CaseResult> = self
+            .of(Group::Single, g)
+            .filter(|c| measure.of(c).is_some_and(|s| s >= lo && s < hi))
+            .collect();
+        Binned {
+            correct: v.iter().filter(|c| c.top1_correct()).count(),
+            n: v.len(),
+            drop: median(v.iter().filter_map(|c| c.drop(0)).collect()),
+        }
+    }
+
+    /// The "nothing detectable" reading of noise group `g`: over every single-effect case,
+    /// those whose unrepresentable part reaches the detection floor ([`floor`]) are scored by
+    /// top-1; the others are answered acceptably by naming nothing (or the hidden effect).
+    pub fn detectable(&self, g: &[Option<f64>]) -> Detectable {
+        let (yes, no): (Vec<&CaseResult>, Vec<&CaseResult>) =
+            self.of(Group::Single, g).partition(|c| detectable(c));
+        Detectable {
+            correct: yes.iter().filter(|c| c.top1_correct()).count(),
+            n: yes.len(),
+            quiet: no
+                .iter()
+                .filter(|c| c.found(0) == "none" || c.top1_correct())
+                .count(),
+            n_quiet: no.len(),
+        }
+    }
+
+    /// Median held-out drop over the detectable single-effect cases of group `g`.
+    pub fn detectable_drop(&self, g: &[Option<f64>]) -> f64 {
+        median(
+            self.of(Group::Single, g)
+                .filter(|c| detectable(c))
+                .filter_map(|c| c.drop(0))
+                .collect(),
+        )
     }
 
     /// Confusion counts of group `g`: rows are hidden effects (and "control"), columns what
@@ -291,6 +414,7 @@ mod tests {
         };
         let mut c = CaseResult::new(&spec);
         c.realised = vec![size; hidden.len()];
+        c.unrepresentable = vec![size; hidden.len()];
         c.hidden_dofs = vec![vec!["x1".to_string()]; hidden.len()];
         c.rounds.push(Round {
             top: named.map(String::from),
@@ -391,6 +515,65 @@ mod tests {
         let g = GROUPS[0].1;
         assert_eq!(s.top1(g, None, None), (1, 3));
         assert_eq!(s.top1_or_tied(g), (2, 3));
+    }
+
+    /// Binning by the unrepresentable part and the "nothing detectable" reading: a case below
+    /// its noise level's floor is answered acceptably by naming nothing or the hidden effect,
+    /// and wrongly by naming another.
+    #[test]
+    fn bins_and_the_nothing_detectable_reading() {
+        let cat: Vec<String> = ["a", "b"].map(String::from).to_vec();
+        let (s40, s30) = (Some(40.0), Some(30.0));
+        let with_part = |mut c: CaseResult, part: f64| {
+            c.unrepresentable = vec![part];
+            c
+        };
+        let cases = vec![
+            // Large realised size, small unrepresentable part.
+            with_part(case(Group::Single, &["a"], s40, 0.5, None, 1.0, 1.0), 0.01),
+            with_part(
+                case(Group::Single, &["a"], s40, 0.5, Some("b"), 1.0, 1.0),
+                0.015,
+            ),
+            with_part(
+                case(Group::Single, &["b"], s40, 0.5, Some("b"), 1.0, 0.1),
+                0.3,
+            ),
+            with_part(
+                case(Group::Single, &["b"], s40, 0.5, Some("b"), 1.0, 0.2),
+                0.03,
+            ),
+            // 2.5 % is above the 40 dB floor (2 %), below the 30 dB one (3.16 %).
+            with_part(case(Group::Single, &["b"], s30, 0.5, None, 1.0, 1.0), 0.025),
+            with_part(
+                case(Group::Single, &["a"], s30, 0.5, Some("a"), 1.0, 0.5),
+                0.2,
+            ),
+        ];
+        let s = Summary::new(&cases, &cat);
+        let g = GROUPS[0].1;
+        let small = s.binned(g, Measure::Unrepresentable, BINS[0]);
+        assert_eq!((small.correct, small.n), (0, 2));
+        let all = s.binned(g, Measure::Realised, BINS[3]);
+        assert_eq!((all.correct, all.n), (2, 4));
+        assert!(
+            (all.drop - 3.0).abs() < 1e-12,
+            "median of 1, 1, 10, 5: {}",
+            all.drop
+        );
+        let d = s.detectable(g);
+        assert_eq!((d.correct, d.n, d.quiet, d.n_quiet), (2, 2, 1, 2));
+        assert!((s.detectable_drop(g) - 7.5).abs() < 1e-12);
+        let d30 = s.detectable(GROUPS[1].1);
+        assert_eq!((d30.correct, d30.n, d30.quiet, d30.n_quiet), (1, 1, 1, 1));
+        // Half found from 3 % up: the 50 % threshold by part is 3 %; by realised size every
+        // case is at 50 % and half of them are found.
+        let t = s.threshold_by(g, "b", Measure::Unrepresentable, 0.5);
+        assert_eq!(t.s90, 0.03);
+        let t = s.threshold_by(g, "a", Measure::Unrepresentable, 0.5);
+        assert!(t.s90.is_nan() && t.smallest_found.is_nan());
+        assert!((floor(None) - MIN_SHARE).abs() < 1e-15);
+        assert!((floor(Some(20.0)) - 0.1).abs() < 1e-12);
     }
 
     #[test]
