@@ -8,6 +8,7 @@
 mod case;
 mod hide;
 mod render;
+mod rescore;
 mod size;
 mod summary;
 mod truth;
@@ -47,6 +48,34 @@ pub struct Args {
     /// Only these noise levels (`clean`, or an SNR in dB among 40, 30, 20).
     #[arg(long, value_delimiter = ',')]
     pub noise: Vec<String>,
+    /// Run nothing: score again the run whose `results.json` is in this folder, writing
+    /// `report.md`, the CSV files and the figure to `--out` (give the same `--only`, `--noise`
+    /// and `--effects` as the run for the report's command line).
+    #[arg(long)]
+    pub rescore: Option<PathBuf>,
+}
+
+impl Args {
+    /// The command line that makes a run with these arguments.
+    pub fn command(&self) -> String {
+        let mut c = String::from("cargo xtask diagnose-bench");
+        if self.quick {
+            c.push_str(" --quick");
+        }
+        if self.seed != 1 {
+            c.push_str(&format!(" --seed {}", self.seed));
+        }
+        for (flag, v) in [
+            ("--only", &self.only),
+            ("--effects", &self.effects),
+            ("--noise", &self.noise),
+        ] {
+            if !v.is_empty() {
+                c.push_str(&format!(" {flag} {}", v.join(",")));
+            }
+        }
+        c
+    }
 }
 
 /// Noise levels: noise-free, then SNR in dB.
@@ -251,10 +280,14 @@ pub fn plan(args: &Args, catalogue: &[String]) -> Result<Vec<CaseSpec>> {
 
 /// Runs `cargo xtask diagnose-bench`.
 pub fn run(args: Args) -> Result<()> {
-    let catalogue = tfs::diagnose::Catalogue::standard(7).names();
-    let specs = plan(&args, &catalogue)?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating the output folder {}", args.out.display()))?;
+    if let Some(dir) = &args.rescore {
+        let (results, catalogue, total) = rescore::load(dir)?;
+        return write(&args, &results, &catalogue, total, false);
+    }
+    let catalogue = tfs::diagnose::Catalogue::standard(7).names();
+    let specs = plan(&args, &catalogue)?;
     let t0 = Instant::now();
     let pb = crate::common::progress(specs.len() as u64, "cases");
     let results: Vec<CaseResult> = specs
@@ -267,30 +300,46 @@ pub fn run(args: Args) -> Result<()> {
         .collect();
     pb.finish_and_clear();
     let total = t0.elapsed().as_secs_f64();
-    let s = summary::Summary::new(&results, &catalogue);
-    let md = s.markdown(&args, total);
-    let json = json!({
-        "quick": args.quick,
-        "seed": args.seed,
-        "seconds": total,
-        "catalogue": catalogue,
-        "summary": s.to_json(),
-        "cases": results,
-    });
+    write(&args, &results, &catalogue, total, true)
+}
+
+/// Scores `results` and writes the outputs (`results.json` only when `with_json`: a rescore
+/// leaves the run's own file alone).
+fn write(
+    args: &Args,
+    results: &[CaseResult],
+    catalogue: &[String],
+    total: f64,
+    with_json: bool,
+) -> Result<()> {
+    let s = summary::Summary::new(results, catalogue);
+    let md = s.markdown(args, total);
     let save = |name: &str, text: &str| {
         let p = args.out.join(name);
         tfs::data::write_atomic(&p, text.as_bytes())
             .with_context(|| format!("writing {}", p.display()))
     };
-    save("results.json", &serde_json::to_string_pretty(&json)?)?;
+    if with_json {
+        let json = json!({
+            "quick": args.quick,
+            "seed": args.seed,
+            "command": args.command(),
+            "seconds": total,
+            "catalogue": catalogue,
+            "summary": s.to_json(),
+            "cases": results,
+        });
+        save("results.json", &serde_json::to_string_pretty(&json)?)?;
+    }
     save("report.md", &md)?;
     save("confusion.csv", &s.confusion_csv())?;
     save("cases.csv", &s.cases_csv())?;
     s.figures(&args.out)?;
     print!("{}", s.terminal());
     println!(
-        "\n{} cases in {total:.1} s; report.md, results.json, confusion.csv, cases.csv and detection.png in {}",
+        "\n{} cases in {total:.1} s; report.md, {}confusion.csv, cases.csv and detection.png in {}",
         results.len(),
+        if with_json { "results.json, " } else { "" },
         args.out.display()
     );
     Ok(())

@@ -114,11 +114,7 @@ impl Summary<'_> {
     /// The report.
     pub fn markdown(&self, args: &Args, seconds: f64) -> String {
         let mut s = String::new();
-        let cmd = if args.quick {
-            "cargo xtask diagnose-bench --quick"
-        } else {
-            "cargo xtask diagnose-bench"
-        };
+        let cmd = args.command();
         let _ = writeln!(s, "# Diagnosis benchmark\n");
         let _ = writeln!(
             s,
@@ -363,7 +359,7 @@ impl Summary<'_> {
         );
         let _ = writeln!(
             s,
-            "### Where detection stops, effect by effect\n\nPer effect (all baselines of the run together) and noise level: the smallest unrepresentable part (and realised size) above which at least half the cases are found first; \"not detected\" when no case is, with the largest unrepresentable part tried. Cases per cell in brackets.\n"
+            "### Where detection stops, effect by effect\n\nPer effect (all baselines of the run together) and noise level, the cases sorted by unrepresentable part are split where the split best separates those missed (below) from those found first (above); equally good splits take the highest. The cell gives the smallest part above the split, how many cases are found first above and below it, and (size) the same split made on realised size. \"Not detected\" when the best split leaves every case below: in no range of sizes from some size up are more cases found than missed.\n"
         );
         let mut header = vec!["effect".to_string()];
         header.extend(groups.iter().map(|(n, _)| n.to_string()));
@@ -373,23 +369,27 @@ impl Summary<'_> {
             .map(|e| {
                 let mut r = vec![format!("`{e}`")];
                 for (_, g) in &groups {
-                    let p = self.threshold_by(g, e, Measure::Unrepresentable, 0.5);
-                    let z = self.threshold_by(g, e, Measure::Realised, 0.5);
-                    r.push(if p.n == 0 {
+                    let p = self.limit(g, e, Measure::Unrepresentable);
+                    let z = self.limit(g, e, Measure::Realised);
+                    let n = p.above.1 + p.below.1;
+                    r.push(if n == 0 {
                         "—".into()
-                    } else if p.s90.is_finite() {
-                        format!("part {} (size {}) [{}]", size(p.s90), size(z.s90), p.n)
-                    } else if p.smallest_found.is_finite() {
+                    } else if p.at.is_finite() {
                         format!(
-                            "under half found at every part (smallest found {}) [{}]",
-                            size(p.smallest_found),
-                            p.n
+                            "part {} (size {}): {}/{} found above, {}/{} below",
+                            size(p.at),
+                            size(z.at),
+                            p.above.0,
+                            p.above.1,
+                            p.below.0,
+                            p.below.1
                         )
                     } else {
                         format!(
-                            "not detected (part up to {}) [{}]",
-                            size(p.largest_missed),
-                            p.n
+                            "not detected ({}/{} found; part up to {})",
+                            p.below.0,
+                            n,
+                            size(p.below_max)
                         )
                     });
                 }

@@ -128,6 +128,58 @@ pub struct Threshold {
     pub largest_missed: f64,
 }
 
+/// Where detection of one effect stops at one noise group: the split of its cases, sorted by a
+/// size measure, that best separates those missed (below) from those found first (above).
+#[derive(Debug, Clone, Copy)]
+pub struct Limit {
+    /// The size of the smallest case above the split (NaN: the best split leaves every case
+    /// below, nothing is found).
+    pub at: f64,
+    /// Largest size below the split (NaN: none below).
+    pub below_max: f64,
+    /// (found first, cases) above the split.
+    pub above: (usize, usize),
+    /// (found first, cases) below the split.
+    pub below: (usize, usize),
+}
+
+impl Limit {
+    /// The split of `v` (size, found first) with the fewest cases on the wrong side (found
+    /// below, missed above); among equally good splits the highest (the limit is not put lower
+    /// than the cases support).
+    pub fn of(mut v: Vec<(f64, bool)>) -> Self {
+        v.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let n = v.len();
+        let total_found = v.iter().filter(|x| x.1).count();
+        // found_below[k]: found among cases [0, k) (below a split before case k).
+        let found_below: Vec<usize> = std::iter::once(0)
+            .chain(v.iter().scan(0, |acc, x| {
+                *acc += x.1 as usize;
+                Some(*acc)
+            }))
+            .collect();
+        let (mut best, mut best_k) = (usize::MAX, n);
+        for (k, &fb) in found_below.iter().enumerate() {
+            let missed_above = (n - k) - (total_found - fb);
+            if fb + missed_above <= best {
+                best = fb + missed_above;
+                best_k = k;
+            }
+        }
+        let fb = found_below[best_k];
+        Limit {
+            at: v.get(best_k).map_or(f64::NAN, |x| x.0),
+            below_max: if best_k > 0 {
+                v[best_k - 1].0
+            } else {
+                f64::NAN
+            },
+            above: (total_found - fb, n - best_k),
+            below: (fb, best_k),
+        }
+    }
+}
+
 /// The scored run.
 pub struct Summary<'a> {
     cases: &'a [CaseResult],
@@ -291,6 +343,16 @@ impl<'a> Summary<'a> {
             s90,
             largest_missed,
         }
+    }
+
+    /// Where detection of `effect` stops at noise levels `g`, by `measure` ([`Limit::of`]).
+    pub fn limit(&self, g: &[Option<f64>], effect: &str, measure: Measure) -> Limit {
+        Limit::of(
+            self.of(Group::Single, g)
+                .filter(|c| c.spec.hidden[0] == effect)
+                .filter_map(|c| Some((measure.of(c)?, c.top1_correct())))
+                .collect(),
+        )
     }
 
     /// Top-1 and median drop over the single-effect cases of noise group `g` whose `measure`
@@ -574,6 +636,30 @@ mod tests {
         assert!(t.s90.is_nan() && t.smallest_found.is_nan());
         assert!((floor(None) - MIN_SHARE).abs() < 1e-15);
         assert!((floor(Some(20.0)) - 0.1).abs() < 1e-12);
+    }
+
+    /// The split that best separates missed from found: none found, all found, a clean
+    /// separation, and a mixed one where equally good splits take the highest.
+    #[test]
+    fn detection_limit_splits_missed_from_found() {
+        let l = Limit::of(vec![(0.1, false), (0.3, false)]);
+        assert!(l.at.is_nan() && l.above == (0, 0) && l.below == (0, 2));
+        let l = Limit::of(vec![(0.3, true), (0.1, true)]);
+        assert_eq!((l.at, l.above, l.below), (0.1, (2, 2), (0, 0)));
+        let l = Limit::of(vec![(0.5, true), (0.01, false), (0.2, true), (0.05, false)]);
+        assert_eq!(
+            (l.at, l.below_max, l.above, l.below),
+            (0.2, 0.05, (2, 2), (0, 2))
+        );
+        // Found, missed, found, found: splitting below everything or above the miss are both
+        // one case wrong; the higher is taken.
+        let l = Limit::of(vec![
+            (0.01, true),
+            (0.02, false),
+            (0.03, true),
+            (0.04, true),
+        ]);
+        assert_eq!((l.at, l.above, l.below), (0.03, (2, 2), (1, 2)));
     }
 
     #[test]
