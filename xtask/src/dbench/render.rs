@@ -674,30 +674,38 @@ impl Summary<'_> {
 
     /// `confusion.{svg,png}` and `detection.{svg,png}`.
     pub fn figures(&self, dir: &Path) -> Result<()> {
-        // Detection rate against realised size, in bins of a factor 2, per noise group.
+        // Detection rate in bins of a factor 2 of the realised size (solid) and of the
+        // unrepresentable part (dashed), per noise group.
         let mut chart = LineChart::new(
             "Top-1 detection against effect size (all effects and baselines)",
-            "effect size: log10(force RMS / acceleration RMS)",
+            "size: log10(force RMS / acceleration RMS); solid realised, dashed unrepresentable part",
             "share of cases found first",
         );
         for (name, g) in GROUPS {
-            let pts: Vec<(f64, f64)> = (0..12)
-                .filter_map(|b| {
-                    let lo = 0.005 * 2f64.powi(b);
-                    let v: Vec<bool> = self
-                        .single_sized(g)
-                        .into_iter()
-                        .filter(|(s, _)| *s >= lo && *s < 2.0 * lo)
-                        .map(|(_, ok)| ok)
-                        .collect();
-                    (v.len() >= 3).then(|| {
-                        let f = v.iter().filter(|x| **x).count() as f64 / v.len() as f64;
-                        ((lo * 2f64.sqrt()).log10(), f)
+            for m in [Measure::Realised, Measure::Unrepresentable] {
+                let sized = self.single_sized(g, m);
+                let pts: Vec<(f64, f64)> = (0..12)
+                    .filter_map(|b| {
+                        let lo = 0.005 * 2f64.powi(b);
+                        let v: Vec<bool> = sized
+                            .iter()
+                            .filter(|(s, _)| *s >= lo && *s < 2.0 * lo)
+                            .map(|(_, ok)| *ok)
+                            .collect();
+                        (v.len() >= 3).then(|| {
+                            let f = v.iter().filter(|x| **x).count() as f64 / v.len() as f64;
+                            ((lo * 2f64.sqrt()).log10(), f)
+                        })
                     })
-                })
-                .collect();
-            if pts.len() >= 2 {
-                chart = chart.with_series(Series::line(name, pts));
+                    .collect();
+                if pts.len() >= 2 {
+                    chart = chart.with_series(match m {
+                        Measure::Realised => Series::line(format!("{name}, realised size"), pts),
+                        Measure::Unrepresentable => {
+                            Series::dashed(format!("{name}, unrepresentable part"), pts)
+                        }
+                    });
+                }
             }
         }
         chart = chart.with_vline(MIN_SHARE.log10(), "minimum size");

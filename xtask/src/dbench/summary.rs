@@ -202,11 +202,10 @@ impl<'a> Summary<'a> {
         self.catalogue
     }
 
-    /// (realised size, found first) of every single-effect case of noise group `g`.
-    pub fn single_sized(&self, g: &[Option<f64>]) -> Vec<(f64, bool)> {
+    /// (size by `measure`, found first) of every single-effect case of noise group `g`.
+    pub fn single_sized(&self, g: &[Option<f64>], measure: Measure) -> Vec<(f64, bool)> {
         self.of(Group::Single, g)
-            .filter_map(|c| Some((*c.realised.first()?, c.top1_correct())))
-            .filter(|(s, _)| s.is_finite())
+            .filter_map(|c| Some((measure.of(c)?, c.top1_correct())))
             .collect()
     }
 
