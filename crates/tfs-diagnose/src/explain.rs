@@ -17,7 +17,9 @@
 //! combined p-value is Bonferroni-corrected over every variant of every effect tested. An effect is significant when the corrected p-value is below
 //! `alpha`, the held-out error falls, and its size (RMS change of the fitted force over the RMS of
 //! `x''`) is at least `min_share`, and the judge of held-out predictions ([`crate::judge`]) does not
-//! find that it predicts worse by more than the judge resolves. Significant effects are ordered
+//! find that it predicts worse by more than the judge resolves, and its held-out drop lies beyond
+//! what the same scan finds on the start model's own simulated records (`null.rs`: the
+//! equation error's bias with nothing missing). Significant effects are ordered
 //! by the free-run R-MSE where the free run judges and shows skill (below 1), otherwise by the
 //! held-out equation error; the rest by held-out simulation R-MSE, then equation error. A
 //! significant effect that the ordering's own evidence does not tell from the top one (paired
@@ -249,17 +251,19 @@ pub(crate) fn with_equation(
     Ok(m)
 }
 
-struct DofSetup {
-    idx: usize,
-    base_terms: Vec<Term>,
+/// One DOF's equation as the start model has it: its terms, design, blocks and cross-validation.
+pub(crate) struct DofSetup {
+    pub idx: usize,
+    pub base_terms: Vec<Term>,
     base_design: Design,
     base_blocks: Vec<Compressed>,
-    base_cv: Cv,
+    pub base_cv: Cv,
     acc_rms: f64,
     scales: crate::prepare::DataScales,
 }
 
-fn setup_dof(
+/// The start model's equation of DOF `idx` on `states`.
+pub(crate) fn setup_dof(
     model: &Model,
     idx: usize,
     states: &[RecordStates],
@@ -296,7 +300,8 @@ fn setup_dof(
     })
 }
 
-fn context<'a>(
+/// What the catalogue's effects are told about the equation of `d`.
+pub(crate) fn context<'a>(
     model: &'a Model,
     d: &'a DofSetup,
     dt: f64,
@@ -377,7 +382,7 @@ pub(crate) fn best_variant(
 
 /// The held-out analysis of one (effect, DOF) pair before the multiple-comparison correction.
 pub(crate) struct Raw {
-    effect: String,
+    pub effect: String,
     pub dof_idx: usize,
     pub scored: Scored,
     p_raw: f64,
@@ -702,7 +707,9 @@ pub(crate) fn explain_with_runs(
                 &made
             }
         };
-        judge_candidates(model, &setups, &states, &layout, opts, &mut ranked, runs)
+        let judges = judge_candidates(model, &setups, &states, &layout, opts, &mut ranked, runs);
+        crate::null::calibrate(model, records, catalogue, opts, &mut ranked, runs, tests);
+        judges
     } else {
         setups
             .iter()

@@ -52,6 +52,7 @@ mod error;
 pub mod explain;
 pub mod judge;
 pub mod noise;
+mod null;
 mod polish;
 pub mod prepare;
 pub mod refit;

@@ -41,6 +41,10 @@ pub struct DiagnoseOptions {
     pub max_power: u32,
     /// Simulate refitted candidates on held-out data (`r_mse_after`); off saves time.
     pub simulate: bool,
+    /// Synthetic draws of the calibrated null (the start model's own simulations with the
+    /// estimated measurement noise) that every candidate passing the block tests is scanned on
+    /// again (`crate::null`); below 2 switches the null off. Needs `simulate`.
+    pub null_draws: usize,
 }
 
 impl Default for DiagnoseOptions {
@@ -58,6 +62,7 @@ impl Default for DiagnoseOptions {
             bins: 12,
             max_power: 7,
             simulate: true,
+            null_draws: 8,
         }
     }
 }

@@ -303,19 +303,26 @@ fn control_reports_no_stiffness_power() {
             "control@{seed}: {powers:?}; {}",
             d.verdict
         );
-        assert!(d.verdict.contains("pieces of"), "{}", d.verdict);
+        // The short horizon judged (the verdict names its pieces only when it reports an
+        // effect).
+        assert!(
+            d.ranked
+                .iter()
+                .all(|r| r.judge == Some(Judge::ShortHorizon)),
+            "{}",
+            d.verdict
+        );
     }
 }
 
-/// The double well with nothing hidden, on four noise draws: nothing should be significant. It
-/// is not so: a stop near the largest displacement (`above(x, 1.43)`) lowers the held-out
-/// equation error by 1.6-3.1 % on every draw (corrected p 5e-7..2e-5, 2.5 % of the force RMS,
-/// just above the size threshold) and its short-horizon predictions are not significantly worse.
-/// The model holds the truth's terms exactly, so this is a bias of the equation error itself on
-/// this motion (see docs/DECISIONS.md); ignored until the tests are calibrated for it.
-/// `TFS_CONTROL_PRINT_ONLY=1` prints without asserting.
+/// The double well with nothing hidden, on four noise draws: nothing is significant. A stop near
+/// the largest displacement (`above(x, 1.43)`) lowers the held-out equation error by 1.6-3.1 % on
+/// every draw (corrected block-test p 5e-7..2e-5, 2.5 % of the force RMS) and was reported:
+/// the model holds the truth's terms exactly, so that drop is a bias of the equation error on
+/// this motion. The same scan on the start model's own simulations of the records with the
+/// estimated measurement noise finds the same drop or more, so the calibrated null takes it
+/// back. `TFS_CONTROL_PRINT_ONLY=1` prints without asserting.
 #[test]
-#[ignore = "known false positive on the chaotic control (equation-error bias); run with --ignored"]
 fn control_has_no_significant_effect() {
     for seed in [700, 900, 1100, 500] {
         let d = control(seed);

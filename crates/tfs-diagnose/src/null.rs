@@ -1,0 +1,329 @@
+//! A calibrated null for the equation-error test: what the same scan finds on records that the
+//! start model itself made.
+//!
+//! The equation error is biased wherever the smoothed states differ systematically from the
+//! truth: noisy displacements low-passed, differentiated twice and put through a nonlinear
+//! library leave residuals that depend on the state (largest where the restoring force is
+//! steepest), and an effect local in the state — a stop near the largest displacement — fits
+//! them. The block tests treat that bias as signal. So every candidate that passes them is
+//! scanned again on synthetic records made without any missing effect: the start model's own
+//! simulation of each record under its measured inputs, plus fresh Gaussian noise with each
+//! channel's spectrum as the tool's noise estimate gives it (the floor
+//! `tfs_signal::band` fits to the upper half of the channel's spectrum), smoothed as the
+//! measured records are. The candidate's held-out drop over the draws is its null distribution,
+//! selection of the best variant included; the candidate stays significant only when its drop
+//! on the measured records lies beyond that distribution (a one-sided prediction t test over the
+//! draws, corrected like the block tests). A draw whose motion does not span the records' range
+//! is no null of them and is dropped; where the start model cannot be simulated on every record, or
+//! fewer than two draws remain, the null cannot be made and the block tests decide alone.
+
+use rayon::prelude::*;
+use statrs::distribution::{ContinuousCDF, StudentsT};
+use tfs_data::Record;
+use tfs_library::Model;
+use tfs_signal::band::{Band, noise_spectrum, reconstruct};
+
+use crate::effects::Catalogue;
+use crate::explain::{DofSetup, best_variant, context, setup_dof};
+use crate::judge::Candidate;
+use crate::prepare::{DiagnoseOptions, Layout, RecordStates};
+use crate::simulate::BaseRun;
+
+/// One record's material for synthetic draws: the noise band of every channel the draws
+/// perturb.
+struct Source<'a> {
+    record: &'a Record,
+    /// Per column of the record (in its order): the band of its noise, spanning every bin.
+    bands: Vec<Option<Band>>,
+}
+
+/// The held-out drop of every candidate on the synthetic records, with its test.
+#[derive(Debug, Clone, Copy)]
+struct NullTest {
+    mean: f64,
+    sd: f64,
+    draws: usize,
+    p: f64,
+}
+
+/// Re-judges every significant candidate in `ranked` against the calibrated null (see the
+/// module docs). `runs` are the start model's simulations of `records`; `tests` is the
+/// Bonferroni factor of the block tests.
+pub(crate) fn calibrate(
+    model: &Model,
+    records: &[Record],
+    catalogue: &Catalogue,
+    opts: &DiagnoseOptions,
+    ranked: &mut [Candidate],
+    runs: &[BaseRun],
+    tests: usize,
+) {
+    let flagged: Vec<usize> = (0..ranked.len())
+        .filter(|&k| ranked[k].entry.significant)
+        .collect();
+    if flagged.is_empty() || opts.null_draws < 2 {
+        return;
+    }
+    let Some(sources) = sources(model, records, runs) else {
+        return;
+    };
+    let jobs: Vec<(usize, String)> = flagged
+        .iter()
+        .map(|&k| (ranked[k].raw.dof_idx, ranked[k].raw.effect.clone()))
+        .collect();
+    let draws: Vec<Vec<Option<f64>>> = (0..opts.null_draws)
+        .into_par_iter()
+        .map(|i| draw(model, &sources, catalogue, opts, &jobs, i).unwrap_or_default())
+        .collect();
+    for (j, &k) in flagged.iter().enumerate() {
+        let d: Vec<f64> = draws
+            .iter()
+            .filter_map(|row| row.get(j).copied().flatten())
+            .filter(|v| v.is_finite())
+            .collect();
+        let Some(t) = null_test(&d, ranked[k].entry.delta_heldout) else {
+            continue;
+        };
+        let e = &mut ranked[k].entry;
+        let p = (t.p * tests as f64).min(1.0);
+        let null = format!(
+            "on {} simulations of the start model with the estimated measurement noise it falls {:.1} ± {:.1} %",
+            t.draws,
+            100.0 * t.mean,
+            100.0 * t.sd
+        );
+        if p < opts.alpha {
+            e.reason = format!("{}; {null} (corrected p = {p:.2e})", e.reason);
+        } else {
+            e.significant = false;
+            e.reason = format!(
+                "held-out equation error falls {:.1} %, but {null}: not beyond what the equation error's own bias gives with nothing missing (corrected p = {p:.2e} >= alpha = {})",
+                100.0 * e.delta_heldout,
+                opts.alpha
+            );
+        }
+    }
+}
+
+/// The one-sided prediction test of a new value `observed` against the draws `d`: its excess
+/// over their mean in units of their spread, `sd·√(1 + 1/n)`, referred to a t distribution
+/// with `n − 1` degrees of freedom (its exact tail: the draws are few, and a strong effect lies
+/// many spreads beyond them). `None` with fewer than two draws.
+fn null_test(d: &[f64], observed: f64) -> Option<NullTest> {
+    let n = d.len();
+    if n < 2 {
+        return None;
+    }
+    let mean = d.iter().sum::<f64>() / n as f64;
+    let sd = (d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt();
+    let scale = sd * (1.0 + 1.0 / n as f64).sqrt();
+    let p = if scale > 0.0 {
+        StudentsT::new(0.0, 1.0, (n - 1) as f64)
+            .ok()?
+            .sf((observed - mean) / scale)
+    } else if observed > mean {
+        0.0
+    } else {
+        1.0
+    };
+    Some(NullTest {
+        mean,
+        sd,
+        draws: n,
+        p,
+    })
+}
+
+/// The synthetic material of every record; `None` when the start model's simulation of some
+/// record is missing, failed or left the finite numbers (its perturbed simulations would too).
+fn sources<'a>(
+    model: &Model,
+    records: &'a [Record],
+    runs: &'a [BaseRun],
+) -> Option<Vec<Source<'a>>> {
+    records
+        .iter()
+        .zip(runs)
+        .map(|(r, run)| {
+            let tr = run.as_ref()?.as_ref().ok()?;
+            let ok = tr.x.len() == model.dofs.len()
+                && tr
+                    .x
+                    .iter()
+                    .all(|x| x.len() == r.len() && x.iter().all(|v| v.is_finite()))
+                && tr.v.len() == tr.x.len()
+                && tr.v.iter().all(|v| v.len() == r.len());
+            if !ok {
+                return None;
+            }
+            let dt = r.dt();
+            let bands = r
+                .names()
+                .iter()
+                .map(|c| {
+                    let b = reconstruct(r.column(c)?, dt, None).band;
+                    // Every bin, not only the reconstruction's band: this is the raw noise.
+                    let top = (b.mirror_len / 2) as f64 * b.bin_hz;
+                    Some(Band {
+                        cutoff_hz: top,
+                        ..b
+                    })
+                })
+                .collect();
+            Some(Source { record: r, bands })
+        })
+        .collect()
+}
+
+/// A seed for draw `i`, record `r`, column `c`, distinct for every triple.
+fn seed(base: u64, i: usize, r: usize, c: usize) -> u64 {
+    let mix = |h: u64, v: u64| (h ^ v).wrapping_mul(0x9E37_79B9_7F4A_7C15).rotate_left(29);
+    mix(mix(mix(base, i as u64 + 1), r as u64 + 1), c as u64 + 1)
+}
+
+/// Draw `i`: synthetic records, their smoothed states, and the held-out drop of
+/// each `(DOF, effect)` job's best variant (`None` where it cannot be scored).
+fn draw(
+    model: &Model,
+    sources: &[Source<'_>],
+    catalogue: &Catalogue,
+    opts: &DiagnoseOptions,
+    jobs: &[(usize, String)],
+    i: usize,
+) -> Option<Vec<Option<f64>>> {
+    let first = tfs_dynamics::SimulateOptions {
+        initial_state: tfs_dynamics::InitialState::FirstSamples,
+        ..Default::default()
+    };
+    let states: Vec<RecordStates> = sources
+        .iter()
+        .enumerate()
+        .map(|(r, s)| {
+            let noise = |c: usize, n: usize, salt: usize| -> Option<Vec<f64>> {
+                let b = s.bands[c].as_ref()?;
+                Some(
+                    noise_spectrum(b, seed(opts.seed, i, r, 2 * c + salt))?
+                        .series(n, 1, false)?
+                        .x,
+                )
+            };
+            let add = |v: &[f64], c: usize, salt: usize| -> Vec<f64> {
+                match noise(c, v.len(), salt) {
+                    Some(n) => v.iter().zip(&n).map(|(a, b)| a + b).collect(),
+                    None => v.to_vec(),
+                }
+            };
+            // The drive: the measured inputs plus a fresh draw of their noise, so that each
+            // draw follows its own trajectory where the motion is sensitive to the input. It
+            // starts at the record's first samples: fitting the start, as the model's own run
+            // of the record does, costs more than the rest of the simulation, and any plausible
+            // start serves a synthetic record.
+            let mut drive = s.record.clone();
+            for (c, name) in s.record.names().iter().enumerate() {
+                if model.inputs.contains(name) {
+                    drive
+                        .set_column(name.clone(), add(s.record.column(name)?, c, 0))
+                        .ok()?;
+                }
+            }
+            let drive = crate::simulate::augment_record(model, &drive, opts).ok()?;
+            let tr = tfs_dynamics::simulate_model_on_record(model, &drive, &first).ok()?;
+            // The record: the simulated displacements plus a draw of their noise, the inputs
+            // as measured.
+            let mut rec = s.record.clone();
+            for (c, name) in s.record.names().iter().enumerate() {
+                if let Some(j) = model.dofs.iter().position(|d| d == name) {
+                    let x = tr.x.get(j).filter(|x| x.len() == rec.len())?;
+                    if !x.iter().all(|v| v.is_finite()) {
+                        return None;
+                    }
+                    rec.set_column(name.clone(), add(x, c, 1)).ok()?;
+                }
+            }
+            RecordStates::new(model, &rec, opts).ok()
+        })
+        .collect::<Option<_>>()?;
+    // The start model is known only where the records went, and it is a null of these records
+    // only if it goes there too: a draw whose displacements do not span the records' range
+    // (each end within a tenth of the range: not leaving it for a well or a stretch the records
+    // never visited, not settling where they kept moving) is dropped.
+    for d in &model.dofs {
+        let measured = extent(sources.iter().filter_map(|s| s.record.column(d)));
+        let drawn = extent(states.iter().filter_map(|s| s.record.column(d)));
+        let w = 0.1 * (measured.1 - measured.0);
+        if !((drawn.0 - measured.0).abs() <= w && (drawn.1 - measured.1).abs() <= w) {
+            return None;
+        }
+    }
+    let layout = Layout::new(&states, opts).ok()?;
+    let dt = sources.first()?.record.dt();
+    let mut setups: Vec<Option<DofSetup>> = (0..model.dofs.len()).map(|_| None).collect();
+    let mut out = Vec::with_capacity(jobs.len());
+    for (idx, name) in jobs {
+        if setups[*idx].is_none() {
+            setups[*idx] = setup_dof(model, *idx, &states, &layout).ok();
+        }
+        let Some(d) = &setups[*idx] else {
+            out.push(None);
+            continue;
+        };
+        out.push(job_delta(
+            model, d, &states, &layout, catalogue, opts, name, dt,
+        ));
+    }
+    Some(out)
+}
+
+/// The smallest and largest value over `columns`.
+fn extent<'a>(columns: impl Iterator<Item = &'a [f64]>) -> (f64, f64) {
+    columns
+        .flatten()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {
+            (l.min(v), h.max(v))
+        })
+}
+
+/// The held-out drop of effect `name`'s best variant on the equation of `d`.
+#[allow(clippy::too_many_arguments)]
+fn job_delta(
+    model: &Model,
+    d: &DofSetup,
+    states: &[RecordStates],
+    layout: &Layout,
+    catalogue: &Catalogue,
+    opts: &DiagnoseOptions,
+    name: &str,
+    dt: f64,
+) -> Option<f64> {
+    let e = catalogue.effects().iter().find(|e| e.name() == name)?;
+    let vars = e.variants(&context(model, d, dt, opts));
+    let s = best_variant(states, layout, d.idx, &d.base_terms, &vars).ok()??;
+    let base: f64 = d.base_cv.heldout.iter().sum();
+    (base > 0.0).then(|| (base - s.cv_rss) / base)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_prediction_test_separates_a_gain_from_the_null_spread() {
+        let d = [0.020, 0.025, 0.018, 0.030, 0.022, 0.027, 0.021, 0.024];
+        // Inside the spread: no evidence.
+        assert!(null_test(&d, 0.026).unwrap().p > 0.2);
+        // Far beyond it: strong evidence.
+        assert!(null_test(&d, 0.2).unwrap().p < 1e-5);
+        assert!(null_test(&d[..1], 0.2).is_none());
+    }
+
+    #[test]
+    fn seeds_differ_for_every_draw_record_and_column() {
+        let mut all: Vec<u64> = (0..4)
+            .flat_map(|i| (0..3).flat_map(move |r| (0..3).map(move |c| seed(1, i, r, c))))
+            .collect();
+        let n = all.len();
+        all.sort_unstable();
+        all.dedup();
+        assert_eq!(all.len(), n);
+    }
+}
