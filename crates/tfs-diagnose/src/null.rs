@@ -191,70 +191,45 @@ fn draw(
     jobs: &[(usize, String)],
     i: usize,
 ) -> Option<Vec<Option<f64>>> {
-    let first = tfs_dynamics::SimulateOptions {
-        initial_state: tfs_dynamics::InitialState::FirstSamples,
-        ..Default::default()
-    };
-    let states: Vec<RecordStates> = sources
-        .iter()
-        .enumerate()
-        .map(|(r, s)| {
-            let noise = |c: usize, n: usize, salt: usize| -> Option<Vec<f64>> {
-                let b = s.bands[c].as_ref()?;
-                Some(
-                    noise_spectrum(b, seed(opts.seed, i, r, 2 * c + salt))?
-                        .series(n, 1, false)?
-                        .x,
-                )
-            };
-            let add = |v: &[f64], c: usize, salt: usize| -> Vec<f64> {
-                match noise(c, v.len(), salt) {
-                    Some(n) => v.iter().zip(&n).map(|(a, b)| a + b).collect(),
-                    None => v.to_vec(),
-                }
-            };
-            // The drive: the measured inputs plus a fresh draw of their noise, so that each
-            // draw follows its own trajectory where the motion is sensitive to the input. It
-            // starts at the record's first samples: fitting the start, as the model's own run
-            // of the record does, costs more than the rest of the simulation, and any plausible
-            // start serves a synthetic record.
-            let mut drive = s.record.clone();
-            for (c, name) in s.record.names().iter().enumerate() {
-                if model.inputs.contains(name) {
-                    drive
-                        .set_column(name.clone(), add(s.record.column(name)?, c, 0))
-                        .ok()?;
-                }
-            }
-            let drive = crate::simulate::augment_record(model, &drive, opts).ok()?;
-            let tr = tfs_dynamics::simulate_model_on_record(model, &drive, &first).ok()?;
-            // The record: the simulated displacements plus a draw of their noise, the inputs
-            // as measured.
-            let mut rec = s.record.clone();
-            for (c, name) in s.record.names().iter().enumerate() {
-                if let Some(j) = model.dofs.iter().position(|d| d == name) {
-                    let x = tr.x.get(j).filter(|x| x.len() == rec.len())?;
-                    if !x.iter().all(|v| v.is_finite()) {
-                        return None;
-                    }
-                    rec.set_column(name.clone(), add(x, c, 1)).ok()?;
-                }
-            }
-            RecordStates::new(model, &rec, opts).ok()
-        })
-        .collect::<Option<_>>()?;
     // The start model is known only where the records went, and it is a null of these records
     // only if it goes there too: a draw whose displacements do not span the records' range
     // (each end within a tenth of the range: not leaving it for a well or a stretch the records
-    // never visited, not settling where they kept moving) is dropped.
-    for d in &model.dofs {
-        let measured = extent(sources.iter().filter_map(|s| s.record.column(d)));
-        let drawn = extent(states.iter().filter_map(|s| s.record.column(d)));
-        let w = 0.1 * (measured.1 - measured.0);
-        if !((drawn.0 - measured.0).abs() <= w && (drawn.1 - measured.1).abs() <= w) {
+    // never visited, not settling where they kept moving) is dropped. A synthetic record that
+    // already reaches beyond an end by more than that settles it, so the draw stops there,
+    // before simulating the other records or smoothing any.
+    let measured: Vec<(f64, f64)> = model
+        .dofs
+        .iter()
+        .map(|d| extent(sources.iter().filter_map(|s| s.record.column(d))))
+        .collect();
+    let width = |m: (f64, f64)| 0.1 * (m.1 - m.0);
+    let within = |v: f64, end: f64, w: f64| (v - end).abs() <= w;
+    let mut recs = Vec::with_capacity(sources.len());
+    for (r, s) in sources.iter().enumerate() {
+        let rec = synthetic(model, s, opts, i, r)?;
+        for (d, &m) in model.dofs.iter().zip(&measured) {
+            let Some(x) = rec.column(d) else { continue };
+            let (lo, hi) = extent(std::iter::once(x));
+            let w = width(m);
+            // The union's ends lie at or beyond this record's, so an end already too far out
+            // stays too far out (the same test as on the union below).
+            if (lo < m.0 && !within(lo, m.0, w)) || (hi > m.1 && !within(hi, m.1, w)) {
+                return None;
+            }
+        }
+        recs.push(rec);
+    }
+    for (d, &m) in model.dofs.iter().zip(&measured) {
+        let drawn = extent(recs.iter().filter_map(|r| r.column(d)));
+        let w = width(m);
+        if !(within(drawn.0, m.0, w) && within(drawn.1, m.1, w)) {
             return None;
         }
     }
+    let states: Vec<RecordStates> = recs
+        .iter()
+        .map(|rec| RecordStates::new(model, rec, opts).ok())
+        .collect::<Option<_>>()?;
     let layout = Layout::new(&states, opts).ok()?;
     let dt = sources.first()?.record.dt();
     let mut setups: Vec<Option<DofSetup>> = (0..model.dofs.len()).map(|_| None).collect();
@@ -272,6 +247,64 @@ fn draw(
         ));
     }
     Some(out)
+}
+
+/// Draw `i`'s synthetic record `r`: the start model's simulation of source `s` under its
+/// measured inputs plus a fresh draw of their noise, with a draw of the displacements' noise
+/// added (`None` where it cannot be made or left the finite numbers).
+fn synthetic(
+    model: &Model,
+    s: &Source<'_>,
+    opts: &DiagnoseOptions,
+    i: usize,
+    r: usize,
+) -> Option<Record> {
+    let first = tfs_dynamics::SimulateOptions {
+        initial_state: tfs_dynamics::InitialState::FirstSamples,
+        ..Default::default()
+    };
+    let noise = |c: usize, n: usize, salt: usize| -> Option<Vec<f64>> {
+        let b = s.bands[c].as_ref()?;
+        Some(
+            noise_spectrum(b, seed(opts.seed, i, r, 2 * c + salt))?
+                .series(n, 1, false)?
+                .x,
+        )
+    };
+    let add = |v: &[f64], c: usize, salt: usize| -> Vec<f64> {
+        match noise(c, v.len(), salt) {
+            Some(n) => v.iter().zip(&n).map(|(a, b)| a + b).collect(),
+            None => v.to_vec(),
+        }
+    };
+    // The drive: the measured inputs plus a fresh draw of their noise, so that each draw
+    // follows its own trajectory where the motion is sensitive to the input. It starts at the
+    // record's first samples: fitting the start, as the model's own run of the record does,
+    // costs more than the rest of the simulation, and any plausible start serves a synthetic
+    // record.
+    let mut drive = s.record.clone();
+    for (c, name) in s.record.names().iter().enumerate() {
+        if model.inputs.contains(name) {
+            drive
+                .set_column(name.clone(), add(s.record.column(name)?, c, 0))
+                .ok()?;
+        }
+    }
+    let drive = crate::simulate::augment_record(model, &drive, opts).ok()?;
+    let tr = tfs_dynamics::simulate_model_on_record(model, &drive, &first).ok()?;
+    // The record: the simulated displacements plus a draw of their noise, the inputs as
+    // measured.
+    let mut rec = s.record.clone();
+    for (c, name) in s.record.names().iter().enumerate() {
+        if let Some(j) = model.dofs.iter().position(|d| d == name) {
+            let x = tr.x.get(j).filter(|x| x.len() == rec.len())?;
+            if !x.iter().all(|v| v.is_finite()) {
+                return None;
+            }
+            rec.set_column(name.clone(), add(x, c, 1)).ok()?;
+        }
+    }
+    Some(rec)
 }
 
 /// The smallest and largest value over `columns`.
