@@ -9,8 +9,9 @@
 //! scanned again on synthetic records made without any missing effect: the start model's own
 //! simulation of each record under its measured inputs, plus fresh Gaussian noise with each
 //! channel's spectrum as the tool's noise estimate gives it (the floor
-//! `tfs_signal::band` fits to the upper half of the channel's spectrum), smoothed as the
-//! measured records are. The candidate's held-out drop over the draws is its null distribution,
+//! `tfs_signal::band` fits to the upper half of the channel's spectrum; where that half is the
+//! signal's own tail and shows no floor, white noise at the largest level the spectrum allows),
+//! smoothed as the measured records are. The candidate's held-out drop over the draws is its null distribution,
 //! selection of the best variant included; the candidate stays significant only when its drop
 //! on the measured records lies beyond that distribution (a one-sided prediction t test over the
 //! draws, corrected like the block tests). A draw whose motion does not span the records' range
@@ -180,17 +181,32 @@ fn sources<'a>(
                 .iter()
                 .map(|c| {
                     let b = reconstruct(r.column(c)?, dt, None).band;
-                    // Every bin, not only the reconstruction's band: this is the raw noise.
-                    let top = (b.mirror_len / 2) as f64 * b.bin_hz;
-                    Some(Band {
-                        cutoff_hz: top,
-                        ..b
-                    })
+                    Some(raw_noise_band(&b))
                 })
                 .collect();
             Some(Source { record: r, bands })
         })
         .collect()
+}
+
+/// The band of a channel's raw measurement noise, as the tool's noise estimate gives it: every
+/// bin, not only the reconstruction's band. Where the channel's spectrum shows a noise floor,
+/// the fitted floor; where its upper half is the signal's own tail
+/// ([`Band::floor_is_signal_tail`]: no floor is visible), the extrapolated floor (its slope
+/// clamped to −2) would put noise of a signal's size at low frequencies, and the noise is only
+/// bounded: white noise at the lowest level the spectrum reaches, the largest the spectrum
+/// allows (white noise above it would show as a flat floor there, [`Band::white_noise_var_bound`]).
+fn raw_noise_band(b: &Band) -> Band {
+    let top_bin = b.mirror_len / 2;
+    let mut raw = Band {
+        cutoff_hz: top_bin as f64 * b.bin_hz,
+        ..*b
+    };
+    if b.floor_is_signal_tail && top_bin > 0 {
+        raw.floor_log_a = b.floor_log_a + b.floor_beta * (top_bin as f64).ln();
+        raw.floor_beta = 0.0;
+    }
+    raw
 }
 
 /// A seed for draw `i`, record `r`, column `c`, distinct for every triple.
@@ -385,6 +401,37 @@ mod tests {
         assert!(null_test(&gs, log_gain(0.031)).unwrap().p > 0.5);
         assert!((log_gain(0.01) - 0.01).abs() < 1e-4);
         assert!(log_gain(1.0).is_finite());
+    }
+
+    #[test]
+    fn a_channel_without_a_noise_floor_draws_white_noise_at_its_bound() {
+        let b = Band {
+            cutoff_hz: 5.0,
+            mse_cutoff_hz: 5.0,
+            noise_floor: 1.0,
+            in_band_noise_share: 0.0,
+            noise_var: 0.0,
+            floor_log_a: 20.0,
+            floor_beta: -2.0,
+            bin_hz: 0.01,
+            mirror_len: 20_000,
+            floor_is_signal_tail: true,
+        };
+        let raw = raw_noise_band(&b);
+        assert_eq!(raw.cutoff_hz, 100.0);
+        assert_eq!(raw.floor_beta, 0.0);
+        // Flat at the extrapolated floor's lowest level: its variance is the white bound, far
+        // below the extrapolated floor's (which puts its power at low frequencies).
+        let bound = b.white_noise_var_bound();
+        assert!((raw.total_noise_var() / bound - 1.0).abs() < 1e-9);
+        assert!(b.total_noise_var() > 1e3 * bound);
+        // A visible floor is drawn as fitted, over every bin.
+        let seen = raw_noise_band(&Band {
+            floor_is_signal_tail: false,
+            ..b
+        });
+        assert_eq!((seen.floor_log_a, seen.floor_beta), (20.0, -2.0));
+        assert_eq!(seen.cutoff_hz, 100.0);
     }
 
     #[test]
