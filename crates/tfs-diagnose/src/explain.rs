@@ -355,7 +355,9 @@ pub(crate) fn score_variant(
 
 /// Scores every variant of one effect on the equation of DOF `idx` (terms `base`) and returns
 /// the best (lowest held-out RSS), an internal state's parameters then refined locally by the
-/// same criterion ([`crate::polish`]).
+/// same criterion ([`crate::polish`]). The variants are scored side by side (an effect with
+/// many variants was otherwise the scan's serial tail), the choice the same as in order
+/// ([`crate::stats::first_lowest`]).
 pub(crate) fn best_variant(
     states: &[RecordStates],
     layout: &Layout,
@@ -363,21 +365,12 @@ pub(crate) fn best_variant(
     base: &[Term],
     variants: &[Variant],
 ) -> Result<Option<Scored>> {
-    let mut best: Option<Scored> = None;
-    for v in variants {
-        let s = score_variant(states, layout, idx, base, v)?;
-        if best.as_ref().is_none_or(|b| s.cv_rss < b.cv_rss) {
-            best = Some(s);
-        }
-    }
-    match best {
-        Some(b) => {
-            let dt = states.first().map_or(0.0, |s| s.record.dt());
-            let score = |v: &Variant| score_variant(states, layout, idx, base, v);
-            Ok(Some(crate::polish::polish(b, variants, &score, dt)?))
-        }
-        None => Ok(None),
-    }
+    let score = |v: &Variant| score_variant(states, layout, idx, base, v);
+    let Some(best) = crate::stats::first_lowest(variants, &score, |s: &Scored| s.cv_rss)? else {
+        return Ok(None);
+    };
+    let dt = states.first().map_or(0.0, |s| s.record.dt());
+    Ok(Some(crate::polish::polish(best, variants, &score, dt)?))
 }
 
 /// The held-out analysis of one (effect, DOF) pair before the multiple-comparison correction.
