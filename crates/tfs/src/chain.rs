@@ -40,6 +40,12 @@ pub struct CellStates {
     /// [`FoldedBalance`]): not among [`CellStates::stable`], though the model's dynamics (and
     /// its chain wells) have it.
     pub folded: Option<FoldedBalance>,
+    /// Stable heights at which the cell presses into a stop of its own law (`below(h, c)` with
+    /// h < c, `above(h, c)` with h > c): the cell resting on its contact. A law whose balance at
+    /// the fold is unstable (a polynomial without a constant term) has one wherever its stop
+    /// lies a little past the fold, however little. Not among [`CellStates::stable`], which
+    /// are the balances of the cell's law off its contact, as the truth's are read.
+    pub on_stop: Vec<f64>,
 }
 
 /// The model's cell balances at h = 0 (the cell folded flat) because no term of its law pushes
@@ -180,19 +186,21 @@ fn cell_laws(label: &str, model: &Model, search: (f64, f64)) -> Result<Vec<(Cell
         }
         let law = CellLaw { own, shift };
         let w = law.wells(search).with_context(context)?;
-        let folded = folded_balance(&cell_model(model, i), dof, &law, w.stable());
-        let stable = w
+        let cell = cell_model(model, i);
+        let folded = folded_balance(&cell, dof, &law, w.stable());
+        let (on_stop, stable): (Vec<f64>, Vec<f64>) = w
             .stable()
             .iter()
             .copied()
             .filter(|h| folded.is_none() || h.abs() > AT_ZERO)
-            .collect();
+            .partition(|h| presses_stop(&cell, dof, *h));
         let states = CellStates {
             stable,
             unstable: w.unstable().to_vec(),
             coupling_at_rest: 0.0 - shift,
             by_next,
             folded,
+            on_stop,
         };
         out.push((law, states));
     }
@@ -222,6 +230,20 @@ fn folded_balance(cell: &Model, dof: &str, law: &CellLaw, stable: &[f64]) -> Opt
         term: linear.term.to_string(),
         coef: linear.coef,
         interval: [lo, hi],
+    })
+}
+
+/// Whether height `h` presses cell `dof` into a stop of its own terms (`cell`'s equation of
+/// `dof`): `below(q, c)` with h < c or `above(q, c)` with h > c, `q` the cell's coordinate.
+fn presses_stop(cell: &Model, dof: &str, h: f64) -> bool {
+    let Ok(eq) = cell.equation(dof) else {
+        return false;
+    };
+    let own = |v: &Var| matches!(v, Var::Disp(n) | Var::RelDisp(n, _) if n == dof);
+    eq.terms.iter().any(|t| match t.term.factors() {
+        [Factor::Below(v, c)] => own(v) && h < *c,
+        [Factor::Above(v, c)] => own(v) && h > *c,
+        _ => false,
     })
 }
 
@@ -352,6 +374,7 @@ pub fn truth_chain(chain: &Chain, search: (f64, f64)) -> Result<ChainModel> {
             coupling_at_rest: 0.0,
             by_next: Vec::new(),
             folded: None,
+            on_stop: Vec::new(),
         });
         potentials.push(Arc::new(move |h| v.potential(h)));
     }

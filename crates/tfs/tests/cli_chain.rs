@@ -336,7 +336,9 @@ fn the_readme_chain_is_identified_from_the_cli_clean_and_at_30_db() {
         b.contains("basin of S1") && b.contains("basin of S2"),
         "{b}"
     );
-    assert!(!b.contains("diverged"), "{b}");
+    // No start falls through a fold (a start that ends resting on a cell's stop, which is not a
+    // stable state, is counted unsettled).
+    assert!(!b.contains("diverged") || b.contains("diverged: 0 "), "{b}");
     assert!(Path::new(&png).exists());
     let med = ok(&["med", "--model", &refit, "--grid", "30x30"]);
     assert!(

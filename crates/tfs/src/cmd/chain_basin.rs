@@ -86,7 +86,7 @@ pub fn folded_json(s: &CellStates) -> Value {
 /// The cells, states and shares as JSON.
 pub fn chain_json(c: &ChainMap) -> Value {
     json!({
-        "cells": c.chain.cells.iter().map(|s| json!({"stable": s.stable, "unstable": s.unstable, "folded_undecided": folded_json(s)})).collect::<Vec<_>>(),
+        "cells": c.chain.cells.iter().map(|s| json!({"stable": s.stable, "unstable": s.unstable, "folded_undecided": folded_json(s), "rests_on_stop": s.on_stop})).collect::<Vec<_>>(),
         "masses": c.chain.masses,
         "stable": c.chain.wells.stable(),
         "slice": "x_i(0) = x_i(S1) + dx, v_i(0) = v0",
@@ -124,6 +124,12 @@ pub fn print_cells(cells: &[CellStates], tied: bool) {
                 super::trace_view::sig(f.interval[0]),
                 super::trace_view::sig(f.interval[1]),
                 i + 1
+            );
+        }
+        if !s.on_stop.is_empty() {
+            println!(
+                "  it also rests pressed into its stop at h = {}: not counted as a stable state (a stop a little past the fold holds the folded cell where the law's balance at the fold is unstable)",
+                list(&s.on_stop)
             );
         }
         if tied || s.by_next.is_empty() {

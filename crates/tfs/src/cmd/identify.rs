@@ -250,6 +250,7 @@ fn chain_cells_json(model: &tfs::library::Model) -> serde_json::Value {
             "unstable": c.unstable,
             "coupling_at_rest": c.coupling_at_rest,
             "folded_undecided": super::chain_basin::folded_json(c),
+            "rests_on_stop": c.on_stop,
             "stable_by_next_state": c.by_next.iter().map(|(z, h)| serde_json::json!({"next": z, "stable": h})).collect::<Vec<_>>(),
         })).collect::<Vec<_>>()),
         Err(e) => serde_json::json!(format!("not read ({})", tfs::one_line(&e))),
