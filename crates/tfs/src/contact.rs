@@ -7,17 +7,23 @@
 //! contact is at 0 with k = 11,072, and the cell's polynomial force moves further from the truth
 //! than before the stop). The weak form of T-F-S integrates the equation against smooth test
 //! functions, so the contact enters through the momentum it changes, not through a smoothed
-//! spike. After a stop is added to a one-DOF T-F-S model, [`rescan_stop`] re-identifies the
-//! equation by T-F-S with the model's library plus the stop at each position on a grid from the
-//! data's extreme past the loop's choice, shortlists the positions whose held-out residual
-//! (Criterion 4's σ on the held-out record) is lowest, takes the one among them that simulates
-//! the records best, and keeps that model only if it simulates them better than the
-//! equation-error fit.
+//! spike. After a stop is added to a T-F-S model, [`rescan_stop`] re-identifies the model by
+//! T-F-S with its libraries plus the stop at each position on a grid from the data's extreme
+//! inwards, shortlists the positions whose held-out residual (Criterion 4's σ on the held-out
+//! record) is lowest, takes the one among them that simulates the records best, and keeps that
+//! model only if it simulates them better than the equation-error fit.
+//!
+//! In a chain (DOFs `x1..xN`, cell `i` between `x(i-1)` and `xi`) a cell's stop acts on the
+//! cell's own height: `x1` for cell 1, `(xi-x(i-1))` for cell `i`. The loop may put the stop of
+//! `stop@xi` on the absolute `xi` (on smoothed states a contact of the cell is as visible there
+//! as anywhere, that is, hardly); the re-scan moves it to the cell's height, puts it in the
+//! equations of both DOFs the cell connects (the force on `x(i-1)` is the reaction) and, for a
+//! tied chain, fits it tied like every other term of the cell.
 
 use serde_json::json;
-use tfs_criteria::{IdentifySpec, identify_tfs};
+use tfs_criteria::{IdentifySpec, MassChoice, TieOptions, identify_tfs, identify_tfs_tied};
 use tfs_data::Record;
-use tfs_library::{Factor, HistoryEntry, Model, RecordScore, Term};
+use tfs_library::{Coord, Factor, HistoryEntry, Model, RecordScore, Term, Var};
 
 use crate::error::Result;
 
@@ -25,6 +31,9 @@ use crate::error::Result;
 const GRID: usize = 25;
 /// Positions of lowest held-out residual that are simulated to choose among them.
 const SHORTLIST: usize = 5;
+/// How far in from the data's extreme a stop moved to another coordinate is scanned, as a share
+/// of the coordinate's span: the deepest position the loop's stop effect offers.
+const REACH_SHARE: f64 = 0.2;
 
 /// What [`rescan_stop`] did, in words for the ladder and the report (`--json`: `stops`).
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -41,105 +50,263 @@ pub struct StopRescan {
     pub why: String,
 }
 
-/// The one-factor stop term (`below(q, c)` or `above(q, c)`) that `after` has and `before` lacks.
-fn added_stop(before: &Model, after: &Model) -> Option<Term> {
-    let old: Vec<&Term> = before.equations[0].terms.iter().map(|t| &t.term).collect();
-    after.equations[0]
-        .terms
-        .iter()
-        .map(|t| &t.term)
-        .filter(|t| !old.contains(t))
-        .find(|t| matches!(t.factors(), [Factor::Below(..)] | [Factor::Above(..)]))
-        .cloned()
-}
-
-/// The stop `term` moved to position `c`.
-fn at(term: &Term, c: f64) -> Term {
-    let f = match &term.factors()[0] {
-        Factor::Below(v, _) => Factor::Below(v.clone(), c),
-        Factor::Above(v, _) => Factor::Above(v.clone(), c),
-        other => other.clone(),
+/// The one-factor stop term (`below(q, c)` or `above(q, c)`) that `after` has and `before`
+/// lacks, with the index of the equation it was added to: DOF `dof`'s when it names one (the
+/// effect was asked for there, `stop@x2`; the loop also puts a stop on a coupling into the
+/// partner's equation), else the first that has one.
+fn added_stop(before: &Model, after: &Model, dof: Option<&str>) -> Option<(usize, Term)> {
+    let new_stop = |i: usize| {
+        let eq = after.equations.iter().find(|e| e.dof == after.dofs[i])?;
+        let old: Vec<&Term> = before
+            .equations
+            .iter()
+            .find(|e| e.dof == eq.dof)
+            .map(|e| e.terms.iter().map(|t| &t.term).collect())
+            .unwrap_or_default();
+        eq.terms
+            .iter()
+            .map(|t| &t.term)
+            .filter(|t| !old.contains(t))
+            .find(|t| matches!(t.factors(), [Factor::Below(..)] | [Factor::Above(..)]))
+            .map(|t| (i, t.clone()))
     };
-    Term::new(vec![f])
-}
-
-/// A model's mean free-run R-MSE over the records, with the score of each.
-type Scores = (f64, Vec<RecordScore>);
-
-/// Mean free-run R-MSE over `records`, `None` when any record cannot be simulated.
-fn mean_r_mse(model: &Model, records: &[Record]) -> Option<Scores> {
-    let mut scores = Vec::with_capacity(records.len());
-    for r in records {
-        let v = tfs_diagnose::r_mse(model, r).ok()?;
-        scores.push(RecordScore {
-            record: r.source().to_string(),
-            r_mse: v,
-        });
+    let named = dof.and_then(|d| after.dofs.iter().position(|x| x == d));
+    match named {
+        Some(i) => new_stop(i),
+        None => (0..after.dofs.len()).find_map(new_stop),
     }
-    let mean = scores.iter().map(|s| s.r_mse).sum::<f64>() / scores.len().max(1) as f64;
-    Some((mean, scores))
 }
 
-/// One T-F-S fit with the stop at `c`: the model and its held-out σ, `None` when the fit fails
-/// or drops the stop.
-fn fit_at(
-    library: &[String],
-    dof: &str,
-    stop: &Term,
-    c: f64,
-    records: &[Record],
-) -> Option<(f64, tfs_criteria::Identified)> {
-    let term = at(stop, c);
-    let mut lib = library.to_vec();
-    lib.push(term.to_string());
-    let spec = IdentifySpec::new(&[dof], &lib.join(", "));
-    let id = identify_tfs(records, &spec).ok()?;
-    let keeps = id.model.equations[0].terms.iter().any(|t| t.term == term);
-    let sigma = id.trace.dofs.first()?.assembly.last()?.sigma;
-    (keeps && sigma.is_finite()).then_some((sigma, id))
+/// Where the re-scanned stop goes: the coordinate it acts on, the DOF whose equation owns it and
+/// the DOF that feels its reaction (the lower DOF of a chain cell's relative height).
+#[derive(Debug, Clone, PartialEq)]
+struct Placement {
+    var: Var,
+    owner: usize,
+    partner: Option<usize>,
+    below: bool,
 }
 
-/// Re-identifies a one-DOF T-F-S model to which the loop has just added a stop (`after`, refitted
-/// from `before` by equation error) with the stop's position scanned by the model's own method
-/// (module docs). Returns `None` when it does not apply (several DOFs, another method, no stop
-/// added, no library in the trace); otherwise the model to use and what was done.
+/// A chain cell's own height: `x1` for the first DOF, `(xk-x(k-1))` for DOF `k`.
+fn cell_height(dofs: &[String], k: usize) -> Var {
+    if k == 0 {
+        Var::Disp(dofs[0].clone())
+    } else {
+        Var::RelDisp(dofs[k].clone(), Coord::Dof(dofs[k - 1].clone()))
+    }
+}
+
+/// The placement of a stop the loop put on `var` in DOF `eq`'s equation. A model of several
+/// DOFs is read as a chain when its libraries name the relative heights `(xk-x(k-1))` of
+/// neighbouring DOFs: a stop added to DOF `k`'s equation (`stop@xk`) is then cell `k`'s stop, on
+/// the cell's height, owned by DOF `k` with DOF `k-1` feeling the reaction, whichever coordinate
+/// of the equation the loop put it on. Otherwise the stop stays on the loop's coordinate in the
+/// loop's equation.
+fn placement(
+    dofs: &[String],
+    libraries: &[Vec<String>],
+    var: &Var,
+    eq: usize,
+    below: bool,
+) -> Placement {
+    let is_chain = dofs.len() > 1
+        && (1..dofs.len()).all(|k| {
+            let h = cell_height(dofs, k);
+            libraries
+                .iter()
+                .flatten()
+                .any(|t| Term::parse(t, dofs).is_ok_and(|t| t.vars().contains(&&h)))
+        });
+    if is_chain {
+        Placement {
+            var: cell_height(dofs, eq),
+            owner: eq,
+            partner: eq.checked_sub(1),
+            below,
+        }
+    } else {
+        Placement {
+            var: var.clone(),
+            owner: eq,
+            partner: None,
+            below,
+        }
+    }
+}
+
+impl Placement {
+    /// The stop at position `c`.
+    fn term(&self, c: f64) -> Term {
+        let f = if self.below {
+            Factor::Below(self.var.clone(), c)
+        } else {
+            Factor::Above(self.var.clone(), c)
+        };
+        Term::new(vec![f])
+    }
+}
+
+/// A model's free-run R-MSE on the records: how many records fail to simulate, the mean R-MSE
+/// over the others, and the score of each.
+#[derive(Debug, Clone)]
+struct Scores {
+    /// Each failed record with why (`record: error`).
+    failed: Vec<String>,
+    mean: f64,
+    each: Vec<RecordScore>,
+}
+
+impl Scores {
+    /// Fewer failed records first, then the lower mean.
+    fn better_than(&self, other: &Scores) -> bool {
+        self.key() < other.key()
+    }
+
+    fn key(&self) -> (usize, f64) {
+        let mean = if self.mean.is_finite() {
+            self.mean
+        } else {
+            f64::INFINITY
+        };
+        (self.failed.len(), mean)
+    }
+
+    fn describe(&self, n: usize) -> String {
+        match self.failed.len() {
+            0 => format!("{:.4e}", self.mean),
+            f if f == n => format!("a failed simulation on all {n} records"),
+            f => format!("{:.4e} with {f} of {n} records failing", self.mean),
+        }
+    }
+}
+
+/// Free-run R-MSE of `model` on each record (records that cannot be simulated counted apart).
+fn score(model: &Model, records: &[Record]) -> Scores {
+    let mut each = Vec::with_capacity(records.len());
+    let mut failed = Vec::new();
+    for r in records {
+        match tfs_diagnose::r_mse(model, r) {
+            Ok(v) if v.is_finite() => each.push(RecordScore {
+                record: r.source().to_string(),
+                r_mse: v,
+            }),
+            Ok(v) => failed.push(format!("{}: R-MSE {v}", r.source())),
+            Err(e) => failed.push(format!("{}: {e}", r.source())),
+        }
+    }
+    let mean = if each.is_empty() {
+        f64::INFINITY
+    } else {
+        each.iter().map(|s| s.r_mse).sum::<f64>() / each.len() as f64
+    };
+    Scores { failed, mean, each }
+}
+
+/// How the model is re-identified: the DOFs, each DOF's library (without the stop), and the tie
+/// options of a tied chain.
+struct Refit<'a> {
+    dofs: Vec<&'a str>,
+    libraries: Vec<Vec<String>>,
+    tie: Option<TieOptions>,
+}
+
+impl Refit<'_> {
+    /// One T-F-S fit with the stop at `c`: the model and the owner's held-out σ, `None` when the
+    /// fit fails, drops the stop from the owner's equation, or gives it a coefficient that pulls
+    /// the coordinate into the contact instead of pushing it out.
+    fn at(&self, place: &Placement, c: f64, records: &[Record]) -> Option<(f64, Model)> {
+        let term = place.term(c);
+        let libs: Vec<String> = self
+            .libraries
+            .iter()
+            .enumerate()
+            .map(|(d, lib)| {
+                let mut lib = lib.clone();
+                if d == place.owner || Some(d) == place.partner {
+                    lib.push(term.to_string());
+                }
+                lib.join(", ")
+            })
+            .collect();
+        let mut spec = IdentifySpec::new(&self.dofs, &libs[0]);
+        spec.dof_libraries = libs;
+        let id = match &self.tie {
+            Some(tie) => identify_tfs_tied(records, &spec, tie).ok()?,
+            None => identify_tfs(records, &spec).ok()?,
+        };
+        // A stop pushes its coordinate back out of the contact: up below it, down above it.
+        let push = if place.below { 1.0 } else { -1.0 };
+        let keeps = id.model.equations[place.owner]
+            .terms
+            .iter()
+            .any(|t| t.term == term && push * t.coef > 0.0);
+        let sigma = id.trace.dofs.get(place.owner)?.assembly.last()?.sigma;
+        (keeps && sigma.is_finite()).then(|| (sigma, id.model_with_trace()))
+    }
+}
+
+/// Each DOF's library as the model's trace gives it, with the equation's own terms of `before`
+/// (a term added by the loop); `None` when the trace has no library for some DOF.
+fn libraries(before: &Model) -> Option<Vec<Vec<String>>> {
+    before
+        .dofs
+        .iter()
+        .enumerate()
+        .map(|(d, dof)| {
+            let mut lib: Vec<String> = before.trace["dofs"][d]["library"]
+                .as_array()?
+                .iter()
+                .filter_map(|v| v.as_str().map(str::to_string))
+                .collect();
+            if lib.is_empty() {
+                return None;
+            }
+            let eq = before.equations.iter().find(|e| &e.dof == dof)?;
+            for t in &eq.terms {
+                let s = t.term.to_string();
+                if !lib.contains(&s) {
+                    lib.push(s);
+                }
+            }
+            Some(lib)
+        })
+        .collect()
+}
+
+/// Re-identifies a T-F-S model to which the loop has just added a stop (`after`, refitted from
+/// `before` by equation error) with the stop's position scanned by the model's own method (module
+/// docs; a chain cell's stop on the cell's height, tied in a tied chain). `dof` is the DOF the
+/// stop was asked for (`stop@x2`), `None` when the effect named none. Returns `None` when it
+/// does not apply (another method, no stop added, no library in the trace); otherwise the model
+/// to use and what was done.
 pub fn rescan_stop(
     before: &Model,
     after: &Model,
+    dof: Option<&str>,
     records: &[Record],
 ) -> Result<Option<(Model, StopRescan)>> {
-    if before.dofs.len() != 1 || after.method != "tfs-sindy" || records.is_empty() {
+    let tied = crate::chain::is_tied(before);
+    let tfs = matches!(after.method.as_str(), "tfs-sindy" | "tfs-sindy-tied");
+    if !tfs || records.is_empty() || before.dofs.len() != before.equations.len() {
         return Ok(None);
     }
-    let Some(stop) = added_stop(before, after) else {
+    let Some((eq, stop)) = added_stop(before, after, dof) else {
         return Ok(None);
     };
-    let dof = before.dofs[0].clone();
-    // The library T-F-S chose from, with the model's own terms (a term added by the loop).
-    let mut library: Vec<String> = before.trace["dofs"][0]["library"]
-        .as_array()
-        .into_iter()
-        .flatten()
-        .filter_map(|v| v.as_str().map(str::to_string))
-        .collect();
-    if library.is_empty() {
+    let Some(libraries) = libraries(before) else {
         return Ok(None);
-    }
-    for t in &before.equations[0].terms {
-        let s = t.term.to_string();
-        if !library.contains(&s) {
-            library.push(s);
-        }
-    }
-    let (Factor::Below(v, c0) | Factor::Above(v, c0)) = &stop.factors()[0] else {
+    };
+    let (Factor::Below(v0, c0) | Factor::Above(v0, c0)) = &stop.factors()[0] else {
         return Ok(None);
     };
     let below = matches!(stop.factors()[0], Factor::Below(..));
-    // The data's range over every record; the stop's side of it is where a contact holds.
+    let place = placement(&before.dofs, &libraries, v0, eq, below);
+    // The data's range of the stop's coordinate over every record; the stop's side of it is
+    // where a contact holds.
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for r in records {
-        let Ok(col) = tfs_library::evaluate_term(&Term::new(vec![Factor::Pow(v.clone(), 1)]), r)
-        else {
+        let height = Term::new(vec![Factor::Pow(place.var.clone(), 1)]);
+        let Ok(col) = tfs_library::evaluate_term(&height, r) else {
             return Ok(None);
         };
         for &x in &col {
@@ -149,11 +316,21 @@ pub fn rescan_stop(
     }
     let extreme = if below { lo } else { hi };
     let span = hi - lo;
-    let reach = (c0 - extreme).abs();
+    // From the extreme (a stop beyond it never engages) to as far past the loop's choice, or,
+    // for a stop moved to another coordinate, as deep in as the loop's stop effect looks.
+    let reach = if place.var == *v0 {
+        (c0 - extreme).abs()
+    } else {
+        0.5 * REACH_SHARE * span
+    };
     if !(span > 0.0 && reach > 0.0 && reach.is_finite()) {
         return Ok(None);
     }
-    // From the extreme (a stop beyond it never engages) to as far past the loop's choice.
+    let refit = Refit {
+        dofs: before.dofs.iter().map(String::as_str).collect(),
+        libraries,
+        tie: tied.then(|| TieOptions::new(MassChoice::Given(crate::chain::fit_masses(before)))),
+    };
     // Positions to a decimal place about 1e-4 of the span, so the term's name is exact.
     let places = (-(span * 1e-4).log10().floor()).clamp(0.0, 12.0) as usize;
     let round = |c: f64| {
@@ -169,10 +346,7 @@ pub fn rescan_stop(
     let scan = |cs: &[f64]| -> Vec<(f64, f64, Model)> {
         use rayon::prelude::*;
         cs.par_iter()
-            .filter_map(|&c| {
-                fit_at(&library, &dof, &stop, c, records)
-                    .map(|(s, id)| (c, s, id.model_with_trace()))
-            })
+            .filter_map(|&c| refit.at(&place, c, records).map(|(s, m)| (c, s, m)))
             .collect()
     };
     let mut scored = scan(&coarse);
@@ -188,7 +362,12 @@ pub fn rescan_stop(
                 to: stop.to_string(),
                 coef: f64::NAN,
                 kept: false,
-                why: "T-F-S kept no stop at any position between the data's extreme and the loop's choice; the equation-error fit stays".into(),
+                why: format!(
+                    "T-F-S kept no stop {}({}, c) pushing out of the contact at any position c from the data's extreme ({extreme:.4}) to {:.4} in from it; the equation-error fit stays",
+                    if below { "below" } else { "above" },
+                    place.var,
+                    2.0 * reach
+                ),
             },
         )));
     };
@@ -204,44 +383,48 @@ pub fn rescan_stop(
     let positions = scored.len();
     scored.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.total_cmp(&b.0)));
     scored.truncate(SHORTLIST);
-    let shortlist: Vec<(f64, f64, Model, Option<Scores>)> = {
+    let shortlist: Vec<(f64, f64, Model, Scores)> = {
         use rayon::prelude::*;
         scored
             .into_par_iter()
             .map(|(c, sigma, m)| {
-                let score = mean_r_mse(&m, records);
-                (c, sigma, m, score)
+                let s = score(&m, records);
+                (c, sigma, m, s)
             })
             .collect()
     };
     let Some((c, sigma, mut model, ours)) = shortlist.into_iter().min_by(|a, b| {
-        let key = |s: &Option<Scores>| s.as_ref().map_or(f64::INFINITY, |v| v.0);
-        key(&a.3).total_cmp(&key(&b.3)).then(a.1.total_cmp(&b.1))
+        a.3.key()
+            .partial_cmp(&b.3.key())
+            .unwrap_or(std::cmp::Ordering::Equal)
+            .then(a.1.total_cmp(&b.1))
     }) else {
         return Ok(None);
     };
-    let term = at(&stop, c);
-    let coef = model.equations[0]
+    let term = place.term(c);
+    let coef = model.equations[place.owner]
         .terms
         .iter()
         .find(|t| t.term == term)
         .map_or(f64::NAN, |t| t.coef);
-    let theirs = mean_r_mse(after, records);
-    let kept = match (&ours, &theirs) {
-        (Some((a, _)), Some((b, _))) => a < b,
-        (Some(_), None) => true,
-        _ => false,
-    };
-    let fmt = |m: &Option<Scores>| match m {
-        Some((v, _)) => format!("{v:.4e}"),
-        None => "a failed simulation".to_string(),
-    };
+    let theirs = score(after, records);
+    // When neither model simulates any record (a chain whose other cell still falls through
+    // its fold), the simulations cannot choose; the re-identified model, with the stop where the
+    // model's own criterion puts it on the cell's height, is then used.
+    let none_simulate = ours.each.is_empty() && theirs.each.is_empty();
+    let kept = none_simulate || (!ours.each.is_empty() && ours.better_than(&theirs));
+    let n = records.len();
     let why = format!(
-        "T-F-S with the stop at {} positions from the data's extreme ({extreme:.4}) past the loop's choice ({c0}): of the {SHORTLIST} with the lowest held-out residual, c = {c} simulates the records best (σ = {sigma:.4}), stiffness {coef:.4e}; mean R-MSE {} against {} for the equation-error fit, so {}",
+        "T-F-S{} with the stop {} at {} positions from the data's extreme ({extreme:.4}) to {:.4} in from it: of the {SHORTLIST} with the lowest held-out residual, c = {c} simulates the records best (σ = {sigma:.4}), stiffness {coef:.4e}; mean R-MSE {} against {} for the equation-error fit ({stop}), so {}",
+        if tied { " (tied)" } else { "" },
+        place.term(c),
         positions,
-        fmt(&ours),
-        fmt(&theirs),
-        if kept {
+        2.0 * reach,
+        ours.describe(n),
+        theirs.describe(n),
+        if none_simulate {
+            "the simulations cannot choose and the re-identified model is used"
+        } else if kept {
             "the re-identified model is used"
         } else {
             "the equation-error fit stays"
@@ -259,12 +442,12 @@ pub fn rescan_stop(
     }
     // The re-identified model keeps the loop's history, with one more rung.
     model.history = after.history.clone();
-    let scores = ours.map(|(_, s)| s).unwrap_or_default();
+    let failed = ours.failed.clone();
     model.history.push(HistoryEntry {
         step: "stop by T-F-S".into(),
         added: vec![term.to_string()],
-        r_mse: scores,
-        details: json!({"equations": model.equation_string(), "from": stop.to_string(), "why": report.why, "failed": []}),
+        r_mse: ours.each,
+        details: json!({"equations": model.equation_string(), "from": stop.to_string(), "why": report.why, "failed": failed}),
     });
     Ok(Some((model, report)))
 }

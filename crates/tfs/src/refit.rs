@@ -9,7 +9,7 @@ use tfs_diagnose::{
     Catalogue, DiagnoseOptions, LadderStep, SharedTerm, add_effect_with, error_ladder, explain,
     refit_shared,
 };
-use tfs_library::{Library, Model};
+use tfs_library::{Factor, Library, Model, Term};
 
 use crate::contact::{StopRescan, rescan_stop};
 use crate::error::{Context, Result};
@@ -71,39 +71,76 @@ pub fn until_clean(
     max_rounds: usize,
     opts: &DiagnoseOptions,
 ) -> Result<(Model, Vec<LoopRound>)> {
-    let mut stops = Vec::new();
-    until_clean_with(model, records, max_rounds, opts, &mut stops)
+    let mut notes = AddNotes::default();
+    until_clean_with(model, records, max_rounds, opts, &mut notes)
+}
+
+/// What adding effects said beside the model: each stop's re-scan, and warnings.
+#[derive(Debug, Default)]
+struct AddNotes {
+    stops: Vec<StopRescan>,
+    warnings: Vec<String>,
 }
 
 /// Adds effect `name` to `model` (refitting on `records`), keeps a tied chain's ties, and for a
-/// stop on a one-DOF T-F-S model re-scans its position by T-F-S (pushing what was done to
-/// `stops`).
+/// stop on a T-F-S model re-scans its position by T-F-S (pushing what was done to
+/// `notes.stops`). A stop the refit's history lists as added but no equation holds (the refit
+/// drops a column whose coefficient came out zero or non-finite, as for a stop that never
+/// engages on the smoothed states) is warned about in `notes.warnings`.
 fn add_one(
     model: &Model,
     name: &str,
     records: &[Record],
     catalogue: &Catalogue,
     opts: &DiagnoseOptions,
-    stops: &mut Vec<StopRescan>,
+    notes: &mut AddNotes,
 ) -> Result<Model> {
     let added = add_effect_with(model, name, records, catalogue, opts)?;
     let added = keep_ties(added, records, opts)?;
-    match rescan_stop(model, &added, records)? {
+    notes.warnings.extend(dropped_terms(&added).into_iter().map(|t| {
+        format!(
+            "'{name}': the refit gave '{t}' a zero or non-finite coefficient on these records and left it out, so the model does not have it (a stop that never engages in the data does that)"
+        )
+    }));
+    match rescan_stop(model, &added, name.split_once('@').map(|(_, d)| d), records)? {
         Some((m, report)) => {
-            stops.push(report);
+            notes.stops.push(report);
             Ok(m)
         }
         None => Ok(added),
     }
 }
 
-/// [`until_clean`], pushing each added stop's re-scan to `stops`.
+/// The stop terms (`below`, `above`) the model's last history step lists as added that no
+/// equation holds.
+fn dropped_terms(model: &Model) -> Vec<String> {
+    let Some(last) = model.history.last() else {
+        return Vec::new();
+    };
+    let held = |t: &Term| {
+        model
+            .equations
+            .iter()
+            .any(|e| e.terms.iter().any(|m| m.term == *t))
+    };
+    last.added
+        .iter()
+        .filter(|a| {
+            Term::parse(a, &model.dofs).is_ok_and(|t| {
+                matches!(t.factors(), [Factor::Below(..)] | [Factor::Above(..)]) && !held(&t)
+            })
+        })
+        .cloned()
+        .collect()
+}
+
+/// [`until_clean`], pushing each added stop's re-scan and the warnings to `notes`.
 fn until_clean_with(
     model: &Model,
     records: &[Record],
     max_rounds: usize,
     opts: &DiagnoseOptions,
-    stops: &mut Vec<StopRescan>,
+    notes: &mut AddNotes,
 ) -> Result<(Model, Vec<LoopRound>)> {
     let catalogue = Catalogue::standard(opts.max_power);
     let mut model = model.clone();
@@ -119,7 +156,7 @@ fn until_clean_with(
             });
             break;
         };
-        model = add_one(&model, &top.name, records, &catalogue, opts, stops)
+        model = add_one(&model, &top.name, records, &catalogue, opts, notes)
             .with_context(|| format!("--until-clean: adding {} in round {round}", top.name))?;
         rounds.push(LoopRound {
             round,
@@ -275,14 +312,14 @@ pub fn refit_with(
     let opts = DiagnoseOptions::default();
     let catalogue = Catalogue::standard(opts.max_power);
     let mut model = model.clone();
-    let mut stops = Vec::new();
+    let mut notes = AddNotes::default();
     for name in &req.add {
-        model = add_one(&model, name, records, &catalogue, &opts, &mut stops)
+        model = add_one(&model, name, records, &catalogue, &opts, &mut notes)
             .with_context(|| format!("--add {name}"))?;
     }
     let mut rounds = Vec::new();
     if let Some(max) = req.until_clean {
-        (model, rounds) = until_clean_with(&model, records, max, &opts, &mut stops)?;
+        (model, rounds) = until_clean_with(&model, records, max, &opts, &mut notes)?;
     }
     let (refine, mut held_out) = (req.refine, req.held_out.clone());
     let mut report = None;
@@ -320,7 +357,8 @@ pub fn refit_with(
     // `compare` and `diagnose` treat them the same.
     set_offsets(&mut model, offsets);
     let ladder = error_ladder(&model);
-    let mut warnings = ladder_warnings(&ladder);
+    let mut warnings = notes.warnings;
+    warnings.extend(ladder_warnings(&ladder));
     warnings.extend(tie_warning);
     Ok(Refitted {
         model,
@@ -328,7 +366,7 @@ pub fn refit_with(
         warnings,
         refine: report,
         rounds,
-        stops,
+        stops: notes.stops,
     })
 }
 

@@ -349,3 +349,50 @@ fn the_readme_chain_is_identified_from_the_cli_clean_and_at_30_db() {
     let b = ok(&["basin", "--model", &m, "--grid", "20x20"]);
     assert!(b.contains("cell 2: bistable"), "{b}");
 }
+
+/// At 30 dB the smoothed states the loop's equation error sees never reach a cell's folded
+/// state, so the loop puts `stop@x1` and `stop@x2` inside the data (and cell 2's on the absolute
+/// `x2`), and the polynomial cells still fall through the fold: `compare` blew up on every draw.
+/// `refit --add stop@x1 --add stop@x2` re-scans each cell's stop by T-F-S on the cell's own
+/// height (`x1`, `(x2-x1)`, cell 2's tied between both equations) and keeps it where it simulates
+/// the records better. The model must then simulate every record, with finite errors, keep its
+/// ties, and its stops must push the cells out of the fold.
+#[test]
+fn refit_places_each_cells_stop_on_its_height_and_compare_simulates_at_30_db() {
+    let dir = tempfile::tempdir().unwrap();
+    for seed in ["1", "2"] {
+        let name = format!("s30-{seed}");
+        let files = simulate(dir.path(), &name, &["--snr-db", "30", "--seed", seed]);
+        let model = identify_and_judge(dir.path(), &files, &[], "tfs-sindy-tied", &name);
+        let m = model.display().to_string();
+        let refit = dir.path().join(format!("{name}-stop.json"));
+        let r = refit.display().to_string();
+        let mut args = vec![
+            "refit", "--model", &m, "--add", "stop@x1", "--add", "stop@x2", "--json", "--out", &r,
+        ];
+        args.extend(files.iter().map(String::as_str));
+        let v: serde_json::Value = serde_json::from_str(&ok(&args)).unwrap();
+        let stops = v["stops"].as_array().expect("the re-scans are reported");
+        assert_eq!(stops.len(), 2, "seed {seed}: {stops:?}");
+        for (stop, height) in stops.iter().zip(["below(x1, ", "below((x2-x1), "]) {
+            let to = stop["to"].as_str().unwrap();
+            assert!(to.starts_with(height), "seed {seed}: {stop}");
+            if stop["kept"] == true {
+                assert!(stop["coef"].as_f64().unwrap() > 0.0, "seed {seed}: {stop}");
+            }
+        }
+        assert_eq!(stops[1]["kept"], true, "seed {seed}: {stops:?}");
+        ties_hold(&refit);
+        let mut args = vec!["compare", "--model", &r, "--json"];
+        args.extend(files.iter().map(String::as_str));
+        let c: serde_json::Value = serde_json::from_str(&ok(&args)).unwrap();
+        let each = c["files"].as_array().unwrap();
+        assert_eq!(each.len(), files.len(), "seed {seed}: {c}");
+        for f in each {
+            for d in f["dofs"].as_array().unwrap() {
+                let e = d["r_mse"].as_f64().unwrap_or(f64::NAN);
+                assert!(e.is_finite(), "seed {seed}: {f}");
+            }
+        }
+    }
+}
