@@ -1,8 +1,9 @@
 //! Criterion benchmark: `diagnose` with the standard catalogue against the same catalogue
 //! without the hysteresis candidate (the catalogue before memory effects beyond Maxwell were
-//! added), on the same records, in one run: a Duffing oscillator with hidden dry friction
+//! added), and against that catalogue with the calibrated null switched off as well (the
+//! diagnosis as it was before the hysteresis and chaos work), on the same records, in one run: a Duffing oscillator with hidden dry friction
 //! (three 30 s sweeps at 100 Hz, 40 dB) and the Bouc–Wen benchmark oscillator (two multisine
-//! periods of 8,192 samples at 750 Hz, 40 dB). Compare the two lines of each group for the ratio.
+//! periods of 8,192 samples at 750 Hz, 40 dB). Compare the lines of each group for the ratios.
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -54,6 +55,10 @@ fn bench(c: &mut Criterion) {
     let opts = DiagnoseOptions::default();
     let standard = Catalogue::standard(opts.max_power);
     let before = before_memory(opts.max_power);
+    let no_null = DiagnoseOptions {
+        null_draws: 0,
+        ..DiagnoseOptions::default()
+    };
     for (name, records, spec) in [
         (
             "duffing_dry_friction",
@@ -70,8 +75,14 @@ fn bench(c: &mut Criterion) {
         g.bench_function("standard_catalogue", |b| {
             b.iter(|| diagnose_with(&model, &records, &standard, &opts).unwrap())
         });
+        g.bench_function("standard_without_null", |b| {
+            b.iter(|| diagnose_with(&model, &records, &standard, &no_null).unwrap())
+        });
         g.bench_function("without_hysteresis", |b| {
             b.iter(|| diagnose_with(&model, &records, &before, &opts).unwrap())
+        });
+        g.bench_function("without_hysteresis_or_null", |b| {
+            b.iter(|| diagnose_with(&model, &records, &before, &no_null).unwrap())
         });
         g.finish();
     }
