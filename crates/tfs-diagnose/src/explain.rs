@@ -716,7 +716,7 @@ pub(crate) fn explain_with_runs(
             .collect()
     };
     let judge = judges.first().map_or(Judge::EquationError, |j| j.1);
-    order(&mut ranked, judge);
+    order(&mut ranked, judge, opts.alpha);
     mark_ties(&mut ranked, judge, opts.alpha);
     let ranked: Vec<RankedEffect> = ranked.into_iter().map(|c| c.entry).collect();
     let verdict = verdict(&ranked, &judges, opts);
@@ -743,8 +743,13 @@ fn verdict(
                 .iter()
                 .find(|(d, j, _)| *d == top.dof && *j != Judge::FreeRun)
                 .map(|(_, j, why)| {
+                    let ties = if *j == Judge::ShortHorizon {
+                        " (its ties broken by the geometric-mean error over the pieces)"
+                    } else {
+                        ""
+                    };
                     format!(
-                        "; ranked by held-out equation error, judged by {} ({why}; a candidate that predicts worse is not reported)",
+                        "; ranked by held-out equation error{ties}, judged by {} ({why}; a candidate that predicts worse is not reported)",
                         j.describe()
                     )
                 })

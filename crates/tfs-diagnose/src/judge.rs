@@ -16,8 +16,9 @@
 //! A judge vetoes a candidate only when it predicts worse by more than the judge resolves
 //! ([`predicts_worse`]): for the free run, by more than a fresh draw of the input's noise moves
 //! the model's score; for the short horizon, when paired tests over the pieces bear it out.
-//! Over chaotic divergence the short-horizon error is too coarse to order candidates, so the
-//! significant ones are then ordered by their held-out equation error (`explain`).
+//! Over chaotic divergence the short-horizon error is too coarse to order candidates on its own,
+//! so the significant ones are then ordered by their held-out equation error, and the pieces
+//! only break that order's ties, by their geometric-mean error ([`order`]).
 
 use rayon::prelude::*;
 use serde::Serialize;
@@ -502,9 +503,12 @@ pub(crate) struct Candidate {
 /// not: an R-MSE of 1 or more (on the measured displacement's variance) predicts no better than
 /// the mean position, so every such candidate scores the same, "no skill" ([`skill_key`]).
 /// With the short horizon or the equation error alone, by the equation error (over chaotic
-/// divergence the short-horizon error vetoes but is too coarse to order). The rest by the
-/// free-run R-MSE (failed simulations last), then the equation error.
-pub(crate) fn order(ranked: &mut [Candidate], judge: Judge) {
+/// divergence the short-horizon error is too coarse to order on its own); under the short
+/// horizon, a candidate that the equation error does not tell apart from its DOF's top one
+/// takes the top place when the paired tests over the pieces say the top predicts worse than it
+/// ([`short_horizon_breaks_tie`]). The rest by the free-run R-MSE (failed simulations last),
+/// then the equation error.
+pub(crate) fn order(ranked: &mut [Candidate], judge: Judge, alpha: f64) {
     let sim_key = |c: &Candidate| c.entry.r_mse_after.unwrap_or(f64::INFINITY);
     let key = |c: &Candidate| {
         if !c.entry.significant {
@@ -522,6 +526,83 @@ pub(crate) fn order(ranked: &mut [Candidate], judge: Judge) {
             .then(key(a).total_cmp(&key(b)))
             .then(b.entry.delta_heldout.total_cmp(&a.entry.delta_heldout))
     });
+    if judge == Judge::ShortHorizon {
+        short_horizon_breaks_tie(ranked, alpha);
+    }
+}
+
+/// Under the short-horizon judge, per DOF: among the significant candidates whose held-out
+/// equation error is tied with the DOF's top one ([`equation_ties`]), the top one included, the
+/// one whose pieces' geometric-mean error is lowest ([`lowest_geometric_mean`]) takes the top place; the
+/// others keep their order. Only a tie is broken. The geometric mean, not the mean: the error of
+/// a chaotic prediction is heavy-tailed over the pieces, and the mean follows the one piece in
+/// which a model loses the motion (as the sole key it put true effects last). Whether the pieces
+/// resolve the difference is for [`mark_ties`] to say.
+fn short_horizon_breaks_tie(ranked: &mut [Candidate], alpha: f64) {
+    let mut dofs: Vec<String> = Vec::new();
+    for c in ranked.iter().filter(|c| c.entry.significant) {
+        if !dofs.contains(&c.entry.dof) {
+            dofs.push(c.entry.dof.clone());
+        }
+    }
+    for dof in dofs {
+        let mine: Vec<usize> = (0..ranked.len())
+            .filter(|&i| ranked[i].entry.significant && ranked[i].entry.dof == dof)
+            .collect();
+        let top = mine[0];
+        let tied: Vec<usize> = mine
+            .iter()
+            .copied()
+            .filter(|&i| i == top || equation_ties(&ranked[top], &ranked[i], alpha))
+            .collect();
+        let pieces: Option<Vec<&[f64]>> = tied
+            .iter()
+            .map(|&i| ranked[i].heldout.as_ref().map(|h| h.parts.as_slice()))
+            .collect();
+        let best = pieces
+            .and_then(|p| lowest_geometric_mean(&p))
+            .map(|k| tied[k]);
+        if let Some(i) = best {
+            ranked[top..=i].rotate_right(1);
+        }
+    }
+}
+
+/// Which of `scores` (per-piece errors of models scored on the same pieces) has the lowest
+/// geometric mean over the pieces (each piece's error at least the smallest positive number);
+/// the first of equals, `None` when there are none.
+fn lowest_geometric_mean(scores: &[&[f64]]) -> Option<usize> {
+    let log_mean = |parts: &[f64]| {
+        parts
+            .iter()
+            .map(|p| p.max(f64::MIN_POSITIVE).ln())
+            .sum::<f64>()
+            / parts.len().max(1) as f64
+    };
+    scores
+        .iter()
+        .map(|p| log_mean(p))
+        .enumerate()
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(k, _)| k)
+}
+
+/// True when the paired one-sided tests over the held-out blocks (the RSS difference and its
+/// log-ratio, Bonferroni over the two) do not put `top`'s advantage in held-out equation error
+/// over `other` below `alpha`.
+fn equation_ties(top: &Candidate, other: &Candidate, alpha: f64) -> bool {
+    let pairs = top
+        .raw
+        .scored
+        .cv
+        .heldout
+        .iter()
+        .zip(&other.raw.scored.cv.heldout);
+    let diffs: Vec<f64> = pairs.clone().map(|(t, o)| o - t).collect();
+    let logs: Vec<f64> = pairs
+        .map(|(t, o)| (o.max(f64::MIN_POSITIVE) / t.max(f64::MIN_POSITIVE)).ln())
+        .collect();
+    2.0 * paired_p_value(&diffs).min(paired_p_value(&logs)) >= alpha
 }
 
 /// A free-run R-MSE as an ordering key: the R-MSE while it shows skill (below 1), 1 for every
@@ -532,31 +613,36 @@ fn skill_key(r_mse: Option<f64>) -> f64 {
 }
 
 /// Marks the significant candidates that the ordering's own evidence does not tell apart from
-/// the top-ranked one of their DOF ([`RankedEffect::tied_with_top`]): the paired one-sided tests
-/// over the held-out blocks (the RSS difference and its log-ratio, Bonferroni over the two) do
-/// not put the top's advantage below `alpha`, and — when the free run judges — neither of the
-/// two free runs shows skill ([`skill_key`]). (The short-horizon judge only vetoes; it does not
-/// order, so it does not separate either.)
+/// the top-ranked one of their DOF ([`RankedEffect::tied_with_top`]): the held-out equation error
+/// does not ([`equation_ties`]), and neither does the judge — when the free run judges, neither of
+/// the two free runs shows skill ([`skill_key`]); when the short horizon judges, its paired tests
+/// over the pieces do not say the candidate predicts worse than the top ([`predicts_worse`]).
 pub(crate) fn mark_ties(ranked: &mut [Candidate], judge: Judge, alpha: f64) {
-    let mut tops: Vec<(String, Vec<f64>, f64)> = Vec::new();
-    for c in ranked.iter_mut().filter(|c| c.entry.significant) {
-        let Some((_, top_rss, top_key)) = tops.iter().find(|t| t.0 == c.entry.dof) else {
-            tops.push((
-                c.entry.dof.clone(),
-                c.raw.scored.cv.heldout.clone(),
-                skill_key(c.entry.r_mse_after),
-            ));
+    let mut tops: Vec<usize> = Vec::new();
+    for i in 0..ranked.len() {
+        if !ranked[i].entry.significant {
+            continue;
+        }
+        let Some(&t) = tops
+            .iter()
+            .find(|&&t| ranked[t].entry.dof == ranked[i].entry.dof)
+        else {
+            tops.push(i);
             continue;
         };
-        let pairs = top_rss.iter().zip(&c.raw.scored.cv.heldout);
-        let diffs: Vec<f64> = pairs.clone().map(|(t, o)| o - t).collect();
-        let logs: Vec<f64> = pairs
-            .map(|(t, o)| (o.max(f64::MIN_POSITIVE) / t.max(f64::MIN_POSITIVE)).ln())
-            .collect();
-        let equation_ties = 2.0 * paired_p_value(&diffs).min(paired_p_value(&logs)) >= alpha;
-        let judge_ties =
-            judge != Judge::FreeRun || (*top_key == 1.0 && skill_key(c.entry.r_mse_after) == 1.0);
-        c.entry.tied_with_top = equation_ties && judge_ties;
+        let (top, c) = (&ranked[t], &ranked[i]);
+        let judge_ties = match judge {
+            Judge::FreeRun => {
+                skill_key(top.entry.r_mse_after) == 1.0 && skill_key(c.entry.r_mse_after) == 1.0
+            }
+            Judge::ShortHorizon => match (&top.heldout, &c.heldout) {
+                (Some(th), Some(ch)) => !predicts_worse(judge, th, ch, 0.0, alpha),
+                _ => true,
+            },
+            Judge::EquationError => true,
+        };
+        let tied = equation_ties(top, c, alpha) && judge_ties;
+        ranked[i].entry.tied_with_top = tied;
     }
 }
 
@@ -666,5 +752,23 @@ mod tests {
             0.0,
             0.01
         ));
+    }
+
+    #[test]
+    fn a_tie_goes_to_the_model_better_on_most_pieces_not_to_the_one_lucky_in_the_worst() {
+        // Over 40 draws of 36 heavy-tailed pieces: model `b` errs half as much as `a` on every
+        // piece, but loses the motion on one piece where `a` keeps it (50 times its usual error;
+        // the mean over the pieces then favours `a`). The geometric mean picks `b` every time.
+        let mut mean_picks_a = 0;
+        for seed in 0..40 {
+            let (a, mut b) = pieces(36, 0.5, 0.3, seed);
+            b.parts[7] = 50.0 * a.parts.iter().sum::<f64>();
+            let pick = lowest_geometric_mean(&[&a.parts, &b.parts]);
+            assert_eq!(pick, Some(1), "draw {seed}");
+            let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+            mean_picks_a += usize::from(mean(&a.parts) < mean(&b.parts));
+        }
+        assert_eq!(mean_picks_a, 40, "the worst piece should dominate the mean");
+        assert_eq!(lowest_geometric_mean(&[]), None);
     }
 }
