@@ -260,6 +260,8 @@ pub(crate) struct DofSetup {
     pub base_cv: Cv,
     acc_rms: f64,
     scales: crate::prepare::DataScales,
+    /// Start-library terms the equation lacks ([`crate::readmit`]).
+    left_out: Vec<Term>,
 }
 
 /// The start model's equation of DOF `idx` on `states`.
@@ -297,6 +299,7 @@ pub(crate) fn setup_dof(
         base_cv,
         acc_rms: rms(&all_acc),
         scales,
+        left_out: crate::readmit::left_out(model, idx),
     })
 }
 
@@ -376,6 +379,8 @@ pub(crate) fn best_variant(
 /// The held-out analysis of one (effect, DOF) pair before the multiple-comparison correction.
 pub(crate) struct Raw {
     pub effect: String,
+    /// Start-library terms put back beside the effect ([`crate::readmit`]).
+    pub readmitted: Vec<Term>,
     pub dof_idx: usize,
     pub scored: Scored,
     p_raw: f64,
@@ -398,13 +403,29 @@ fn analyse(
     let Some(s) = best_variant(states, layout, d.idx, &d.base_terms, vars)? else {
         return Ok(None);
     };
-    let pairs = d.base_cv.heldout.iter().zip(&s.cv.heldout);
+    let re = crate::readmit::readmit(
+        states,
+        layout,
+        d.idx,
+        &d.base_terms,
+        vars,
+        s,
+        &d.left_out,
+        opts.alpha,
+    )?;
+    let s = re.scored;
+    // The effect against the start equation, or against it with the re-admitted terms.
+    let (base_design, base_blocks, base_cv) = match &re.reference {
+        Some(reference) => (&reference.design, &reference.blocks, &reference.cv),
+        None => (&d.base_design, &d.base_blocks, &d.base_cv),
+    };
+    let pairs = base_cv.heldout.iter().zip(&s.cv.heldout);
     let logs: Vec<f64> = pairs
         .clone()
         .map(|(a, b)| (a.max(f64::MIN_POSITIVE) / b.max(f64::MIN_POSITIVE)).ln())
         .collect();
     let diffs: Vec<f64> = pairs.map(|(a, b)| a - b).collect();
-    let base_rss: f64 = d.base_cv.heldout.iter().sum();
+    let base_rss: f64 = base_cv.heldout.iter().sum();
     let delta = if base_rss > 0.0 {
         (base_rss - s.cv_rss) / base_rss
     } else {
@@ -422,7 +443,7 @@ fn analyse(
         _ => 1.0,
     };
     let p_raw = (3.0 * paired_p_value(&diffs).min(paired_p_value(&logs)).min(wald)).min(1.0);
-    let coef_0 = full_fit(&d.base_blocks)?;
+    let coef_0 = full_fit(base_blocks)?;
     let mut diff2 = 0.0;
     let mut rows = 0usize;
     // Row by row in a fixed order (a library matrix-vector product splits its sums by the
@@ -431,7 +452,7 @@ fn analyse(
         c.iter().enumerate().map(|(k, ck)| a[(i, k)] * ck).sum()
     };
     for r in 0..states.len() {
-        let (ac, a0) = (&s.design.a[r], &d.base_design.a[r]);
+        let (ac, a0) = (&s.design.a[r], &base_design.a[r]);
         for i in 0..ac.nrows() {
             diff2 += (dot(ac, i, &coef_c) - dot(a0, i, &coef_0)).powi(2);
         }
@@ -446,6 +467,7 @@ fn analyse(
         None => (f64::NAN, [f64::NAN, f64::NAN]),
     };
     Ok(Some(Raw {
+        readmitted: re.terms,
         effect: name.to_string(),
         dof_idx: d.idx,
         p_raw,
@@ -500,6 +522,11 @@ fn entry(model: &Model, raw: &Raw, tests: usize, opts: &DiagnoseOptions) -> Rank
             v.replace
                 .iter()
                 .map(|(o, n)| format!("{o} -> {}", n.label())),
+        )
+        .chain(
+            raw.readmitted
+                .iter()
+                .map(|t| format!("{t} (start library, re-admitted)")),
         )
         .collect();
     RankedEffect {

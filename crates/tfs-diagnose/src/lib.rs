@@ -55,6 +55,7 @@ pub mod noise;
 mod null;
 mod polish;
 pub mod prepare;
+mod readmit;
 pub mod refit;
 pub mod residual;
 pub mod restoring;

@@ -249,13 +249,27 @@ pub fn add_effect_with(
         let Some(best) = best_variant(&states, &layout, idx, &base, &variants)? else {
             continue;
         };
+        // Start-library terms the missing effect hid come back with it (as `explain` scored it).
+        let re = crate::readmit::readmit(
+            &states,
+            &layout,
+            idx,
+            &base,
+            &variants,
+            best,
+            &crate::readmit::left_out(model, idx),
+            opts.alpha,
+        )?;
+        let best = re.scored;
         let (cols, v) = (best.cols, best.variant);
         let coef = full_fit(&best.blocks)?;
         out = with_equation(&out, idx, &cols, &coef)?;
         for c in v.add.iter().chain(v.replace.iter().map(|(_, c)| c)) {
             added.push(c.label());
         }
-        details.push(json!({"dof": dof, "parameter": v.parameter}));
+        added.extend(re.terms.iter().map(ToString::to_string));
+        let readmitted: Vec<String> = re.terms.iter().map(ToString::to_string).collect();
+        details.push(json!({"dof": dof, "parameter": v.parameter, "readmitted": readmitted}));
         // A force on a coupling acts on both masses: the same variant goes into each partner's
         // equation (refitted there), unless that DOF is a target of its own.
         for p in v.partners(dof) {
