@@ -461,7 +461,10 @@ impl<'a> Predictor<'a> {
 
 /// True when the model scored `after` predicts the held-out data worse than the one scored
 /// `before` by more than `judge` can resolve. Free run: its mean R-MSE is higher by more than
-/// `resolution` (what a fresh draw of the input's noise moves it). Short horizon: the paired
+/// `resolution` (what a fresh draw of the input's noise moves it), unless neither shows skill
+/// (both R-MSEs at least 1, no better than predicting the mean position: [`skill_key`] scores
+/// them the same, and which is higher says where each run lost the motion, not which model is
+/// closer). Short horizon: the paired
 /// one-sided tests over the pieces — of the difference and of the log-ratio, Bonferroni over the
 /// two — put the worsening below `alpha`. The equation error judges nothing here (false).
 pub(crate) fn predicts_worse(
@@ -472,7 +475,11 @@ pub(crate) fn predicts_worse(
     alpha: f64,
 ) -> bool {
     match judge {
-        Judge::FreeRun => after.mean > before.mean + resolution,
+        Judge::FreeRun => {
+            let no_skill =
+                skill_key(Some(before.mean)) == 1.0 && skill_key(Some(after.mean)) == 1.0;
+            after.mean > before.mean + resolution && !no_skill
+        }
         Judge::ShortHorizon => {
             if before.parts.len() != after.parts.len() {
                 return after.mean > before.mean;
@@ -741,6 +748,22 @@ mod tests {
             Judge::FreeRun,
             &score(0.70),
             &score(0.71),
+            0.0,
+            0.01
+        ));
+        // Two free runs without skill (both worse than the mean position): no veto, however
+        // far apart; a run that loses the start model's skill is still vetoed.
+        assert!(!predicts_worse(
+            Judge::FreeRun,
+            &score(3.46),
+            &score(5.42),
+            0.0,
+            0.01
+        ));
+        assert!(predicts_worse(
+            Judge::FreeRun,
+            &score(0.99),
+            &score(5.42),
             0.0,
             0.01
         ));

@@ -209,6 +209,15 @@ fn hidden_stop_within_the_free_run_resolution() {
     );
 }
 
+/// The free run judges (no record is dominated by the input noise), but neither the start model
+/// nor the one with the offset shows skill (R-MSE 3.5 and 5.4, both worse than predicting the
+/// mean position): which is higher says where each run lost the motion, so it is no veto. With
+/// the veto, nothing was reported here.
+#[test]
+fn hidden_offset_with_free_runs_without_skill() {
+    check("chaotic/offset@1500", Hidden::Offset(0.05), "offset", 1500);
+}
+
 /// One of the three records is dominated by the input noise: the free-run mean carries that
 /// noise, so the short horizon judges (by free run hysteresis came first, cubic damping's R-MSE
 /// was 4.1).
