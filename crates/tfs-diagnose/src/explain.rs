@@ -400,19 +400,11 @@ fn analyse(
     vars: &[Variant],
     opts: &DiagnoseOptions,
 ) -> Result<Option<Raw>> {
-    let Some(s) = best_variant(states, layout, d.idx, &d.base_terms, vars)? else {
+    let eq = (d.idx, d.base_terms.as_slice());
+    let readmit = crate::readmit::best_with_library;
+    let Some(re) = readmit(states, layout, eq, vars, &d.left_out, opts.alpha)? else {
         return Ok(None);
     };
-    let re = crate::readmit::readmit(
-        states,
-        layout,
-        d.idx,
-        &d.base_terms,
-        vars,
-        s,
-        &d.left_out,
-        opts.alpha,
-    )?;
     let s = re.scored;
     // The effect against the start equation, or against it with the re-admitted terms.
     let (base_design, base_blocks, base_cv) = match &re.reference {

@@ -247,8 +247,7 @@ impl InputFamily {
 
 /// Refines the delay or time constant of an input effect between the scanned values, on a log
 /// scale: the first step is half the wider log-gap to the scanned neighbours of the best value,
-/// and the search stays within the scanned range widened by that step (a delay below one sample
-/// is allowed down to about half a sample). Values are rounded to 3 significant digits, as the
+/// and the search stays within the scanned range widened by that step. Values are rounded to 3 significant digits, as the
 /// computed column's name writes them.
 fn polish_input(
     best: Scored,

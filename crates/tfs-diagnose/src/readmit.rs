@@ -85,19 +85,20 @@ fn offerable(term: &Term, s: &Scored) -> bool {
         .any(|f| matches!(f, Factor::Pow(Var::Input(n), _) if sources.contains(n)))
 }
 
-/// The module's re-admission for the best variant `best` of an effect with `variants` on the
-/// equation of DOF `idx` (terms `base`), offering the `left_out` library terms.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn readmit(
+/// The best variant of an effect with `variants` on the equation of DOF `idx` (terms `base`),
+/// with the module's re-admission of the `left_out` library terms at level `alpha`; `None` when
+/// no variant could be scored.
+pub(crate) fn best_with_library(
     states: &[RecordStates],
     layout: &Layout,
-    idx: usize,
-    base: &[Term],
+    (idx, base): (usize, &[Term]),
     variants: &[Variant],
-    best: Scored,
     left_out: &[Term],
     alpha: f64,
-) -> Result<Readmitted> {
+) -> Result<Option<Readmitted>> {
+    let Some(best) = best_variant(states, layout, idx, base, variants)? else {
+        return Ok(None);
+    };
     let mut kept: Vec<Term> = Vec::new();
     let mut current = best;
     loop {
@@ -130,11 +131,11 @@ pub(crate) fn readmit(
         current = s;
     }
     if kept.is_empty() {
-        return Ok(Readmitted {
+        return Ok(Some(Readmitted {
             scored: current,
             terms: kept,
             reference: None,
-        });
+        }));
     }
     let mut terms = base.to_vec();
     terms.extend(kept.iter().cloned());
@@ -150,9 +151,9 @@ pub(crate) fn readmit(
         &terms,
         &Variant::adding(None, Vec::new()),
     )?;
-    Ok(Readmitted {
+    Ok(Some(Readmitted {
         scored,
         terms: kept,
         reference: Some(reference),
-    })
+    }))
 }

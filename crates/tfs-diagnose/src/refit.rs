@@ -9,9 +9,7 @@ use tfs_library::{HistoryEntry, Model, RecordScore, Term};
 use tfs_regress::Compressed;
 
 use crate::effects::{Catalogue, EffectColumn};
-use crate::explain::{
-    best_variant, compress_blocks, design, full_fit, variant_columns, with_equation,
-};
+use crate::explain::{compress_blocks, design, full_fit, variant_columns, with_equation};
 use crate::prepare::{DiagnoseOptions, Layout, RecordStates, check_records};
 use crate::{DiagnoseError, Result};
 
@@ -246,20 +244,13 @@ pub fn add_effect_with(
                 ),
             });
         }
-        let Some(best) = best_variant(&states, &layout, idx, &base, &variants)? else {
+        // Start-library terms the missing effect hid come back with it (as `explain` scored it).
+        let left_out = crate::readmit::left_out(model, idx);
+        let eq = (idx, base.as_slice());
+        let readmit = crate::readmit::best_with_library;
+        let Some(re) = readmit(&states, &layout, eq, &variants, &left_out, opts.alpha)? else {
             continue;
         };
-        // Start-library terms the missing effect hid come back with it (as `explain` scored it).
-        let re = crate::readmit::readmit(
-            &states,
-            &layout,
-            idx,
-            &base,
-            &variants,
-            best,
-            &crate::readmit::left_out(model, idx),
-            opts.alpha,
-        )?;
         let best = re.scored;
         let (cols, v) = (best.cols, best.variant);
         let coef = full_fit(&best.blocks)?;

@@ -135,22 +135,40 @@ pub fn lowpass(v: &[f64], dt: f64, tau: f64) -> Vec<f64> {
     out
 }
 
-/// `v(t − δ)` by linear interpolation between samples, holding the first value before the start.
+/// Points of the Lagrange interpolation [`delayed`] reads between samples: from two before to
+/// three after the interval.
+const TAPS: [i64; 6] = [-2, -1, 0, 1, 2, 3];
+
+/// `v(t − δ)` read between samples by six-point Lagrange interpolation (samples at the ends held
+/// beyond them), holding the first value before the start; a whole-sample delay is an exact
+/// shift. A sampled input is band-limited, and at ten samples a period linear interpolation
+/// between samples loses up to 5 % of the amplitude half-way (it acts as a low-pass filter,
+/// which a filter effect then mimics); the six-point interpolation loses less than 0.1 %.
 pub fn delayed(v: &[f64], dt: f64, delay: f64) -> Vec<f64> {
     let shift = delay / dt;
+    let last = v.len() as i64 - 1;
+    let at = |i: i64| v[i.clamp(0, last) as usize];
     (0..v.len())
         .map(|k| {
             let s = k as f64 - shift;
             if s <= 0.0 {
                 return v[0];
             }
-            let i = s.floor() as usize;
+            let i = s.floor() as i64;
             let f = s - i as f64;
-            if i + 1 >= v.len() {
-                v[v.len() - 1]
-            } else {
-                v[i] * (1.0 - f) + v[i + 1] * f
+            if f == 0.0 {
+                return at(i);
             }
+            TAPS.iter()
+                .map(|&j| {
+                    let w: f64 = TAPS
+                        .iter()
+                        .filter(|&&m| m != j)
+                        .map(|&m| (f - m as f64) / (j - m) as f64)
+                        .product();
+                    w * at(i + j)
+                })
+                .sum()
         })
         .collect()
 }

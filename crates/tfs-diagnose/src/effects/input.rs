@@ -17,24 +17,37 @@ use super::{ComputedColumn, Effect, EffectColumn, EffectContext, Variant, round3
 /// Input delay and gain (shaker dynamics, a base motion that reaches the structure late): every
 /// input term `u` is replaced by `u(t − δ)` — the delayed input takes the input's place (and its
 /// coefficient, the gain), it is not added beside it; a model that lost the input gets `u(t − δ)`
-/// added. δ is scanned over whole samples on a
+/// added. δ is scanned over an eighth, a quarter and half a sample, then whole samples on a
 /// geometric grid (ratio about 1.25) from one sample up to half the input's RMS-frequency period
 /// ([`EffectContext::input_period`]): a longer delay is a sign flip of a narrow-band input. The
-/// best δ is then refined between samples (`crate::polish`).
+/// best δ is then refined between grid values (`crate::polish`); between samples the input is
+/// read by band-limited interpolation ([`crate::effects::delayed`]).
 #[derive(Debug, Clone, Copy)]
 pub struct InputDelay;
 
-/// Whole-sample delays from 1 up to `max` samples, each about 1.25 times the last.
-fn delay_grid(max: usize) -> Vec<usize> {
+/// Delays in samples below one sample, each about twice the last: a delay shorter than the
+/// sampling step is common (an anti-alias filter's group delay, a skew between channels) and at
+/// ten samples a period a few tenths of a sample already move the input force by several
+/// percent.
+const SUB_SAMPLE: [f64; 3] = [0.125, 0.25, 0.5];
+
+/// Delays in samples: [`SUB_SAMPLE`], then whole samples from 1 up to `max`, each about 1.25
+/// times the last.
+fn delay_grid(max: usize) -> Vec<f64> {
     let mut out = vec![1];
     loop {
         let last = out[out.len() - 1];
         let next = ((last as f64 * 1.25).round() as usize).max(last + 1);
         if next > max {
-            return out;
+            break;
         }
         out.push(next);
     }
+    SUB_SAMPLE
+        .iter()
+        .copied()
+        .chain(out.into_iter().map(|n| n as f64))
+        .collect()
 }
 
 impl Effect for InputDelay {
@@ -42,7 +55,7 @@ impl Effect for InputDelay {
         "input-delay".into()
     }
     fn description(&self) -> String {
-        "input delay and gain: u(t) replaced by u(t - delta), delta scanned from one sample up to half the input's period, then refined between samples".into()
+        "input delay and gain: u(t) replaced by u(t - delta), delta scanned from an eighth of a sample up to half the input's period, then refined between grid values".into()
     }
     fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
         let (inputs, added) = acted_on(ctx);
@@ -56,7 +69,7 @@ impl Effect for InputDelay {
         };
         delay_grid(max)
             .into_iter()
-            .map(|n| input_variant(&inputs, "delay", round3(n as f64 * ctx.dt), added))
+            .map(|n| input_variant(&inputs, "delay", round3(n * ctx.dt), added))
             .collect()
     }
 }
