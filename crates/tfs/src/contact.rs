@@ -35,6 +35,9 @@ const SHORTLIST: usize = 5;
 /// of the coordinate's span: the deepest position the loop's stop effect offers.
 const REACH_SHARE: f64 = 0.2;
 
+/// The history step (ladder rung) of a model re-identified with its stop re-scanned.
+pub const RESCAN_STEP: &str = "stop by T-F-S";
+
 /// What [`rescan_stop`] did, in words for the ladder and the report (`--json`: `stops`).
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct StopRescan {
@@ -444,7 +447,7 @@ pub fn rescan_stop(
     model.history = after.history.clone();
     let failed = ours.failed.clone();
     model.history.push(HistoryEntry {
-        step: "stop by T-F-S".into(),
+        step: RESCAN_STEP.into(),
         added: vec![term.to_string()],
         r_mse: ours.each,
         details: json!({"equations": model.equation_string(), "from": stop.to_string(), "why": report.why, "failed": failed}),

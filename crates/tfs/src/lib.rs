@@ -28,6 +28,7 @@ pub mod chain;
 pub mod compare;
 pub mod contact;
 mod error;
+pub mod gate;
 pub mod identify;
 pub mod records;
 pub mod refit;

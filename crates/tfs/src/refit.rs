@@ -44,6 +44,11 @@ pub struct LoopRound {
     pub added: Option<String>,
     /// The diagnosis's verdict in that round.
     pub verdict: String,
+    /// What the simulations of the records said about the choice, when they said anything
+    /// ([`crate::gate`]): the model fails on some records and a candidate makes fewer fail, or
+    /// a significant candidate was passed over because it makes more fail.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub simulation: Option<String>,
 }
 
 /// What [`refit_with`] is asked: effects to add by name, then the diagnosis loop, then
@@ -77,9 +82,9 @@ pub fn until_clean(
 
 /// What adding effects said beside the model: each stop's re-scan, and warnings.
 #[derive(Debug, Default)]
-struct AddNotes {
-    stops: Vec<StopRescan>,
-    warnings: Vec<String>,
+pub(crate) struct AddNotes {
+    pub(crate) stops: Vec<StopRescan>,
+    pub(crate) warnings: Vec<String>,
 }
 
 /// Adds effect `name` to `model` (refitting on `records`), keeps a tied chain's ties, and for a
@@ -87,7 +92,7 @@ struct AddNotes {
 /// `notes.stops`). A stop the refit's history lists as added but no equation holds (the refit
 /// drops a column whose coefficient came out zero or non-finite, as for a stop that never
 /// engages on the smoothed states) is warned about in `notes.warnings`.
-fn add_one(
+pub(crate) fn add_one(
     model: &Model,
     name: &str,
     records: &[Record],
@@ -148,20 +153,25 @@ fn until_clean_with(
     for round in 1..=max_rounds {
         let ex = explain(&model, records, &catalogue, opts)
             .with_context(|| format!("--until-clean: diagnosing in round {round}"))?;
-        let Some(top) = ex.ranked.iter().find(|r| r.significant) else {
+        let (chosen, simulation) = crate::gate::loop_choice(&model, &ex, records, &catalogue, opts)
+            .with_context(|| format!("--until-clean: round {round}"))?;
+        let Some(chosen) = chosen else {
             rounds.push(LoopRound {
                 round,
                 added: None,
                 verdict: ex.verdict,
+                simulation,
             });
             break;
         };
-        model = add_one(&model, &top.name, records, &catalogue, opts, notes)
-            .with_context(|| format!("--until-clean: adding {} in round {round}", top.name))?;
+        model = chosen.model;
+        notes.stops.extend(chosen.stops);
+        notes.warnings.extend(chosen.warnings);
         rounds.push(LoopRound {
             round,
-            added: Some(top.name.clone()),
+            added: Some(chosen.effect),
             verdict: ex.verdict,
+            simulation,
         });
     }
     Ok((model, rounds))
@@ -249,8 +259,20 @@ pub fn with_computed_inputs(model: &Model, records: &mut [Record]) -> Result<()>
 /// (the records do not support it; `tfs diagnose` tests that before anything is added).
 pub fn ladder_warnings(ladder: &[LadderStep]) -> Vec<String> {
     let mut out = Vec::new();
-    for pair in ladder.windows(2) {
-        let (before, after) = (&pair[0], &pair[1]);
+    // A stop's equation-error rung that the T-F-S re-scan replaced (the next rung) is not the
+    // model any more: the re-scan's rung is judged against the rung before it.
+    let kept: Vec<&LadderStep> = ladder
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| {
+            ladder
+                .get(i + 1)
+                .is_none_or(|next| next.step != crate::contact::RESCAN_STEP)
+        })
+        .map(|(_, s)| s)
+        .collect();
+    for pair in kept.windows(2) {
+        let (before, after) = (pair[0], pair[1]);
         if after.incomplete() {
             out.push(format!(
                 "after '{}', the simulation fails on {} of {} record(s) ({}); the model is not \
@@ -406,6 +428,25 @@ mod tests {
         let w = ladder_warnings(&worse);
         assert_eq!(w.len(), 1);
         assert!(w[0].contains("'add a' made the mean R-MSE worse"), "{w:?}");
+        // A stop's equation-error rung replaced by its T-F-S re-scan is not warned about; the
+        // re-scan's rung is judged against the rung before the stop.
+        let rescanned = [
+            step("start", &[0.5, 0.5], &[]),
+            step("add stop", &[0.2], &["r1: blew up"]),
+            step(crate::contact::RESCAN_STEP, &[0.1, 0.1], &[]),
+        ];
+        assert!(ladder_warnings(&rescanned).is_empty());
+        let rescanned_worse = [
+            step("start", &[0.05, 0.05], &[]),
+            step("add stop", &[0.02, 0.02], &[]),
+            step(crate::contact::RESCAN_STEP, &[0.1, 0.1], &[]),
+        ];
+        let w = ladder_warnings(&rescanned_worse);
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(
+            w[0].contains("made the mean R-MSE worse (5.0000e-2"),
+            "{w:?}"
+        );
         let broke = [
             step("start", &[0.01, 0.01], &[]),
             step("add a", &[0.01], &["r1: blew up"]),

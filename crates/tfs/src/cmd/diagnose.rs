@@ -87,18 +87,39 @@ pub fn run(args: Args) -> Result<()> {
         diagnose(&model, &records, &opts).map_err(anyhow::Error::from)
     })
     .context("diagnosing the model")?;
+    // A model that fails to simulate some records: the candidates are added and simulated, and
+    // the one that makes the records simulate is what they are missing (tfs::gate).
+    let catalogue = tfs::diagnose::Catalogue::standard(opts.max_power);
+    let gate = if d.records.iter().any(|r| r.error.is_some()) {
+        super::with_spinner(
+            "the model fails to simulate some records: adding each candidate and simulating",
+            || tfs::gate::simulation_choice(&model, &d.ranked, &records, &catalogue, &opts),
+        )
+        .context("simulating the candidates")?
+    } else {
+        None
+    };
+    let verdict = match &gate {
+        Some((report, Some(chosen))) => format!(
+            "missing effect: {} ({}); add it with --add {}",
+            chosen.effect, report.why, chosen.effect
+        ),
+        _ => d.verdict.clone(),
+    };
     if let Some(dir) = &args.plots {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("--plots {}: cannot create the directory", dir.display()))?;
         write_plots(dir, &d)?;
         // The loop before and after adding the top significant effect, on the first record.
-        let after = match d.ranked.iter().find(|r| r.significant) {
-            Some(top) => Some((
+        let chosen = gate.as_ref().and_then(|g| g.1.as_ref());
+        let after = match (chosen, d.ranked.iter().find(|r| r.significant)) {
+            (Some(c), _) => Some((format!("model + {}", c.effect), c.model.clone())),
+            (None, Some(top)) => Some((
                 format!("model + {}", top.name),
                 tfs::diagnose::add_effect(&model, &top.name, &records)
                     .with_context(|| format!("--plots: adding {} for the loop figure", top.name))?,
             )),
-            None => None,
+            (None, None) => None,
         };
         let mut models: Vec<(&str, &tfs::library::Model)> = vec![("model", &model)];
         if let Some((label, m)) = &after {
@@ -110,7 +131,9 @@ pub fn run(args: Args) -> Result<()> {
         print_json(&json!({
             "model": args.model.display().to_string(),
             "ranked": d.ranked,
-            "verdict": d.verdict,
+            "verdict": verdict,
+            "equation_error_verdict": d.verdict,
+            "simulation": gate.as_ref().map(|g| &g.0),
             "residual_summary": d.residual_summary,
             "records": d.records,
             "localisation": d.localisation,
@@ -119,7 +142,14 @@ pub fn run(args: Args) -> Result<()> {
             "offsets": offsets_report.to_json(),
         }))?;
     } else {
-        println!("{}", d.verdict);
+        println!("{verdict}");
+        if let Some((report, chosen)) = &gate {
+            if chosen.is_some() {
+                println!("equation-error ranking: {}", d.verdict);
+            } else {
+                println!("simulation: {}", report.why);
+            }
+        }
         println!(
             "offsets: {} ({})",
             offsets_report.mode.name(),
