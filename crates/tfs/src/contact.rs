@@ -49,6 +49,8 @@ pub struct StopRescan {
     pub coef: f64,
     /// Whether the re-identified model replaced the equation-error fit.
     pub kept: bool,
+    /// How many positions T-F-S was fitted at (the scan's multiplicity).
+    pub positions: usize,
     /// Why, in a sentence.
     pub why: String,
 }
@@ -365,6 +367,7 @@ pub fn rescan_stop(
                 to: stop.to_string(),
                 coef: f64::NAN,
                 kept: false,
+                positions: coarse.len(),
                 why: format!(
                     "T-F-S kept no stop {}({}, c) pushing out of the contact at any position c from the data's extreme ({extreme:.4}) to {:.4} in from it; the equation-error fit stays",
                     if below { "below" } else { "above" },
@@ -380,6 +383,7 @@ pub fn rescan_stop(
         .collect();
     fine.dedup();
     scored.extend(scan(&fine));
+    let tried = coarse.len() + fine.len();
     // σ on one held-out record barely separates neighbouring positions, while T-F-S's term
     // selection can jump between them; so the few positions with the lowest σ are each
     // simulated on the records and the one that simulates them best is taken.
@@ -438,6 +442,7 @@ pub fn rescan_stop(
         to: term.to_string(),
         coef,
         kept,
+        positions: tried,
         why,
     };
     if !kept {

@@ -13,8 +13,18 @@
 //!   lowest mean R-MSE of the others, then the diagnosis's order) is chosen, provided it leaves
 //!   fewer failing than the model without it. [`simulation_choice`] does this for `tfs diagnose`
 //!   and for each round of `refit --until-clean`.
-//! - A significant candidate whose addition makes more records fail than before is passed over
-//!   by the loop ([`loop_choice`]): it cannot be what the records are missing.
+//! - The loop ([`loop_choice`]) otherwise takes the top significant candidate whose addition
+//!   does not make the model simulate the records worse (more records failing, or as many and a
+//!   higher mean R-MSE: what the error ladder warns the records do not support); one that does is
+//!   passed over, and the next significant one is tried.
+//! - When no significant candidate remains, a stop whose held-out equation error falls is looked
+//!   at by T-F-S: the stop's equation-error evidence is weak where the contact is stiff (the
+//!   smoothing spreads its short acceleration burst), while T-F-S, re-identifying the model with
+//!   the stop scanned over positions ([`crate::contact::rescan_stop`]), resolves it through the
+//!   momentum it changes. The stop is added when the re-identified model replaced the
+//!   equation-error fit, T-F-S's own term test of its coefficient passes at the diagnosis's
+//!   level, corrected over the library's terms and the positions scanned
+//!   ([`tfs_stop_p_value`]), and the model with it simulates the records better than without.
 
 use serde::Serialize;
 use tfs_data::Record;
@@ -257,9 +267,9 @@ pub(crate) fn loop_choice(
         let m = crate::refit::add_one(model, &top.name, records, catalogue, opts, &mut added)
             .with_context(|| format!("adding {}", top.name))?;
         let score = SimScore::of(&m, records);
-        if breaks_more(&before, &score) {
+        if worsens(&before, &score) {
             notes.push(format!(
-                "{} passed over: with it {} (without it {})",
+                "{} passed over: with it {}, without it {}",
                 top.name,
                 score.describe(),
                 before.describe()
@@ -282,6 +292,53 @@ pub(crate) fn loop_choice(
         };
         return Ok((Some(chosen), (!notes.is_empty()).then(|| notes.join("; "))));
     }
+    // A stop the equation error cannot resolve: T-F-S's own test of it (module docs).
+    let stops = ex
+        .ranked
+        .iter()
+        .filter(|r| r.effect == "stop" && !r.significant && r.delta_heldout > 0.0);
+    for cand in stops {
+        let mut added = crate::refit::AddNotes::default();
+        let Ok(m) = crate::refit::add_one(model, &cand.name, records, catalogue, opts, &mut added)
+        else {
+            continue;
+        };
+        let Some(stop) = added.stops.last() else {
+            continue;
+        };
+        let p = stop.kept.then(|| tfs_stop_p_value(&m, stop)).flatten();
+        let score = SimScore::of(&m, records);
+        let accepted = p.is_some_and(|p| p < opts.alpha) && score.key() < before.key();
+        let tfs = match p {
+            Some(p) => format!(
+                "T-F-S re-identified the model with {} (stiffness {:.4e}, p = {p:.2e} corrected over the library's terms and the {} positions scanned)",
+                stop.to, stop.coef, stop.positions
+            ),
+            None if stop.kept => format!(
+                "T-F-S re-identified the model with {} but has no term test to judge it by",
+                stop.to
+            ),
+            None => "T-F-S's re-identification did not replace the equation-error fit".to_string(),
+        };
+        let words = format!(
+            "{} is not significant by equation error; {tfs}; with it {}, without it {}",
+            cand.name,
+            score.describe(),
+            before.describe()
+        );
+        if accepted {
+            notes.push(format!("{words}: added"));
+            let chosen = Chosen {
+                effect: cand.name.clone(),
+                model: m,
+                stops: added.stops,
+                warnings: added.warnings,
+                score,
+            };
+            return Ok((Some(chosen), Some(notes.join("; "))));
+        }
+        notes.push(format!("{words}: not added"));
+    }
     Ok((None, (!notes.is_empty()).then(|| notes.join("; "))))
 }
 
@@ -301,9 +358,45 @@ fn fewest_failing(before: &SimScore, scores: &[Option<SimScore>]) -> Option<usiz
         .map(|(i, _)| i)
 }
 
-/// Whether adding a candidate made more records fail to simulate than before.
-fn breaks_more(before: &SimScore, after: &SimScore) -> bool {
-    after.failed > before.failed
+/// Whether adding a candidate made the model simulate the records worse: more records fail,
+/// or as many and the mean R-MSE of the others rises (what the error ladder warns about: the
+/// records do not support it).
+fn worsens(before: &SimScore, after: &SimScore) -> bool {
+    after.key() > before.key()
+}
+
+/// The stop's evidence by T-F-S, for a stop the equation error does not make significant: its
+/// coefficient in the model T-F-S re-identified with it ([`crate::contact::rescan_stop`]), tested
+/// as T-F-S tests every term it keeps (`|coef|/SE` on Student's t with the term test's degrees of
+/// freedom, the SE from the term's 95 % interval on that interval's own degrees of freedom),
+/// Bonferroni-corrected over the library's candidate terms (as T-F-S's own test is) and over the
+/// positions the re-scan tried. `None` when the model has no such test for the stop (a tied
+/// chain's fit has intervals but no term test).
+pub fn tfs_stop_p_value(model: &Model, stop: &StopRescan) -> Option<f64> {
+    use statrs::distribution::{ContinuousCDF, StudentsT};
+    let (d, t) = model.equations.iter().enumerate().find_map(|(d, e)| {
+        e.terms
+            .iter()
+            .find(|t| t.term.to_string() == stop.to)
+            .map(|t| (d, t))
+    })?;
+    let [lo, hi] = t.interval?;
+    let test = &model.trace["dofs"][d]["term_test"];
+    let dof = test["dof"].as_f64()?;
+    let candidates = test["candidates"].as_f64()?;
+    let nu = test["interval_dof"][stop.to.as_str()]
+        .as_f64()
+        .unwrap_or(dof);
+    let q = StudentsT::new(0.0, 1.0, nu.max(1.0))
+        .ok()?
+        .inverse_cdf(0.975);
+    let se = 0.5 * (hi - lo) / q;
+    if !(se > 0.0 && se.is_finite() && t.coef.is_finite()) {
+        return None;
+    }
+    let tt = StudentsT::new(0.0, 1.0, dof.max(1.0)).ok()?;
+    let p = 2.0 * (1.0 - tt.cdf(t.coef.abs() / se));
+    Some((p * candidates * stop.positions.max(1) as f64).min(1.0))
 }
 
 #[cfg(test)]
@@ -342,13 +435,62 @@ mod tests {
         assert_eq!(fewest_failing(&s(0, 0.2), &[Some(s(0, 0.01))]), None);
     }
 
-    /// A candidate that makes a record fail which simulated before breaks the model; one that
-    /// only worsens the R-MSE does not (the ladder warns about that).
+    /// A candidate that makes a record fail which simulated before worsens the model whatever
+    /// the others' R-MSE; so does one that raises the mean R-MSE with as many failing; one
+    /// that makes a record simulate, or lowers the mean, does not.
     #[test]
-    fn a_candidate_that_makes_a_record_fail_breaks_the_model() {
-        assert!(breaks_more(&s(0, 0.1), &s(1, 0.05)));
-        assert!(!breaks_more(&s(0, 0.1), &s(0, 0.5)));
-        assert!(!breaks_more(&s(2, 0.1), &s(1, 0.5)));
+    fn a_candidate_that_makes_a_record_fail_or_the_error_rise_worsens_the_model() {
+        assert!(worsens(&s(0, 0.1), &s(1, 0.05)));
+        assert!(worsens(&s(0, 0.1), &s(0, 0.5)));
+        assert!(!worsens(&s(2, 0.1), &s(1, 0.5)));
+        assert!(!worsens(&s(0, 0.1), &s(0, 0.05)));
+    }
+
+    /// A one-DOF T-F-S model whose stop term has the interval and term test `interval`, `dof`.
+    fn with_stop(interval: [f64; 2], term_test: bool) -> (Model, StopRescan) {
+        let test = if term_test {
+            serde_json::json!({"candidates": 9, "dof": 20.0, "interval_dof": {"below(x, 0)": 5.0}})
+        } else {
+            serde_json::json!(null)
+        };
+        let json = serde_json::json!({"format": "tfs-model/1", "dofs": ["x"], "inputs": [], "method": "tfs-sindy",
+            "trace": {"dofs": [{"term_test": test}]},
+            "equations": [{"dof": "x", "terms": [{"term": "x", "coef": -1.0},
+                {"term": "below(x, 0)", "coef": 100.0, "interval": interval}]}]});
+        let model = Model::from_json_str(&json.to_string()).unwrap();
+        let stop = StopRescan {
+            from: "below(x, 0.01)".into(),
+            to: "below(x, 0)".into(),
+            coef: 100.0,
+            kept: true,
+            positions: 48,
+            why: String::new(),
+        };
+        (model, stop)
+    }
+
+    /// T-F-S's evidence for a stop: a coefficient many standard errors from zero passes even
+    /// after the correction over the library and the positions; one whose interval nearly
+    /// reaches zero (significant alone, at 95 %) does not once corrected; the correction grows
+    /// with the positions scanned; without a term test there is no p value.
+    #[test]
+    fn the_stops_tfs_p_value_is_corrected_over_terms_and_positions() {
+        let (tight, stop) = with_stop([95.0, 105.0], true);
+        let p = tfs_stop_p_value(&tight, &stop).unwrap();
+        assert!(p < 1e-6, "{p}");
+        let (wide, stop) = with_stop([5.0, 195.0], true);
+        let p_wide = tfs_stop_p_value(&wide, &stop).unwrap();
+        assert!(p_wide > 0.01, "{p_wide}");
+        let (mid, mut stop) = with_stop([60.0, 140.0], true);
+        let p48 = tfs_stop_p_value(&mid, &stop).unwrap();
+        stop.positions = 1;
+        let p1 = tfs_stop_p_value(&mid, &stop).unwrap();
+        assert!(
+            p1 < p48 && (p48 / p1 - 48.0).abs() < 1e-6 * 48.0,
+            "{p1} {p48}"
+        );
+        let (untested, stop) = with_stop([95.0, 105.0], false);
+        assert!(tfs_stop_p_value(&untested, &stop).is_none());
     }
 
     /// The words say how many records fail of how many, and the mean where there is one.

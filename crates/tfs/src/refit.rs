@@ -44,11 +44,12 @@ pub struct LoopRound {
     pub added: Option<String>,
     /// The diagnosis's verdict in that round.
     pub verdict: String,
-    /// What the simulations of the records said about the choice, when they said anything
-    /// ([`crate::gate`]): the model fails on some records and a candidate makes fewer fail, or
-    /// a significant candidate was passed over because it makes more fail.
+    /// What decided the round beyond the verdict, when anything did ([`crate::gate`]): the
+    /// model fails to simulate some records and a candidate makes fewer fail; a significant
+    /// candidate was passed over because the model simulates the records worse with it; a stop
+    /// was added on T-F-S's evidence.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub simulation: Option<String>,
+    pub note: Option<String>,
 }
 
 /// What [`refit_with`] is asked: effects to add by name, then the diagnosis loop, then
@@ -153,14 +154,14 @@ fn until_clean_with(
     for round in 1..=max_rounds {
         let ex = explain(&model, records, &catalogue, opts)
             .with_context(|| format!("--until-clean: diagnosing in round {round}"))?;
-        let (chosen, simulation) = crate::gate::loop_choice(&model, &ex, records, &catalogue, opts)
+        let (chosen, note) = crate::gate::loop_choice(&model, &ex, records, &catalogue, opts)
             .with_context(|| format!("--until-clean: round {round}"))?;
         let Some(chosen) = chosen else {
             rounds.push(LoopRound {
                 round,
                 added: None,
                 verdict: ex.verdict,
-                simulation,
+                note,
             });
             break;
         };
@@ -171,7 +172,7 @@ fn until_clean_with(
             round,
             added: Some(chosen.effect),
             verdict: ex.verdict,
-            simulation,
+            note,
         });
     }
     Ok((model, rounds))

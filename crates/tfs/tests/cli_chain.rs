@@ -481,7 +481,7 @@ fn the_loop_adds_the_folded_stop_a_chain_needs_to_simulate_at_30_db() {
     // simulations decided.
     let rounds = v["rounds"].as_array().unwrap();
     assert!(
-        rounds[0]["simulation"]
+        rounds[0]["note"]
             .as_str()
             .is_some_and(|s| s.contains("fails to simulate")),
         "{rounds:?}"

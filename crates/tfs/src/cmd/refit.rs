@@ -132,6 +132,9 @@ pub fn run(args: Args) -> Result<()> {
                 Some(name) => println!("round {}: added {name} ({})", r.round, r.verdict),
                 None => println!("round {}: {}; the loop stops", r.round, r.verdict),
             }
+            if let Some(note) = &r.note {
+                println!("  {note}");
+            }
         }
         if args.until_clean.is_some() && rounds.last().is_some_and(|r| r.added.is_some()) {
             println!(
