@@ -311,8 +311,11 @@ pub(crate) fn loop_choice(
         let accepted = p.is_some_and(|p| p < opts.alpha) && score.key() < before.key();
         let tfs = match p {
             Some(p) => format!(
-                "T-F-S re-identified the model with {} (stiffness {:.4e}, p = {p:.2e} corrected over the library's terms and the {} positions scanned)",
-                stop.to, stop.coef, stop.positions
+                "T-F-S re-identified the model with {} (stiffness {:.4e}, {} corrected over the library's terms and the {} positions scanned)",
+                stop.to,
+                stop.coef,
+                p_text(p),
+                stop.positions
             ),
             None if stop.kept => format!(
                 "T-F-S re-identified the model with {} but has no term test to judge it by",
@@ -399,9 +402,25 @@ pub fn tfs_stop_p_value(model: &Model, stop: &StopRescan) -> Option<f64> {
     Some((p * candidates * stop.positions.max(1) as f64).min(1.0))
 }
 
+/// A p value for people: `p = 3.14e-5`, or `p < 1e-300` when it is below what an `f64`
+/// carries to two significant digits (a coefficient very far from zero rounds it to 0).
+fn p_text(p: f64) -> String {
+    if p < 1e-300 {
+        "p < 1e-300".to_string()
+    } else {
+        format!("p = {p:.2e}")
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_p_value_that_underflows_reads_as_a_bound() {
+        assert_eq!(p_text(0.0), "p < 1e-300");
+        assert_eq!(p_text(3.14e-5), "p = 3.14e-5");
+    }
 
     fn s(failed: usize, mean: f64) -> SimScore {
         SimScore {
