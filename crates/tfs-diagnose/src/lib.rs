@@ -61,6 +61,7 @@ pub mod residual;
 pub mod restoring;
 pub mod simulate;
 mod stats;
+mod verdict;
 
 pub use compare::{RecordComparison, compare};
 pub use effects::{Catalogue, ComputedColumn, Effect, EffectColumn, EffectContext, Variant};
