@@ -26,6 +26,7 @@ use tfs_data::Record;
 use tfs_library::{Coord, Factor, HistoryEntry, Model, RecordScore, Term, Var};
 
 use crate::error::Result;
+use crate::gate::SimScore;
 
 /// Positions of the first, coarse pass; a second pass of the same size refines around the best.
 const GRID: usize = 25;
@@ -154,7 +155,7 @@ impl Placement {
 /// A model's free-run R-MSE on the records: how many records fail to simulate, the mean R-MSE
 /// over the others, and the score of each.
 #[derive(Debug, Clone)]
-struct Scores {
+pub(crate) struct Scores {
     /// Each failed record with why (`record: error`).
     failed: Vec<String>,
     mean: f64,
@@ -162,18 +163,18 @@ struct Scores {
 }
 
 impl Scores {
-    /// Fewer failed records first, then the lower mean.
+    /// Fewer failed records first, then the lower mean ([`SimScore`]'s order).
     fn better_than(&self, other: &Scores) -> bool {
-        self.key() < other.key()
+        self.summary().key() < other.summary().key()
     }
 
-    fn key(&self) -> (usize, f64) {
-        let mean = if self.mean.is_finite() {
-            self.mean
-        } else {
-            f64::INFINITY
-        };
-        (self.failed.len(), mean)
+    /// The counts and the mean, without the per-record detail.
+    pub(crate) fn summary(&self) -> SimScore {
+        SimScore {
+            failed: self.failed.len(),
+            records: self.failed.len() + self.each.len(),
+            mean_r_mse: self.mean,
+        }
     }
 
     fn describe(&self, n: usize) -> String {
@@ -186,7 +187,7 @@ impl Scores {
 }
 
 /// Free-run R-MSE of `model` on each record (records that cannot be simulated counted apart).
-fn score(model: &Model, records: &[Record]) -> Scores {
+pub(crate) fn score(model: &Model, records: &[Record]) -> Scores {
     let mut each = Vec::with_capacity(records.len());
     let mut failed = Vec::new();
     for r in records {
@@ -401,8 +402,9 @@ pub fn rescan_stop(
             .collect()
     };
     let Some((c, sigma, mut model, ours)) = shortlist.into_iter().min_by(|a, b| {
-        a.3.key()
-            .partial_cmp(&b.3.key())
+        a.3.summary()
+            .key()
+            .partial_cmp(&b.3.summary().key())
             .unwrap_or(std::cmp::Ordering::Equal)
             .then(a.1.total_cmp(&b.1))
     }) else {

@@ -48,7 +48,7 @@ pub struct SimScore {
 
 impl SimScore {
     /// Fewer failures first, then the lower mean R-MSE.
-    fn key(&self) -> (usize, f64) {
+    pub(crate) fn key(&self) -> (usize, f64) {
         (
             self.failed,
             if self.mean_r_mse.is_finite() {
@@ -88,12 +88,7 @@ impl SimScore {
                 .collect();
             return SimScore::from_parts(records.len(), &ok);
         }
-        let ok: Vec<f64> = records
-            .iter()
-            .filter_map(|r| tfs_diagnose::r_mse(model, r).ok())
-            .filter(|v| v.is_finite())
-            .collect();
-        SimScore::from_parts(records.len(), &ok)
+        crate::contact::score(model, records).summary()
     }
 
     fn from_parts(records: usize, ok: &[f64]) -> SimScore {
