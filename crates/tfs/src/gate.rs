@@ -12,7 +12,11 @@
 //!   and simulated on the records; the candidate that leaves the fewest records failing (then the
 //!   lowest mean R-MSE of the others, then the diagnosis's order) is chosen, provided it leaves
 //!   fewer failing than the model without it. [`simulation_choice`] does this for `tfs diagnose`
-//!   and for each round of `refit --until-clean`.
+//!   and for each round of `refit --until-clean`. When the chosen one still leaves records
+//!   failing, `diagnose` goes on from the model with it the same way (forward selection, at most
+//!   [`MAX_FURTHER`] more), so that it names what the records need together: one effect may not
+//!   be enough (a chain whose cells each need their stop). The loop takes the first and
+//!   re-diagnoses instead.
 //! - The loop ([`loop_choice`]) otherwise takes the top significant candidate whose addition
 //!   does not make the model simulate the records worse (more records failing, or as many and a
 //!   higher mean R-MSE: what the error ladder warns the records do not support); one that does is
@@ -131,6 +135,22 @@ pub struct Chosen {
     pub score: SimScore,
 }
 
+/// How many effects `diagnose` adds after the chosen one when records still fail: the search
+/// costs one refit and simulation per candidate and step, and the loop (`refit --until-clean`)
+/// re-diagnoses after each effect anyway, so a few steps are enough to say what the records need
+/// together.
+pub const MAX_FURTHER: usize = 2;
+
+/// One effect added after the chosen one (and those before it), with how the records then
+/// simulate.
+#[derive(Debug, Clone, Serialize)]
+pub struct Step {
+    /// The effect (`name@dof`).
+    pub effect: String,
+    /// How the model with it (and every effect before it) simulates the records.
+    pub score: SimScore,
+}
+
 /// What the simulations said in one diagnosis: how the model simulates, the candidates tried
 /// and the one chosen, in a sentence.
 #[derive(Debug, Clone, Serialize)]
@@ -141,8 +161,23 @@ pub struct GateReport {
     pub tried: Vec<Trial>,
     /// The candidate chosen (`None`: the simulations chose none).
     pub chosen: Option<String>,
+    /// When the chosen one still leaves records failing: the effects that, added after it in
+    /// this order, each leave fewer failing (empty when none is needed or none helps).
+    pub then: Vec<Step>,
     /// Why, in a sentence.
     pub why: String,
+}
+
+impl GateReport {
+    /// The effects the simulations chose, in the order they are added: the chosen one, then
+    /// [`GateReport::then`].
+    pub fn effects(&self) -> Vec<&str> {
+        self.chosen
+            .iter()
+            .map(String::as_str)
+            .chain(self.then.iter().map(|s| s.effect.as_str()))
+            .collect()
+    }
 }
 
 /// Adds every name of `names` to `model` in turn as `refit --add` does (a stop re-scanned by
@@ -155,49 +190,91 @@ fn try_each(
     catalogue: &Catalogue,
     opts: &DiagnoseOptions,
 ) -> (Vec<Trial>, Vec<Option<Chosen>>) {
-    let mut trials = Vec::with_capacity(names.len());
-    let mut made = Vec::with_capacity(names.len());
-    for &name in names {
-        let mut notes = crate::refit::AddNotes::default();
-        match crate::refit::add_one(model, name, records, catalogue, opts, &mut notes) {
-            Ok(m) => {
-                let score = SimScore::of(&m, records);
-                trials.push(Trial {
-                    effect: name.to_string(),
-                    score: Some(score),
-                    error: None,
-                });
-                made.push(Some(Chosen {
-                    effect: name.to_string(),
-                    model: m,
-                    stops: notes.stops,
-                    warnings: notes.warnings,
-                    score,
-                }));
+    use rayon::prelude::*;
+    // Each candidate is refitted and simulated on its own; collected in order, so the result
+    // does not depend on the threads.
+    names
+        .par_iter()
+        .map(|&name| {
+            let mut notes = crate::refit::AddNotes::default();
+            match crate::refit::add_one(model, name, records, catalogue, opts, &mut notes) {
+                Ok(m) => {
+                    let score = SimScore::of(&m, records);
+                    let trial = Trial {
+                        effect: name.to_string(),
+                        score: Some(score),
+                        error: None,
+                    };
+                    let made = Chosen {
+                        effect: name.to_string(),
+                        model: m,
+                        stops: notes.stops,
+                        warnings: notes.warnings,
+                        score,
+                    };
+                    (trial, Some(made))
+                }
+                Err(e) => {
+                    let trial = Trial {
+                        effect: name.to_string(),
+                        score: None,
+                        error: Some(crate::one_line(&e)),
+                    };
+                    (trial, None)
+                }
             }
-            Err(e) => {
-                trials.push(Trial {
-                    effect: name.to_string(),
-                    score: None,
-                    error: Some(crate::one_line(&e)),
-                });
-                made.push(None);
-            }
-        }
+        })
+        .unzip()
+}
+
+/// Forward from `first` (which still leaves records failing): each step adds, to the model with
+/// every effect so far, the candidate of `names` not yet in it that leaves the fewest records
+/// failing, while that is fewer than before the step, records still fail and fewer than
+/// [`MAX_FURTHER`] steps were taken.
+fn further_steps(
+    first: &Chosen,
+    names: &[&str],
+    records: &[Record],
+    catalogue: &Catalogue,
+    opts: &DiagnoseOptions,
+) -> Vec<Step> {
+    let mut steps: Vec<Step> = Vec::new();
+    let mut current = first.model.clone();
+    let mut score = first.score;
+    while score.failed > 0 && steps.len() < MAX_FURTHER {
+        let rest: Vec<&str> = names
+            .iter()
+            .copied()
+            .filter(|n| *n != first.effect && steps.iter().all(|s| s.effect != *n))
+            .collect();
+        let (tried, mut made) = try_each(&current, &rest, records, catalogue, opts);
+        let scores: Vec<Option<SimScore>> = tried.iter().map(|t| t.score).collect();
+        let Some(next) = fewest_failing(&score, &scores).and_then(|i| made[i].take()) else {
+            break;
+        };
+        steps.push(Step {
+            effect: next.effect,
+            score: next.score,
+        });
+        current = next.model;
+        score = next.score;
     }
-    (trials, made)
+    steps
 }
 
 /// When `model` fails to simulate some of `records`: every candidate of the diagnosis's
 /// ranking `ranked` whose held-out equation error falls is added and simulated (module docs), and the one that
-/// leaves the fewest records failing is chosen if it leaves fewer than `model` does. `None`
-/// when `model` simulates every record (the simulations then have nothing to say here).
+/// leaves the fewest records failing is chosen if it leaves fewer than `model` does. With
+/// `further`, when it still leaves records failing, the effects needed with it are looked for
+/// (module docs; [`GateReport::then`]). `None` when `model` simulates every record (the
+/// simulations then have nothing to say here).
 pub fn simulation_choice(
     model: &Model,
     ranked: &[RankedEffect],
     records: &[Record],
     catalogue: &Catalogue,
     opts: &DiagnoseOptions,
+    further: bool,
 ) -> Result<Option<(GateReport, Option<Chosen>)>> {
     let before = SimScore::of(model, records);
     if before.failed == 0 {
@@ -211,15 +288,29 @@ pub fn simulation_choice(
     let (tried, mut made) = try_each(model, &names, records, catalogue, opts);
     let scores: Vec<Option<SimScore>> = tried.iter().map(|t| t.score).collect();
     let best = fewest_failing(&before, &scores).and_then(|i| made[i].take());
+    let then = match &best {
+        Some(b) if further => further_steps(b, &names, records, catalogue, opts),
+        _ => Vec::new(),
+    };
     let why = match &best {
-        Some(b) => format!(
-            "the model fails to simulate {} of {} records; of the {} candidates whose held-out equation error falls, adding {} leaves the fewest failing: {}",
-            before.failed,
-            before.records,
-            names.len(),
-            b.effect,
-            b.score.describe()
-        ),
+        Some(b) => {
+            let mut why = format!(
+                "the model fails to simulate {} of {} records; of the {} candidates whose held-out equation error falls, adding {} leaves the fewest failing: {}",
+                before.failed,
+                before.records,
+                names.len(),
+                b.effect,
+                b.score.describe()
+            );
+            for s in &then {
+                why.push_str(&format!(
+                    "; then adding {} leaves the fewest: {}",
+                    s.effect,
+                    s.score.describe()
+                ));
+            }
+            why
+        }
         None => format!(
             "the model fails to simulate {} of {} records and none of the {} candidates whose held-out equation error falls makes fewer fail",
             before.failed,
@@ -231,6 +322,7 @@ pub fn simulation_choice(
         before,
         tried,
         chosen: best.as_ref().map(|b| b.effect.clone()),
+        then,
         why,
     };
     Ok(Some((report, best)))
@@ -249,7 +341,8 @@ pub(crate) fn loop_choice(
     opts: &DiagnoseOptions,
 ) -> Result<(Option<Chosen>, Option<String>)> {
     let mut notes = Vec::new();
-    if let Some((report, chosen)) = simulation_choice(model, &ex.ranked, records, catalogue, opts)?
+    if let Some((report, chosen)) =
+        simulation_choice(model, &ex.ranked, records, catalogue, opts, false)?
     {
         if chosen.is_some() {
             return Ok((chosen, Some(report.why)));

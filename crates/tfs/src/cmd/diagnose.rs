@@ -93,17 +93,26 @@ pub fn run(args: Args) -> Result<()> {
     let gate = if d.records.iter().any(|r| r.error.is_some()) {
         super::with_spinner(
             "the model fails to simulate some records: adding each candidate and simulating",
-            || tfs::gate::simulation_choice(&model, &d.ranked, &records, &catalogue, &opts),
+            || tfs::gate::simulation_choice(&model, &d.ranked, &records, &catalogue, &opts, true),
         )
         .context("simulating the candidates")?
     } else {
         None
     };
     let verdict = match &gate {
-        Some((report, Some(chosen))) => format!(
+        Some((report, Some(chosen))) if report.then.is_empty() => format!(
             "missing effect: {} ({}); add it with --add {}",
             chosen.effect, report.why, chosen.effect
         ),
+        Some((report, Some(_))) => {
+            let effects = report.effects();
+            format!(
+                "missing effects: {} ({}); add them with --add {}",
+                effects.join(", then "),
+                report.why,
+                effects.join(" --add ")
+            )
+        }
         _ => d.verdict.clone(),
     };
     if let Some(dir) = &args.plots {
