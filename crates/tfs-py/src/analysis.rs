@@ -19,7 +19,10 @@ use crate::record::PyRecord;
 /// Diagnoses a model against records (as `tfs diagnose`): where it fails and which physical
 /// effect is missing. Returns a dict: `verdict`, `ranked` (effects, best first: name,
 /// significance, held-out drop, p-value, share, coefficient, R-MSE after), `residual_summary`,
-/// `records`, `localisation`, `tests`, `cutoff_hz`, `offsets`.
+/// `records`, `localisation`, `tests`, `cutoff_hz`, `offsets`; when the model fails to simulate
+/// some records, the candidates are added and simulated as `tfs diagnose` does: `simulation`
+/// says what that chose (`verdict` then names it) and `equation_error_verdict` keeps the
+/// ranking's own verdict.
 #[pyfunction]
 #[pyo3(signature = (model, records, *, alpha=0.01, min_share=0.02, offsets="auto", clipped="error"))]
 pub fn diagnose<'py>(
@@ -40,9 +43,14 @@ pub fn diagnose<'py>(
             let (recs, report, w) = prepare_for_model(m, recs, offsets, clipped)?;
             let d = tfs::diagnose::diagnose(m, &recs, &opts)
                 .map_err(|e| tfs::Error::from(e).context("diagnosing the model"))?;
+            let gate = tfs::gate::on_diagnosis(m, &d, &recs, &opts)
+                .map_err(|e| e.context("simulating the candidates"))?;
             Ok((
                 json!({
-                    "verdict": d.verdict, "ranked": d.ranked,
+                    "verdict": tfs::gate::verdict(&d, gate.as_ref()),
+                    "equation_error_verdict": d.verdict,
+                    "simulation": gate.as_ref().map(|g| &g.0),
+                    "ranked": d.ranked,
                     "residual_summary": d.residual_summary, "records": d.records,
                     "localisation": d.localisation, "tests": d.tests,
                     "cutoff_hz": d.cutoff_hz, "offsets": report.to_json(),

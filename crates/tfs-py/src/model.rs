@@ -345,15 +345,19 @@ impl PyModel {
     }
 
     /// Adds named physical effects (`dry-friction`, `quadratic-damping`, `stop`, `name@dof`, …;
-    /// `tfs.diagnose` ranks them) one by one and refits on the records, as `tfs refit`. The new
-    /// model's `report` holds the error `ladder` and its `warnings`.
-    #[pyo3(signature = (records, add, *, refine=false, validate=None, offsets="auto", clipped="error"))]
+    /// `tfs.diagnose` ranks them) one by one and refits on the records, as `tfs refit`; with
+    /// `until_clean=N`, then runs the diagnosis loop (`refit --until-clean N`): each round adds
+    /// what `tfs.diagnose` finds missing, until nothing significant remains. The new model's
+    /// `report` holds the error `ladder`, its `warnings`, the loop's `rounds` and the `stops`
+    /// re-scanned.
+    #[pyo3(signature = (records, add=Vec::new(), *, until_clean=None, refine=false, validate=None, offsets="auto", clipped="error"))]
     #[allow(clippy::too_many_arguments)]
     fn refit(
         &self,
         py: Python<'_>,
         records: &Bound<'_, PyAny>,
         add: Vec<String>,
+        until_clean: Option<usize>,
         refine: bool,
         validate: Option<&Bound<'_, PyAny>>,
         offsets: &str,
@@ -376,7 +380,13 @@ impl PyModel {
                     w.extend(w2);
                     h
                 };
-                let r = tfs::refit::refit(&self.inner, &add, &recs, refine, held, &report)?;
+                let req = tfs::refit::RefitRequest {
+                    add,
+                    until_clean,
+                    refine,
+                    held_out: held,
+                };
+                let r = tfs::refit::refit_with(&self.inner, &recs, &req, &report)?;
                 Ok(((r, report), w))
             })
             .or_raise()?;
@@ -387,7 +397,7 @@ impl PyModel {
         Ok(PyModel {
             inner: r.model,
             report: serde_json::json!({
-                "ladder": r.ladder, "warnings": r.warnings, "stops": r.stops,
+                "ladder": r.ladder, "warnings": r.warnings, "stops": r.stops, "rounds": r.rounds,
                 "refine": r.refine.as_ref().map(RefineReport::to_json),
                 "offsets": offsets_report.to_json(),
             }),

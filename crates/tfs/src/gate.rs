@@ -32,7 +32,9 @@
 
 use serde::Serialize;
 use tfs_data::Record;
-use tfs_diagnose::{Catalogue, DiagnoseOptions, Explanation, RankedEffect, error_ladder};
+use tfs_diagnose::{
+    Catalogue, DiagnoseOptions, Diagnosis, Explanation, RankedEffect, error_ladder,
+};
 use tfs_library::Model;
 
 use crate::contact::StopRescan;
@@ -63,9 +65,14 @@ impl SimScore {
         )
     }
 
-    /// In words: `2 of 4 records fail` or `all 4 simulate (mean R-MSE …)`.
+    /// In words: `2 of 4 records fail` or `all 4 simulate (mean R-MSE …)` (`the record …`
+    /// when there is one).
     pub fn describe(&self) -> String {
         match self.failed {
+            0 if self.records == 1 => {
+                format!("the record simulates (R-MSE {:.4e})", self.mean_r_mse)
+            }
+            1 if self.records == 1 => "the record fails to simulate".to_string(),
             0 => format!(
                 "all {} records simulate (mean R-MSE {:.4e})",
                 self.records, self.mean_r_mse
@@ -75,6 +82,15 @@ impl SimScore {
                 "{f} of {} records fail to simulate (mean R-MSE {:.4e} on the others)",
                 self.records, self.mean_r_mse
             ),
+        }
+    }
+
+    /// The records that fail, in words: `2 of 4 records`, or `the record` when there is one.
+    pub fn failing(&self) -> String {
+        if self.records == 1 {
+            "the record".to_string()
+        } else {
+            format!("{} of {} records", self.failed, self.records)
         }
     }
 
@@ -295,9 +311,8 @@ pub fn simulation_choice(
     let why = match &best {
         Some(b) => {
             let mut why = format!(
-                "the model fails to simulate {} of {} records; of the {} candidates whose held-out equation error falls, adding {} leaves the fewest failing: {}",
-                before.failed,
-                before.records,
+                "the model fails to simulate {}; of the {} candidates whose held-out equation error falls, adding {} leaves the fewest failing: {}",
+                before.failing(),
                 names.len(),
                 b.effect,
                 b.score.describe()
@@ -312,9 +327,8 @@ pub fn simulation_choice(
             why
         }
         None => format!(
-            "the model fails to simulate {} of {} records and none of the {} candidates whose held-out equation error falls makes fewer fail",
-            before.failed,
-            before.records,
+            "the model fails to simulate {} and none of the {} candidates whose held-out equation error falls makes fewer fail",
+            before.failing(),
             names.len()
         ),
     };
@@ -326,6 +340,47 @@ pub fn simulation_choice(
         why,
     };
     Ok(Some((report, best)))
+}
+
+/// What the simulations said on a diagnosis, and the candidate they chose with its model.
+pub type Simulated = (GateReport, Option<Chosen>);
+
+/// The simulations' say on the diagnosis `d` of `model` on `records`, as `tfs diagnose` (and
+/// `tfs.diagnose` in Python) gives it: when the diagnosis could not simulate some records,
+/// [`simulation_choice`] with the further steps; else `None`.
+pub fn on_diagnosis(
+    model: &Model,
+    d: &Diagnosis,
+    records: &[Record],
+    opts: &DiagnoseOptions,
+) -> Result<Option<Simulated>> {
+    if !d.records.iter().any(|r| r.error.is_some()) {
+        return Ok(None);
+    }
+    let catalogue = Catalogue::standard(opts.max_power);
+    simulation_choice(model, &d.ranked, records, &catalogue, opts, true)
+}
+
+/// The verdict of a diagnosis `d` with what the simulations said (`gate`, from
+/// [`on_diagnosis`]): the effect (or effects, in order) the simulations chose, with why and the
+/// `--add` flags; else the diagnosis's own verdict by equation error.
+pub fn verdict(d: &Diagnosis, gate: Option<&Simulated>) -> String {
+    match gate {
+        Some((report, Some(chosen))) if report.then.is_empty() => format!(
+            "missing effect: {} ({}); add it with --add {}",
+            chosen.effect, report.why, chosen.effect
+        ),
+        Some((report, Some(_))) => {
+            let effects = report.effects();
+            format!(
+                "missing effects: {} ({}); add them with --add {}",
+                effects.join(", then "),
+                report.why,
+                effects.join(" --add ")
+            )
+        }
+        _ => d.verdict.clone(),
+    }
 }
 
 /// One round of the diagnosis loop's choice on the diagnosis `ex` of `model`: when the model
@@ -608,6 +663,14 @@ mod tests {
             s(4, f64::INFINITY).describe(),
             "all 4 records fail to simulate"
         );
+        let one = SimScore {
+            failed: 0,
+            records: 1,
+            mean_r_mse: 0.25,
+        };
+        assert_eq!(one.describe(), "the record simulates (R-MSE 2.5000e-1)");
+        let one = SimScore { failed: 1, ..one };
+        assert_eq!(one.describe(), "the record fails to simulate");
         let two = s(2, 0.5).describe();
         assert!(
             two.starts_with("2 of 4 records fail") && two.contains("5.0000e-1"),

@@ -83,8 +83,9 @@ class Model:
     def refit(
         self,
         records: Records,
-        add: Sequence[str],
+        add: Sequence[str] = (),
         *,
+        until_clean: int | None = None,
         refine: bool = False,
         validate: Records | None = None,
         offsets: str = "auto",

@@ -89,32 +89,16 @@ pub fn run(args: Args) -> Result<()> {
     .context("diagnosing the model")?;
     // A model that fails to simulate some records: the candidates are added and simulated, and
     // the one that makes the records simulate is what they are missing (tfs::gate).
-    let catalogue = tfs::diagnose::Catalogue::standard(opts.max_power);
     let gate = if d.records.iter().any(|r| r.error.is_some()) {
         super::with_spinner(
             "the model fails to simulate some records: adding each candidate and simulating",
-            || tfs::gate::simulation_choice(&model, &d.ranked, &records, &catalogue, &opts, true),
+            || tfs::gate::on_diagnosis(&model, &d, &records, &opts),
         )
         .context("simulating the candidates")?
     } else {
         None
     };
-    let verdict = match &gate {
-        Some((report, Some(chosen))) if report.then.is_empty() => format!(
-            "missing effect: {} ({}); add it with --add {}",
-            chosen.effect, report.why, chosen.effect
-        ),
-        Some((report, Some(_))) => {
-            let effects = report.effects();
-            format!(
-                "missing effects: {} ({}); add them with --add {}",
-                effects.join(", then "),
-                report.why,
-                effects.join(" --add ")
-            )
-        }
-        _ => d.verdict.clone(),
-    };
+    let verdict = tfs::gate::verdict(&d, gate.as_ref());
     if let Some(dir) = &args.plots {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("--plots {}: cannot create the directory", dir.display()))?;
