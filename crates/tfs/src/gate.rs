@@ -345,6 +345,12 @@ pub fn simulation_choice(
 /// What the simulations said on a diagnosis, and the candidate they chose with its model.
 pub type Simulated = (GateReport, Option<Chosen>);
 
+/// Whether the diagnosis `d` could not simulate some of its records (then [`on_diagnosis`]
+/// adds and simulates the candidates).
+pub fn fails_somewhere(d: &Diagnosis) -> bool {
+    d.records.iter().any(|r| r.error.is_some())
+}
+
 /// The simulations' say on the diagnosis `d` of `model` on `records`, as `tfs diagnose` (and
 /// `tfs.diagnose` in Python) gives it: when the diagnosis could not simulate some records,
 /// [`simulation_choice`] with the further steps; else `None`.
@@ -354,7 +360,7 @@ pub fn on_diagnosis(
     records: &[Record],
     opts: &DiagnoseOptions,
 ) -> Result<Option<Simulated>> {
-    if !d.records.iter().any(|r| r.error.is_some()) {
+    if !fails_somewhere(d) {
         return Ok(None);
     }
     let catalogue = Catalogue::standard(opts.max_power);

@@ -89,7 +89,7 @@ pub fn run(args: Args) -> Result<()> {
     .context("diagnosing the model")?;
     // A model that fails to simulate some records: the candidates are added and simulated, and
     // the one that makes the records simulate is what they are missing (tfs::gate).
-    let gate = if d.records.iter().any(|r| r.error.is_some()) {
+    let gate = if tfs::gate::fails_somewhere(&d) {
         super::with_spinner(
             "the model fails to simulate some records: adding each candidate and simulating",
             || tfs::gate::on_diagnosis(&model, &d, &records, &opts),
