@@ -2,7 +2,13 @@
 //! held-out blocks, test it, size it, and rank the effects.
 //!
 //! Per DOF equation, rows are the usable samples of every record: target the smoothed `x''`,
-//! columns the equation's terms (plus the effect's) evaluated on smoothed states. Rows are cut
+//! columns the equation's terms (plus the effect's) evaluated on smoothed states. A nonlinear
+//! column (a power, product, friction law or internal state; not a stop, see
+//! [`needs_band_limit`]) is low-passed at the same cut-off as the acceleration before its rows
+//! are taken: `x^k` of a motion in a band up to `f` has harmonics up to `k·f`, which the
+//! smoothed acceleration lost, and a fit that kept them in the column would shrink the high
+//! power's coefficient. The filter is linear, so a refit's coefficients still belong to the
+//! unfiltered terms. Rows are cut
 //! into contiguous blocks, each compressed once (`tfs_regress::Compressed`); folds are records
 //! (several records) or time segments (one record). For a candidate, every fold is fitted on the
 //! other folds' blocks, and each held-out block's residual sum of squares is read off its small
@@ -30,11 +36,12 @@ use faer::Mat;
 use rayon::prelude::*;
 use serde::Serialize;
 use tfs_data::Record;
-use tfs_library::{ColumnSet, Equation, Model, ModelTerm, Term, evaluate_term};
+use tfs_library::{ColumnSet, Equation, Factor, Model, ModelTerm, Term, evaluate_term};
 use tfs_regress::{Compressed, LeastSquares, Regressor};
+use tfs_signal::spectral_derivative;
 
 use crate::effects::{Catalogue, EffectColumn, EffectContext, Variant};
-use crate::judge::{Candidate, Heldout, Judge, mark_ties, order};
+use crate::judge::{Candidate, FoldEquation, Heldout, Judge, mark_ties, order};
 use crate::prepare::{DiagnoseOptions, Layout, RecordStates, rms};
 use crate::simulate::BaseRun;
 use crate::stats::{block_wald_p_value, bootstrap_interval, paired_p_value};
@@ -109,7 +116,8 @@ pub(crate) struct Design {
     pub b: Vec<Vec<f64>>,
 }
 
-/// Evaluates `columns` for DOF `dof_idx` on every record's usable rows.
+/// Evaluates `columns` for DOF `dof_idx` on every record's usable rows; a nonlinear column is
+/// low-passed at the record's cut-off first ([`needs_band_limit`]).
 pub(crate) fn design(
     states: &[RecordStates],
     dof_idx: usize,
@@ -132,20 +140,53 @@ pub(crate) fn design(
         let cols: Vec<Vec<f64>> = columns
             .iter()
             .map(|c| -> Result<Vec<f64>> {
-                let mut out = vec![0.0; n];
-                for (t, w) in c.expansion() {
-                    let v = evaluate_term(&t, &set)?;
-                    for (o, x) in out.iter_mut().zip(&v[lo..lo + n]) {
+                let expansion = c.expansion();
+                if !needs_band_limit(&expansion) {
+                    let mut out = vec![0.0; n];
+                    for (t, w) in &expansion {
+                        let v = evaluate_term(t, &set)?;
+                        for (o, x) in out.iter_mut().zip(&v[lo..lo + n]) {
+                            *o += w * x;
+                        }
+                    }
+                    return Ok(out);
+                }
+                // A nonlinear column of band-limited states holds harmonics beyond the
+                // cut-off that the smoothed acceleration has lost; the same low-pass puts both
+                // sides of the equation in one band (see the module docs).
+                let mut full = vec![0.0; s.record.len()];
+                for (t, w) in &expansion {
+                    let v = evaluate_term(t, &set)?;
+                    for (o, x) in full.iter_mut().zip(&v) {
                         *o += w * x;
                     }
                 }
-                Ok(out)
+                let band = spectral_derivative(&full, dt, 0, Some(s.cutoff_hz))?;
+                Ok(band[lo..lo + n].to_vec())
             })
             .collect::<Result<_>>()?;
         a.push(Mat::from_fn(n, columns.len(), |i, j| cols[j][i]));
         b.push(s.acc[dof_idx][lo..lo + n].to_vec());
     }
     Ok(Design { a, b })
+}
+
+/// True when [`design`] low-passes a column (given as its weighted expansion): a power, product,
+/// friction law or internal state of the smoothed states has content above their cut-off, which
+/// the low-pass that made the acceleration removes from both sides alike. Not a sum of constants
+/// and plain states or inputs (already in the band), and not a one-sided stop: at a contact the
+/// true state itself bounces beyond the cut-off, so the smoothed state is not the true one there
+/// and low-passing its kink brings the column no closer to what the acceleration holds.
+pub(crate) fn needs_band_limit(expansion: &[(Term, f64)]) -> bool {
+    let stop = |t: &Term| {
+        t.factors()
+            .iter()
+            .any(|f| matches!(f, Factor::Below(..) | Factor::Above(..)))
+    };
+    expansion
+        .iter()
+        .any(|(t, _)| t.degree().is_none_or(|k| k > 1))
+        && !expansion.iter().any(|(t, _)| stop(t))
 }
 
 /// Compresses every block of the layout.
@@ -542,6 +583,38 @@ fn entry(model: &Model, raw: &Raw, tests: usize, opts: &DiagnoseOptions) -> Rank
     }
 }
 
+/// The partner equations of a candidate whose variant acts on a coupling: per partner DOF, the
+/// start equation with the same variant and its cross-validation — a coupling force acts on both
+/// masses, and `refit` puts it into both equations, so the judge simulates both. A partner whose
+/// design cannot be made is left as it is.
+fn partner_equations(
+    model: &Model,
+    raw: &Raw,
+    states: &[RecordStates],
+    layout: &Layout,
+) -> Vec<(usize, Vec<EffectColumn>, Cv)> {
+    let v = &raw.scored.variant;
+    let mut out = Vec::new();
+    for p in v.partners(&model.dofs[raw.dof_idx]) {
+        let Some(pi) = model.dofs.iter().position(|d| *d == p) else {
+            continue;
+        };
+        let base: Vec<Term> = model.equations[pi]
+            .terms
+            .iter()
+            .map(|t| t.term.clone())
+            .collect();
+        let (cols, _) = variant_columns(&base, v);
+        let cv = design(states, pi, &cols)
+            .and_then(|d| compress_blocks(&d, layout))
+            .and_then(|b| cross_validate(&b, layout));
+        if let Ok(cv) = cv {
+            out.push((pi, cols, cv));
+        }
+    }
+    out
+}
+
 /// Judges every candidate's refitted per-fold models on held-out data ([`crate::judge`]) and
 /// takes significance away from one that predicts worse than the model without it by more than
 /// the judge can resolve. Returns the judge of each DOF with its reason.
@@ -579,26 +652,31 @@ fn judge_candidates(
                 .map(EffectColumn::term)
                 .collect();
             let h = horizon(d);
-            crate::judge::heldout_error(
-                judge, model, d.idx, &cols, &d.base_cv, states, layout, opts, h,
-            )
+            let eq = FoldEquation {
+                idx: d.idx,
+                cols: &cols,
+                cv: &d.base_cv,
+            };
+            crate::judge::heldout_error(judge, model, &[eq], states, layout, opts, h)
         })
         .collect();
     ranked.par_iter_mut().for_each(|c| {
         let (r, raw) = (&mut c.entry, &c.raw);
         let d = &setups[raw.dof_idx];
         r.judge = Some(judge);
-        c.heldout = crate::judge::heldout_error(
-            judge,
-            model,
-            raw.dof_idx,
-            &raw.scored.cols,
-            &raw.scored.cv,
-            states,
-            layout,
-            opts,
-            horizon(d),
-        );
+        let partners = partner_equations(model, raw, states, layout);
+        let mut eqs = vec![FoldEquation {
+            idx: raw.dof_idx,
+            cols: &raw.scored.cols,
+            cv: &raw.scored.cv,
+        }];
+        eqs.extend(partners.iter().map(|(idx, cols, cv)| FoldEquation {
+            idx: *idx,
+            cols,
+            cv,
+        }));
+        c.heldout =
+            crate::judge::heldout_error(judge, model, &eqs, states, layout, opts, horizon(d));
         let before = &before[raw.dof_idx];
         r.r_mse_before = before.as_ref().map(|h| h.mean);
         r.r_mse_after = c.heldout.as_ref().map(|h| h.mean);

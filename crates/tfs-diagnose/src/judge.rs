@@ -152,26 +152,42 @@ pub(crate) struct Heldout {
     pub parts: Vec<f64>,
 }
 
-/// The held-out error of the per-fold models of equation `dof_idx` with columns `cols` under
+/// One equation of a candidate's per-fold models: DOF `idx` as `Σ coef·column` over `cols`, with
+/// fold `f`'s coefficients `cv.coefs[f]`. A candidate changes its own DOF's equation, and a force
+/// on a coupling also the partner's (as `refit` adds it).
+pub(crate) struct FoldEquation<'a> {
+    /// The DOF whose equation this is.
+    pub idx: usize,
+    /// Its columns.
+    pub cols: &'a [EffectColumn],
+    /// Its cross-validated coefficients, one set per fold.
+    pub cv: &'a Cv,
+}
+
+/// Fold `f`'s model: `model` with each of `eqs` refitted on the other folds.
+fn fold_model(model: &Model, eqs: &[FoldEquation<'_>], f: usize) -> Option<Model> {
+    let mut m = model.clone();
+    for e in eqs {
+        m = with_equation(&m, e.idx, e.cols, &e.cv.coefs[f]).ok()?;
+    }
+    Some(m)
+}
+
+/// The held-out error of the per-fold models whose equations `eqs` replace the model's, under
 /// `judge` (mean over held-out units of the R-MSE; `None` when a simulation fails or the judge
 /// is the equation error). `horizon` is the piece length of the short-horizon judge (samples).
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn heldout_error(
     judge: Judge,
     model: &Model,
-    dof_idx: usize,
-    cols: &[EffectColumn],
-    cv: &Cv,
+    eqs: &[FoldEquation<'_>],
     states: &[RecordStates],
     layout: &Layout,
     opts: &DiagnoseOptions,
     horizon: usize,
 ) -> Option<Heldout> {
     match judge {
-        Judge::FreeRun => heldout_r_mse(model, dof_idx, cols, cv, states, layout, opts),
-        Judge::ShortHorizon => {
-            short_horizon(model, dof_idx, cols, cv, states, layout, opts, horizon)
-        }
+        Judge::FreeRun => heldout_r_mse(model, eqs, states, layout, opts),
+        Judge::ShortHorizon => short_horizon(model, eqs, states, layout, opts, horizon),
         Judge::EquationError => None,
     }
 }
@@ -181,9 +197,7 @@ pub(crate) fn heldout_error(
 /// any number of threads; the first failure stops the units not yet started.
 fn heldout_r_mse(
     model: &Model,
-    dof_idx: usize,
-    cols: &[EffectColumn],
-    cv: &Cv,
+    eqs: &[FoldEquation<'_>],
     states: &[RecordStates],
     layout: &Layout,
     opts: &DiagnoseOptions,
@@ -192,7 +206,7 @@ fn heldout_r_mse(
     let mut models = Vec::with_capacity(layout.folds);
     let mut units = Vec::new();
     for f in 0..layout.folds {
-        models.push(with_equation(model, dof_idx, cols, &cv.coefs[f]).ok()?);
+        models.push(fold_model(model, eqs, f)?);
         if layout.by_record {
             for r in 0..states.len() {
                 if layout.blocks.iter().any(|b| b.record == r && b.fold == f) {
@@ -233,12 +247,9 @@ fn heldout_r_mse(
 /// module docs): per held-out unit (a record, or one record's held-out segment), the summed
 /// squared error of the pieces over the summed squared deviation of the measured displacement
 /// from its mean, averaged over DOFs and units.
-#[allow(clippy::too_many_arguments)]
 fn short_horizon(
     model: &Model,
-    dof_idx: usize,
-    cols: &[EffectColumn],
-    cv: &Cv,
+    eqs: &[FoldEquation<'_>],
     states: &[RecordStates],
     layout: &Layout,
     opts: &DiagnoseOptions,
@@ -248,7 +259,7 @@ fn short_horizon(
     let mut count = 0usize;
     let mut parts = Vec::new();
     for f in 0..layout.folds {
-        let m = with_equation(model, dof_idx, cols, &cv.coefs[f]).ok()?;
+        let m = fold_model(model, eqs, f)?;
         for (r, s) in states.iter().enumerate() {
             let blocks: Vec<_> = layout
                 .blocks

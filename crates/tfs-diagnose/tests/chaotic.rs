@@ -14,6 +14,9 @@ mod common;
 use common::*;
 use tfs_diagnose::{DiagnoseOptions, Judge, diagnose, refit};
 
+/// The hidden Maxwell element's spring (see [`hidden_maxwell`]).
+const MAXWELL_K: f64 = 0.15;
+
 fn double_well(hidden: Vec<Hidden>) -> Truth {
     Truth {
         restoring: vec![(1, 1.0), (3, -1.0)],
@@ -139,11 +142,20 @@ fn hidden_dry_friction() {
     );
 }
 
+/// The Maxwell spring is 0.15 (it was 0.1): on the noise-free records, a Maxwell element of
+/// 0.1 changes the fitted force by 1.95 % of the force RMS when it joins the start library (its
+/// part that `x` and `x'` cannot hold), below the diagnosis's 2 % minimum size, so it was found
+/// at 40 dB only through a size the noise inflated (2.7 %); with the nonlinear columns band
+/// limited like the acceleration the noisy records measure 1.7 %. At 0.15 the noise-free part is
+/// 3.1 % and the 40 dB records measure 2.9 %.
 #[test]
 fn hidden_maxwell() {
     check(
         "chaotic/maxwell",
-        Hidden::Maxwell { k: 0.1, tau: 1.0 },
+        Hidden::Maxwell {
+            k: MAXWELL_K,
+            tau: 1.0,
+        },
         "maxwell",
         500,
     );
@@ -166,22 +178,30 @@ fn hidden_dry_friction_second_draw() {
 }
 
 /// Quadratic and cubic damping are nearly collinear over this motion (each hidden, the other
-/// lowers the held-out equation error about as much): the equation error ties them, the
-/// short-horizon pieces (better for quadratic damping on most of them) break the tie, and the
-/// verdict still says the records cannot tell them apart with confidence. Without the
-/// tie-break, cubic damping came first here.
+/// lowers the held-out equation error about as much). While the columns kept the harmonics the
+/// smoothed acceleration had lost, the equation error tied them (cubic damping came first
+/// without the short-horizon tie-break); with the columns band-limited like the acceleration,
+/// the held-out equation error falls 70.0 % with quadratic damping and 67.4 % with cubic, and the
+/// paired block test tells them apart. Either way the hidden one must come first, and cubic
+/// damping, if significant, must be reported tied with it or behind it on the equation error.
 #[test]
-fn hidden_quadratic_damping_is_named_first_and_its_tie_reported() {
-    let o = check(
-        "chaotic/quadratic-damping",
-        Hidden::Quadratic(0.3),
-        "quadratic-damping",
-        500,
+fn hidden_quadratic_damping_is_named_first() {
+    let train = records(&double_well(vec![Hidden::Quadratic(0.3)]), 500);
+    let opts = DiagnoseOptions::default();
+    let start = refit(&structure("x, x^3, x', xb_acc"), &train, &opts).unwrap();
+    let d = diagnose(&start, &train, &opts).unwrap();
+    let top = &d.ranked[0];
+    assert_eq!(top.name, "quadratic-damping", "{}", d.verdict);
+    assert!(top.significant, "{}", d.verdict);
+    let cubic = d.ranked.iter().find(|r| r.name == "cubic-damping").unwrap();
+    assert!(
+        !cubic.significant || cubic.tied_with_top || cubic.delta_heldout < top.delta_heldout,
+        "{}",
+        d.verdict
     );
-    assert_eq!(o.top, "quadratic-damping", "{}", o.verdict);
-    assert!(o.significant, "{}", o.verdict);
-    assert!(o.verdict.contains("indistinguishable"), "{}", o.verdict);
-    assert!(o.verdict.contains("cubic-damping"), "{}", o.verdict);
+    if cubic.tied_with_top {
+        assert!(d.verdict.contains("indistinguishable"), "{}", d.verdict);
+    }
 }
 
 /// No record is dominated by the input noise here, so the free run judges; but every
@@ -243,7 +263,13 @@ fn every_catalogue_effect() {
             },
             "dry-friction",
         ),
-        (Hidden::Maxwell { k: 0.1, tau: 1.0 }, "maxwell"),
+        (
+            Hidden::Maxwell {
+                k: MAXWELL_K,
+                tau: 1.0,
+            },
+            "maxwell",
+        ),
         (Hidden::Quadratic(0.3), "quadratic-damping"),
         (Hidden::CubicDamping(0.3), "cubic-damping"),
         (Hidden::AmplitudeDamping(0.3), "amplitude-damping"),
