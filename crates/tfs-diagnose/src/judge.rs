@@ -25,8 +25,8 @@ use serde::Serialize;
 use tfs_dynamics::{Dopri5, Integrator, SampledInput, SimulateOptions};
 use tfs_library::{Factor, Model, Term, evaluate_term};
 
-use crate::effects::EffectColumn;
-use crate::explain::{Cv, RankedEffect, Raw, with_equation};
+use crate::design::{FoldEquation, fold_model};
+use crate::explain::{RankedEffect, Raw};
 use crate::prepare::{DiagnoseOptions, Layout, RecordStates};
 use crate::simulate::BaseRun;
 use crate::stats::paired_p_value;
@@ -150,27 +150,6 @@ pub(crate) struct Heldout {
     /// Per unit (free run) or per piece (short horizon, each piece's squared error over its
     /// length times its unit's variance).
     pub parts: Vec<f64>,
-}
-
-/// One equation of a candidate's per-fold models: DOF `idx` as `Σ coef·column` over `cols`, with
-/// fold `f`'s coefficients `cv.coefs[f]`. A candidate changes its own DOF's equation, and a force
-/// on a coupling also the partner's (as `refit` adds it).
-pub(crate) struct FoldEquation<'a> {
-    /// The DOF whose equation this is.
-    pub idx: usize,
-    /// Its columns.
-    pub cols: &'a [EffectColumn],
-    /// Its cross-validated coefficients, one set per fold.
-    pub cv: &'a Cv,
-}
-
-/// Fold `f`'s model: `model` with each of `eqs` refitted on the other folds.
-fn fold_model(model: &Model, eqs: &[FoldEquation<'_>], f: usize) -> Option<Model> {
-    let mut m = model.clone();
-    for e in eqs {
-        m = with_equation(&m, e.idx, e.cols, &e.cv.coefs[f]).ok()?;
-    }
-    Some(m)
 }
 
 /// The held-out error of the per-fold models whose equations `eqs` replace the model's, under

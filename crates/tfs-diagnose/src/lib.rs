@@ -47,6 +47,7 @@
 #![warn(missing_docs)]
 
 pub mod compare;
+mod design;
 pub mod effects;
 mod error;
 pub mod explain;

@@ -8,8 +8,8 @@ use tfs_data::Record;
 use tfs_library::{HistoryEntry, Model, RecordScore, Term};
 use tfs_regress::Compressed;
 
+use crate::design::{compress_blocks, design, full_fit, variant_columns, with_equation};
 use crate::effects::{Catalogue, EffectColumn};
-use crate::explain::{compress_blocks, design, full_fit, variant_columns, with_equation};
 use crate::prepare::{DiagnoseOptions, Layout, RecordStates, check_records};
 use crate::{DiagnoseError, Result};
 

@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use tfs_regress::{Compressed, LeastSquares, Regressor};
 
 use crate::Result;
-use crate::explain::Design;
+use crate::design::Design;
 use crate::prepare::Layout;
 
 /// One-sided p-value of `mean(d) > 0` with a t statistic over `d.len()` blocks
@@ -229,7 +229,7 @@ mod tests {
             }
         }
     }
-    use crate::explain::{compress_blocks, full_fit};
+    use crate::design::{compress_blocks, full_fit};
     use crate::prepare::Block;
     use rand_distr::{Distribution, StandardNormal};
 

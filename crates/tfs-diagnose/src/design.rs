@@ -1,0 +1,222 @@
+//! The design of one equation and its cross-validated fits: the columns evaluated on every
+//! record's usable rows against the smoothed acceleration, compressed per block, fitted per fold
+//! and on all data, and the per-fold models a judge simulates.
+//!
+//! A nonlinear column (a power, product, friction law or internal state; not a stop, see
+//! [`needs_band_limit`]) is low-passed at the same cut-off as the acceleration before its rows
+//! are taken: `x^k` of a motion in a band up to `f` has harmonics up to `k·f`, which the
+//! smoothed acceleration lost, and a fit that kept them in the column would shrink the high
+//! power's coefficient. The filter is linear, so a refit's coefficients still belong to the
+//! unfiltered terms.
+
+use faer::Mat;
+use tfs_library::{ColumnSet, Equation, Factor, Model, ModelTerm, Term, evaluate_term};
+use tfs_regress::{Compressed, LeastSquares, Regressor};
+use tfs_signal::spectral_derivative;
+
+use crate::Result;
+use crate::effects::{EffectColumn, Variant};
+use crate::prepare::{Layout, RecordStates};
+
+/// Design matrices of one equation: per record, usable rows × columns, and the target.
+pub(crate) struct Design {
+    pub a: Vec<Mat<f64>>,
+    pub b: Vec<Vec<f64>>,
+}
+
+/// Evaluates `columns` for DOF `dof_idx` on every record's usable rows; a nonlinear column is
+/// low-passed at the record's cut-off first ([`needs_band_limit`]).
+pub(crate) fn design(
+    states: &[RecordStates],
+    dof_idx: usize,
+    columns: &[EffectColumn],
+) -> Result<Design> {
+    let mut a = Vec::with_capacity(states.len());
+    let mut b = Vec::with_capacity(states.len());
+    for s in states {
+        let dt = s.record.dt();
+        let mut set = ColumnSet::new(s);
+        for c in columns {
+            if let Some(cc) = &c.computed
+                && tfs_data::Columns::column(s, &cc.name()).is_none()
+            {
+                let v = cc.compute(s, dt)?;
+                set.insert(cc.name(), v)?;
+            }
+        }
+        let (lo, n) = (s.margin, s.usable());
+        let cols: Vec<Vec<f64>> = columns
+            .iter()
+            .map(|c| -> Result<Vec<f64>> {
+                let expansion = c.expansion();
+                if !needs_band_limit(&expansion) {
+                    let mut out = vec![0.0; n];
+                    for (t, w) in &expansion {
+                        let v = evaluate_term(t, &set)?;
+                        for (o, x) in out.iter_mut().zip(&v[lo..lo + n]) {
+                            *o += w * x;
+                        }
+                    }
+                    return Ok(out);
+                }
+                // A nonlinear column of band-limited states holds harmonics beyond the
+                // cut-off that the smoothed acceleration has lost; the same low-pass puts both
+                // sides of the equation in one band (see the module docs).
+                let mut full = vec![0.0; s.record.len()];
+                for (t, w) in &expansion {
+                    let v = evaluate_term(t, &set)?;
+                    for (o, x) in full.iter_mut().zip(&v) {
+                        *o += w * x;
+                    }
+                }
+                let band = spectral_derivative(&full, dt, 0, Some(s.cutoff_hz))?;
+                Ok(band[lo..lo + n].to_vec())
+            })
+            .collect::<Result<_>>()?;
+        a.push(Mat::from_fn(n, columns.len(), |i, j| cols[j][i]));
+        b.push(s.acc[dof_idx][lo..lo + n].to_vec());
+    }
+    Ok(Design { a, b })
+}
+
+/// True when [`design`] low-passes a column (given as its weighted expansion): a power, product,
+/// friction law or internal state of the smoothed states has content above their cut-off, which
+/// the low-pass that made the acceleration removes from both sides alike. Not a sum of constants
+/// and plain states or inputs (already in the band), and not a one-sided stop: at a contact the
+/// true state itself bounces beyond the cut-off, so the smoothed state is not the true one there
+/// and low-passing its kink brings the column no closer to what the acceleration holds.
+pub(crate) fn needs_band_limit(expansion: &[(Term, f64)]) -> bool {
+    let stop = |t: &Term| {
+        t.factors()
+            .iter()
+            .any(|f| matches!(f, Factor::Below(..) | Factor::Above(..)))
+    };
+    expansion
+        .iter()
+        .any(|(t, _)| t.degree().is_none_or(|k| k > 1))
+        && !expansion.iter().any(|(t, _)| stop(t))
+}
+
+/// Compresses every block of the layout.
+pub(crate) fn compress_blocks(d: &Design, layout: &Layout) -> Result<Vec<Compressed>> {
+    layout
+        .blocks
+        .iter()
+        .map(|bl| {
+            let a = d.a[bl.record].as_ref().subrows(bl.start, bl.len);
+            Ok(Compressed::from_rows(
+                a,
+                &d.b[bl.record][bl.start..bl.start + bl.len],
+            )?)
+        })
+        .collect()
+}
+
+/// Cross-validated fit: per-fold coefficients and per-block held-out RSS.
+pub(crate) struct Cv {
+    pub coefs: Vec<Vec<f64>>,
+    pub heldout: Vec<f64>,
+}
+
+pub(crate) fn cross_validate(blocks: &[Compressed], layout: &Layout) -> Result<Cv> {
+    let mut coefs = Vec::with_capacity(layout.folds);
+    let mut heldout = vec![0.0; blocks.len()];
+    for f in 0..layout.folds {
+        let train: Vec<(&Compressed, usize)> = blocks
+            .iter()
+            .zip(&layout.blocks)
+            .filter(|(_, bl)| bl.fold != f)
+            .map(|(c, _)| (c, 1))
+            .collect();
+        let merged = Compressed::merge_counted(&train)?;
+        let fit = LeastSquares.fit_compressed(&merged)?;
+        for (i, bl) in layout.blocks.iter().enumerate() {
+            if bl.fold == f {
+                heldout[i] = blocks[i].rss(&fit.coef)?;
+            }
+        }
+        coefs.push(fit.coef);
+    }
+    Ok(Cv { coefs, heldout })
+}
+
+/// Full-data least squares on all blocks.
+pub(crate) fn full_fit(blocks: &[Compressed]) -> Result<Vec<f64>> {
+    let all: Vec<(&Compressed, usize)> = blocks.iter().map(|c| (c, 1)).collect();
+    Ok(LeastSquares
+        .fit_compressed(&Compressed::merge_counted(&all)?)?
+        .coef)
+}
+
+/// The columns of the equation of `dof` after applying a variant (replacements in place, additions
+/// appended); the main column's index is returned too.
+pub(crate) fn variant_columns(base: &[Term], v: &Variant) -> (Vec<EffectColumn>, Option<usize>) {
+    let mut cols: Vec<EffectColumn> = base
+        .iter()
+        .map(|t| {
+            v.replace
+                .iter()
+                .find(|(old, _)| old == t)
+                .map(|(_, new)| new.clone())
+                .unwrap_or_else(|| EffectColumn::term(t.clone()))
+        })
+        .collect();
+    cols.extend(v.add.iter().cloned());
+    let main = v
+        .main_term()
+        .and_then(|m| cols.iter().position(|c| c.term == *m));
+    (cols, main)
+}
+
+/// A copy of `model` whose equation `dof_idx` is `Σ coef·column`.
+pub(crate) fn with_equation(
+    model: &Model,
+    dof_idx: usize,
+    cols: &[EffectColumn],
+    coef: &[f64],
+) -> Result<Model> {
+    let mut equations = model.equations.clone();
+    // Centred columns expand into plain powers that merge with the equation's own terms.
+    let mut merged: Vec<(Term, f64)> = Vec::new();
+    for (c, v) in cols.iter().zip(coef) {
+        for (t, w) in c.expansion() {
+            match merged.iter_mut().find(|(m, _)| *m == t) {
+                Some(slot) => slot.1 += v * w,
+                None => merged.push((t, v * w)),
+            }
+        }
+    }
+    equations[dof_idx] = Equation {
+        dof: model.dofs[dof_idx].clone(),
+        terms: merged
+            .into_iter()
+            .filter(|(_, c)| *c != 0.0 && c.is_finite())
+            .map(|(t, v)| ModelTerm::new(t, v))
+            .collect(),
+    };
+    let mut m = Model::new(model.dofs.clone(), equations, model.method.clone())?;
+    m.trace = model.trace.clone();
+    m.history = model.history.clone();
+    Ok(m)
+}
+
+/// One equation of a candidate's per-fold models: DOF `idx` as `Σ coef·column` over `cols`, with
+/// fold `f`'s coefficients `cv.coefs[f]`. A candidate changes its own DOF's equation, and a force
+/// on a coupling also the partner's (as `refit` adds it).
+pub(crate) struct FoldEquation<'a> {
+    /// The DOF whose equation this is.
+    pub idx: usize,
+    /// Its columns.
+    pub cols: &'a [EffectColumn],
+    /// Its cross-validated coefficients, one set per fold.
+    pub cv: &'a Cv,
+}
+
+/// Fold `f`'s model: `model` with each of `eqs` refitted on the other folds.
+pub(crate) fn fold_model(model: &Model, eqs: &[FoldEquation<'_>], f: usize) -> Option<Model> {
+    let mut m = model.clone();
+    for e in eqs {
+        m = with_equation(&m, e.idx, e.cols, &e.cv.coefs[f]).ok()?;
+    }
+    Some(m)
+}
