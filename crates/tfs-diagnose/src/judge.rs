@@ -29,7 +29,7 @@ use crate::design::{FoldEquation, fold_model};
 use crate::explain::{RankedEffect, Raw};
 use crate::prepare::{DiagnoseOptions, Layout, RecordStates};
 use crate::simulate::BaseRun;
-use crate::stats::paired_p_value;
+use crate::stats::paired_drop_p_value;
 
 /// What ranked the held-out predictions of the candidates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -474,12 +474,7 @@ pub(crate) fn predicts_worse(
             if before.parts.len() != after.parts.len() {
                 return after.mean > before.mean;
             }
-            let pairs = before.parts.iter().zip(&after.parts);
-            let diffs: Vec<f64> = pairs.clone().map(|(b, a)| a - b).collect();
-            let logs: Vec<f64> = pairs
-                .map(|(b, a)| (a.max(f64::MIN_POSITIVE) / b.max(f64::MIN_POSITIVE)).ln())
-                .collect();
-            2.0 * paired_p_value(&diffs).min(paired_p_value(&logs)) < alpha
+            paired_drop_p_value(&after.parts, &before.parts) < alpha
         }
         Judge::EquationError => false,
     }
@@ -588,18 +583,8 @@ fn lowest_geometric_mean(scores: &[&[f64]]) -> Option<usize> {
 /// log-ratio, Bonferroni over the two) do not put `top`'s advantage in held-out equation error
 /// over `other` below `alpha`.
 fn equation_ties(top: &Candidate, other: &Candidate, alpha: f64) -> bool {
-    let pairs = top
-        .raw
-        .scored
-        .cv
-        .heldout
-        .iter()
-        .zip(&other.raw.scored.cv.heldout);
-    let diffs: Vec<f64> = pairs.clone().map(|(t, o)| o - t).collect();
-    let logs: Vec<f64> = pairs
-        .map(|(t, o)| (o.max(f64::MIN_POSITIVE) / t.max(f64::MIN_POSITIVE)).ln())
-        .collect();
-    2.0 * paired_p_value(&diffs).min(paired_p_value(&logs)) >= alpha
+    let (t, o) = (&top.raw.scored.cv.heldout, &other.raw.scored.cv.heldout);
+    paired_drop_p_value(o, t) >= alpha
 }
 
 /// A free-run R-MSE as an ordering key: the R-MSE while it shows skill (below 1), 1 for every

@@ -9,9 +9,13 @@
 //! than the start model's although its equation error is far lower. So, once an effect's best
 //! variant is found, every term of the start library that the equation lacks (the library is in
 //! the model's trace) is offered again, one at a time: the one that lowers the held-out equation
-//! error the most is kept when the one-sided paired block test of that drop is below `alpha`,
-//! and the search repeats with it. When any term is kept, the effect's variants are scanned again
-//! on the equation with the kept terms.
+//! error the most is kept when the one-sided paired block tests of that drop (the differences
+//! and the log-ratios, Bonferroni over the two) put it below `alpha`, and the search repeats
+//! with it. Then the terms still open are offered together, once, under the same test: about an
+//! operating point away from zero a restoring force that vanishes there needs two or more
+//! powers at once (the library has no constant), and no one of them lowers the error alone.
+//! When any term is kept, the effect's variants are scanned again on the equation with the kept
+//! terms.
 //!
 //! The kept terms are structure, not effect: the effect is then tested, sized and judged
 //! against the start equation *with* the same terms (the reference), so a term the start model
@@ -23,7 +27,7 @@ use crate::Result;
 use crate::effects::Variant;
 use crate::explain::{Scored, best_variant, score_variant};
 use crate::prepare::{Layout, RecordStates};
-use crate::stats::paired_p_value;
+use crate::stats::paired_drop_p_value;
 
 /// The terms of the start library of DOF `idx` (the `library` the model's identify trace lists
 /// for that DOF) that its equation lacks, in library order. Empty when the model carries no
@@ -117,18 +121,28 @@ pub(crate) fn best_with_library(
             }
         }
         let Some((t, s)) = pick else { break };
-        let drops: Vec<f64> = current
-            .cv
-            .heldout
-            .iter()
-            .zip(&s.cv.heldout)
-            .map(|(a, b)| a - b)
-            .collect();
-        if paired_p_value(&drops) >= alpha {
+        if paired_drop_p_value(&current.cv.heldout, &s.cv.heldout) >= alpha {
             break;
         }
         kept.push(t);
         current = s;
+    }
+    // The group step (module docs).
+    let rest: Vec<Term> = left_out
+        .iter()
+        .filter(|t| !kept.contains(t) && offerable(t, &current))
+        .cloned()
+        .collect();
+    if rest.len() >= 2 {
+        let mut terms = base.to_vec();
+        terms.extend(kept.iter().cloned());
+        terms.extend(rest.iter().cloned());
+        let s = score_variant(states, layout, idx, &terms, &current.variant)?;
+        let p = paired_drop_p_value(&current.cv.heldout, &s.cv.heldout);
+        if s.cv_rss < current.cv_rss && p < alpha {
+            kept.extend(rest);
+            current = s;
+        }
     }
     if kept.is_empty() {
         return Ok(Some(Readmitted {
