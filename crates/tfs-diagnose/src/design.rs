@@ -148,6 +148,31 @@ pub(crate) fn full_fit(blocks: &[Compressed]) -> Result<Vec<f64>> {
         .coef)
 }
 
+/// The partner equations of variant `v` found for DOF `dof` of `model`: a force on a coupling
+/// acts on both masses, so the same variant goes into each partner DOF's equation too. Per
+/// partner (in the variant's order), its index and the columns of its current equation with the
+/// variant ([`variant_columns`]). Both the judge (which simulates both equations) and `refit`
+/// (which fits both) take the partners from here.
+pub(crate) fn partner_columns(
+    model: &Model,
+    dof: &str,
+    v: &Variant,
+) -> Vec<(usize, Vec<EffectColumn>)> {
+    let mut out = Vec::new();
+    for p in v.partners(dof) {
+        let Some(pi) = model.dofs.iter().position(|d| *d == p) else {
+            continue;
+        };
+        let base: Vec<Term> = model.equations[pi]
+            .terms
+            .iter()
+            .map(|t| t.term.clone())
+            .collect();
+        out.push((pi, variant_columns(&base, v).0));
+    }
+    out
+}
+
 /// The columns of the equation of `dof` after applying a variant (replacements in place, additions
 /// appended); the main column's index is returned too.
 pub(crate) fn variant_columns(base: &[Term], v: &Variant) -> (Vec<EffectColumn>, Option<usize>) {

@@ -35,7 +35,8 @@ use tfs_library::{Model, Term};
 use tfs_regress::Compressed;
 
 use crate::design::{
-    Cv, Design, FoldEquation, compress_blocks, cross_validate, design, full_fit, variant_columns,
+    Cv, Design, FoldEquation, compress_blocks, cross_validate, design, full_fit, partner_columns,
+    variant_columns,
 };
 use crate::effects::{Catalogue, EffectColumn, EffectContext, Variant};
 use crate::judge::{Candidate, Heldout, Judge, mark_ties, order};
@@ -410,16 +411,7 @@ fn partner_equations(
 ) -> Vec<(usize, Vec<EffectColumn>, Cv)> {
     let v = &raw.scored.variant;
     let mut out = Vec::new();
-    for p in v.partners(&model.dofs[raw.dof_idx]) {
-        let Some(pi) = model.dofs.iter().position(|d| *d == p) else {
-            continue;
-        };
-        let base: Vec<Term> = model.equations[pi]
-            .terms
-            .iter()
-            .map(|t| t.term.clone())
-            .collect();
-        let (cols, _) = variant_columns(&base, v);
+    for (pi, cols) in partner_columns(model, &model.dofs[raw.dof_idx], v) {
         let cv = design(states, pi, &cols)
             .and_then(|d| compress_blocks(&d, layout))
             .and_then(|b| cross_validate(&b, layout));

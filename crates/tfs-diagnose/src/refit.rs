@@ -8,7 +8,7 @@ use tfs_data::Record;
 use tfs_library::{HistoryEntry, Model, RecordScore, Term};
 use tfs_regress::Compressed;
 
-use crate::design::{compress_blocks, design, full_fit, variant_columns, with_equation};
+use crate::design::{compress_blocks, design, full_fit, partner_columns, with_equation};
 use crate::effects::{Catalogue, EffectColumn};
 use crate::prepare::{DiagnoseOptions, Layout, RecordStates, check_records};
 use crate::{DiagnoseError, Result};
@@ -263,22 +263,14 @@ pub fn add_effect_with(
         details.push(json!({"dof": dof, "parameter": v.parameter, "readmitted": readmitted}));
         // A force on a coupling acts on both masses: the same variant goes into each partner's
         // equation (refitted there), unless that DOF is a target of its own.
-        for p in v.partners(dof) {
-            let Some(pi) = model.dofs.iter().position(|d| *d == p) else {
-                continue;
-            };
+        for (pi, pcols) in partner_columns(&out, dof, &v) {
             if dofs.contains(&pi) {
                 continue;
             }
-            let pbase: Vec<tfs_library::Term> = out.equations[pi]
-                .terms
-                .iter()
-                .map(|t| t.term.clone())
-                .collect();
-            let (pcols, _) = variant_columns(&pbase, &v);
             let pd = design(&states, pi, &pcols)?;
             let pcoef = full_fit(&compress_blocks(&pd, &layout)?)?;
             out = with_equation(&out, pi, &pcols, &pcoef)?;
+            let p = &model.dofs[pi];
             details.push(json!({"dof": p, "parameter": v.parameter, "partner_of": dof}));
         }
     }
