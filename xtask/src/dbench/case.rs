@@ -2,6 +2,7 @@
 //! records and a held-out one, then identify → diagnose → refit through the `tfs` library (as the
 //! CLI does) and score the diagnosis and the held-out error.
 
+use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow};
@@ -302,10 +303,12 @@ fn round(
 }
 
 /// Runs one case; failures are recorded in the result, not returned.
-pub fn run(spec: &CaseSpec) -> CaseResult {
+/// With `keep`, the case's records and start model are also written into a folder of its own
+/// under `keep` ([`Args::keep_records`](super::Args)).
+pub fn run(spec: &CaseSpec, keep: Option<&Path>) -> CaseResult {
     let t0 = Instant::now();
     let mut out = CaseResult::new(spec);
-    if let Err(e) = run_into(spec, &mut out) {
+    if let Err(e) = run_into(spec, &mut out, keep) {
         if out.status == "ok" {
             out.status = "failed".into();
         }
@@ -315,7 +318,7 @@ pub fn run(spec: &CaseSpec) -> CaseResult {
     out
 }
 
-fn run_into(spec: &CaseSpec, out: &mut CaseResult) -> Result<()> {
+fn run_into(spec: &CaseSpec, out: &mut CaseResult, keep: Option<&Path>) -> Result<()> {
     let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
     let b = truth::draw(spec.kind, &mut rng)?;
     out.baseline = b.params.clone();
@@ -384,6 +387,9 @@ fn run_into(spec: &CaseSpec, out: &mut CaseResult) -> Result<()> {
     let id = identify(train.clone(), Vec::new(), &opts, &p).context("identify")?;
     out.identify_seconds = t1.elapsed().as_secs_f64();
     out.start = Some(id.model.equation_string());
+    if let Some(keep) = keep {
+        keep_records(keep, spec, &train, &heldout, &id.model)?;
+    }
     let (r1, m1) = round(&id.model, &train, &heldout, &id.offsets)?;
     out.rounds.push(r1);
     if let Some(m1) = m1
@@ -404,5 +410,36 @@ fn run_into(spec: &CaseSpec, out: &mut CaseResult) -> Result<()> {
             out.oracle_after = tfs::diagnose::r_mse(&r.model, &heldout).ok();
         }
     }
+    Ok(())
+}
+
+/// Writes case `spec`'s training and held-out records and its start model into
+/// `keep/case<id>-<baseline>-<hidden effects>-<noise>/` (each file atomically).
+fn keep_records(
+    keep: &Path,
+    spec: &CaseSpec,
+    train: &[Record],
+    heldout: &Record,
+    start: &Model,
+) -> Result<()> {
+    let hidden = if spec.hidden.is_empty() {
+        "control".to_string()
+    } else {
+        spec.hidden.join("+")
+    };
+    let dir = keep.join(format!(
+        "case{:03}-{}-{hidden}-{}",
+        spec.id,
+        spec.kind.key(),
+        super::noise_key(spec.snr)
+    ));
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    for r in train.iter().chain(std::iter::once(heldout)) {
+        let path = dir.join(format!("{}.csv", r.source()));
+        tfs::data::write_csv(&path, r).with_context(|| format!("writing {}", path.display()))?;
+    }
+    let path = dir.join("start.json");
+    tfs::data::write_atomic(&path, start.to_json_string()?)
+        .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }

@@ -53,6 +53,12 @@ pub struct Args {
     /// and `--effects` as the run for the report's command line).
     #[arg(long)]
     pub rescore: Option<PathBuf>,
+    /// Also write each case's records and start model into a folder per case under this one
+    /// (`case<id>-<baseline>-<hidden effects>-<noise>/`: `train0.csv`, `train1.csv`,
+    /// `train2.csv`, `heldout.csv`, `start.json`), to look at a case through the CLI: `tfs
+    /// diagnose --model start.json train0.csv train1.csv train2.csv`.
+    #[arg(long)]
+    pub keep_records: Option<PathBuf>,
 }
 
 impl Args {
@@ -293,7 +299,7 @@ pub fn run(args: Args) -> Result<()> {
     let results: Vec<CaseResult> = specs
         .par_iter()
         .map(|s| {
-            let r = case::run(s);
+            let r = case::run(s, args.keep_records.as_deref());
             pb.inc(1);
             r
         })
