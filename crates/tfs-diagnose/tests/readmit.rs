@@ -173,6 +173,13 @@ fn an_extra_library_term_raises_no_alarm_on_a_control() {
     );
 }
 
+/// The surrogate force's deployed stable state: the larger root of `a5 + a6 h + a7 h²`.
+fn deployed() -> f64 {
+    let a = kresling_restoring();
+    let (a5, a6, a7) = (a[0].1, a[1].1, a[2].1);
+    (-a6 - (a6 * a6 - 4.0 * a7 * a5).sqrt()) / (2.0 * a7)
+}
+
 /// The paper's surrogate cell (`−12.12 x^5 + 18.03 x^6 − 6.56 x^7`) started deployed and swept
 /// hard enough to snap into its folded region, with hidden quadratic damping, the start model
 /// `x'' = −c x' − xb_acc` without any restoring force (what `identify` keeps when the hidden
@@ -181,13 +188,6 @@ fn an_extra_library_term_raises_no_alarm_on_a_control() {
 /// powers must come back as a group beside the damping, the damping be named first (not a
 /// low power standing in for the missing restoring force, which simulates better than the
 /// damping alone), and the refit predict the held-out record far better.
-/// The surrogate force's deployed stable state: the larger root of `a5 + a6 h + a7 h²`.
-fn deployed() -> f64 {
-    let a = kresling_restoring();
-    let (a5, a6, a7) = (a[0].1, a[1].1, a[2].1);
-    (-a6 - (a6 * a6 - 4.0 * a7 * a5).sqrt()) / (2.0 * a7)
-}
-
 fn surrogate_group(label: &str, damping: f64, quadratic: f64, seed: u64) {
     let truth = Truth {
         restoring: kresling_restoring(),
