@@ -83,6 +83,7 @@ pub fn identify_sindy(records: &[Record], spec: &IdentifySpec) -> Result<Identif
         dof_traces.push(DofTrace {
             dof: spec.dofs[d].clone(),
             library: lib.names(),
+            offered_library: None,
             criterion1: None,
             criterion2: None,
             regression_library: lib.names(),

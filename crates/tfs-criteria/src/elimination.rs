@@ -219,6 +219,10 @@ pub(crate) fn run(
             };
             d.assembly_verdict.qualify(c1.support.clone());
         }
+        let given = &offered[i_of(dofs, &d.dof)];
+        if given.len() != d.library.len() {
+            d.offered_library = Some(given.names());
+        }
         let mut n = n;
         n.append(&mut d.settings.why);
         d.settings.why = n;

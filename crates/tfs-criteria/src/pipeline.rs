@@ -518,6 +518,7 @@ fn report(
     let trace = DofTrace {
         dof: dof.clone(),
         library: ctx.names.clone(),
+        offered_library: None,
         criterion1: Some(c1),
         criterion2: c2,
         regression_library: reg.keep.iter().map(|&j| ctx.names[j].clone()).collect(),

@@ -85,8 +85,13 @@ pub struct AssemblyStep {
 pub struct DofTrace {
     /// The DOF.
     pub dof: String,
-    /// Library before pruning.
+    /// The library this DOF's final pass ran on, before Criterion 2's pruning (the elimination's
+    /// re-runs remove failing terms from it; see `offered_library`).
     pub library: Vec<String>,
+    /// The library offered, when backward elimination re-ran the selection on a smaller one
+    /// (absent: `library` is the one offered). What a diagnosis may offer back.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub offered_library: Option<Vec<String>>,
     /// Criterion 1.
     pub criterion1: Option<Criterion1>,
     /// Criterion 2 (when run).

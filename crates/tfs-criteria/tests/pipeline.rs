@@ -290,3 +290,41 @@ fn an_input_named_by_two_terms_is_calibrated_once() {
         .expect("criterion 1 ran");
     assert!(c1.kappa0.is_finite() && c1.kappa0 > 0.0, "{}", c1.kappa0);
 }
+
+/// When backward elimination re-runs the selection on a smaller library, the trace still says
+/// which library was offered (`offered_library`, what a diagnosis may offer back), and the
+/// re-run's own library (`library`) lacks exactly the removed terms; without a re-run there is
+/// no `offered_library`. Checked over three noise levels, at least one of which eliminates.
+#[test]
+fn the_trace_keeps_the_offered_library_through_elimination() {
+    let offered: Vec<String> = tfs_library::Library::parse(LIB, &["x".to_string()])
+        .unwrap()
+        .names();
+    let mut eliminated = 0;
+    for snr in [40.0, 30.0, 20.0] {
+        let recs = train(Some((snr, tfs_signal::NoiseKind::White)), 0.4, 3);
+        let id = identify_tfs(&recs, &IdentifySpec::new(&["x"], LIB)).unwrap();
+        let t = &id.trace.dofs[0];
+        let json = serde_json::to_value(&id.trace).unwrap();
+        let removed = t
+            .settings
+            .why
+            .iter()
+            .any(|w| w.contains("backward elimination"));
+        if removed {
+            eliminated += 1;
+            assert_eq!(t.offered_library.as_ref(), Some(&offered), "{snr} dB");
+            assert!(t.library.len() < offered.len(), "{snr} dB: {:?}", t.library);
+            assert!(t.library.iter().all(|n| offered.contains(n)));
+            assert_eq!(
+                json["dofs"][0]["offered_library"].as_array().unwrap().len(),
+                offered.len()
+            );
+        } else {
+            assert_eq!(t.library, offered, "{snr} dB");
+            assert!(t.offered_library.is_none(), "{snr} dB");
+            assert!(json["dofs"][0].get("offered_library").is_none());
+        }
+    }
+    assert!(eliminated > 0, "no noise level eliminated a term");
+}

@@ -29,8 +29,10 @@ use crate::explain::{Scored, best_variant, score_variant};
 use crate::prepare::{Layout, RecordStates};
 use crate::stats::paired_drop_p_value;
 
-/// The terms of the start library of DOF `idx` (the `library` the model's identify trace lists
-/// for that DOF) that its equation lacks, in library order. Empty when the model carries no
+/// The terms of the start library of DOF `idx` that its equation lacks, in library order: the
+/// library the model's identify trace says was offered for that DOF (`offered_library` when
+/// backward elimination re-ran on a smaller one, else `library`), so a term the elimination
+/// removed can come back. Empty when the model carries no
 /// library (a model written by hand or by another tool) or a library term does not parse.
 pub(crate) fn left_out(model: &Model, idx: usize) -> Vec<Term> {
     let Some(dof) = model.dofs.get(idx) else {
@@ -42,7 +44,7 @@ pub(crate) fn left_out(model: &Model, idx: usize) -> Vec<Term> {
     let Some(library) = entries
         .iter()
         .find(|e| e.get("dof").and_then(|d| d.as_str()) == Some(dof.as_str()))
-        .and_then(|e| e.get("library"))
+        .and_then(|e| e.get("offered_library").or_else(|| e.get("library")))
         .and_then(|l| l.as_array())
     else {
         return Vec::new();

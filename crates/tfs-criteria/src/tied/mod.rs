@@ -259,6 +259,7 @@ impl TiedOutcome {
             dof_traces.push(DofTrace {
                 dof: dof.clone(),
                 library: lib.names(),
+                offered_library: None,
                 criterion1: Some(c1),
                 criterion2: None,
                 regression_library: lib.names(),
