@@ -30,28 +30,21 @@ use crate::prepare::{Layout, RecordStates};
 use crate::stats::paired_drop_p_value;
 
 /// The terms of the start library of DOF `idx` that its equation lacks, in library order: the
-/// library the model's identify trace says was offered for that DOF (`offered_library` when
-/// backward elimination re-ran on a smaller one, else `library`), so a term the elimination
-/// removed can come back. Empty when the model carries no
-/// library (a model written by hand or by another tool) or a library term does not parse.
+/// library the model's identify trace says was offered for that DOF
+/// ([`Model::offered_library`]), so a term backward elimination removed can come back. Empty
+/// when the model carries no library (a model written by hand or by another tool) or a library
+/// term does not parse.
 pub(crate) fn left_out(model: &Model, idx: usize) -> Vec<Term> {
-    let Some(dof) = model.dofs.get(idx) else {
-        return Vec::new();
-    };
-    let Some(entries) = model.trace.get("dofs").and_then(|d| d.as_array()) else {
-        return Vec::new();
-    };
-    let Some(library) = entries
-        .iter()
-        .find(|e| e.get("dof").and_then(|d| d.as_str()) == Some(dof.as_str()))
-        .and_then(|e| e.get("offered_library").or_else(|| e.get("library")))
-        .and_then(|l| l.as_array())
+    let Some(library) = model
+        .dofs
+        .get(idx)
+        .and_then(|dof| model.offered_library(dof))
     else {
         return Vec::new();
     };
     let held: Vec<&Term> = model.equations[idx].terms.iter().map(|t| &t.term).collect();
     let mut out: Vec<Term> = Vec::new();
-    for text in library.iter().filter_map(|t| t.as_str()) {
+    for text in &library {
         let Ok(term) = Term::parse(text, &model.dofs) else {
             return Vec::new();
         };

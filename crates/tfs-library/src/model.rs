@@ -590,6 +590,29 @@ impl Model {
         Ok(m)
     }
 
+    /// The library the model's identify trace says was offered for `dof` (term names, in
+    /// library order): `offered_library` when backward elimination re-ran the selection on a
+    /// smaller library, else `library`. What the diagnosis may offer back and a stop's
+    /// re-identification starts from. `None` when the trace lists no library of strings for
+    /// that DOF (a model written by hand or by another tool).
+    pub fn offered_library(&self, dof: &str) -> Option<Vec<String>> {
+        let entry = self
+            .trace
+            .get("dofs")?
+            .as_array()?
+            .iter()
+            .find(|e| e.get("dof").and_then(Value::as_str) == Some(dof))?;
+        let listed = entry
+            .get("offered_library")
+            .filter(|l| !l.is_null())
+            .or_else(|| entry.get("library"))?;
+        listed
+            .as_array()?
+            .iter()
+            .map(|t| t.as_str().map(str::to_string))
+            .collect()
+    }
+
     /// Readable equations, one line per DOF, 4 significant digits, e.g.
     /// `x'' = -1.990·x' - 12.12·x^5 + 18.03·x^6 - 1.000·xb_acc`; coefficients with an interval
     /// print as `(1.990 ± 0.01200)` with the interval's half-width.

@@ -100,6 +100,24 @@ fn sample_model() -> Model {
     m
 }
 
+/// The library offered for a DOF is read from the trace: `offered_library` where elimination
+/// wrote one, else `library`; nothing for a trace without one, for another DOF, or for a list
+/// that is not of term names.
+#[test]
+fn offered_library_reads_the_trace() {
+    let mut m = sample_model();
+    assert_eq!(m.offered_library("x"), None);
+    m.trace = serde_json::json!({"dofs": [{"dof": "x", "library": ["x^5", "x'"]}]});
+    assert_eq!(m.offered_library("x").unwrap(), ["x^5", "x'"]);
+    assert_eq!(m.offered_library("y"), None);
+    m.trace = serde_json::json!({"dofs": [{
+        "dof": "x", "library": ["x^5"], "offered_library": ["x^5", "x^6", "x'"]
+    }]});
+    assert_eq!(m.offered_library("x").unwrap(), ["x^5", "x^6", "x'"]);
+    m.trace = serde_json::json!({"dofs": [{"dof": "x", "library": ["x^5", 3]}]});
+    assert_eq!(m.offered_library("x"), None);
+}
+
 #[test]
 fn equation_string_is_readable() {
     let m = sample_model();

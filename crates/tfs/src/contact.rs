@@ -251,26 +251,16 @@ impl Refit<'_> {
     }
 }
 
-/// Each DOF's library as the model's trace gives it (the library offered, `offered_library`,
-/// when backward elimination re-ran on a smaller one: the re-identification with the stop
-/// decides afresh which terms the data support), with the equation's own terms of `before` (a
-/// term added by the loop); `None` when the trace has no library for some DOF.
+/// Each DOF's library as the model's trace gives it (the library offered,
+/// [`Model::offered_library`], not the elimination's reduced one: the re-identification with
+/// the stop decides afresh which terms the data support), with the equation's own terms of
+/// `before` (a term added by the loop); `None` when the trace has no library for some DOF.
 fn libraries(before: &Model) -> Option<Vec<Vec<String>>> {
     before
         .dofs
         .iter()
-        .enumerate()
-        .map(|(d, dof)| {
-            let entry = &before.trace["dofs"][d];
-            let listed = match &entry["offered_library"] {
-                serde_json::Value::Null => &entry["library"],
-                offered => offered,
-            };
-            let mut lib: Vec<String> = listed
-                .as_array()?
-                .iter()
-                .filter_map(|v| v.as_str().map(str::to_string))
-                .collect();
+        .map(|dof| {
+            let mut lib = before.offered_library(dof)?;
             if lib.is_empty() {
                 return None;
             }
