@@ -11,6 +11,7 @@ use tfs_signal::band::reconstruct_guarded;
 
 use crate::error::{CriteriaError, Result, invalid};
 use crate::options::Checked;
+use crate::trace::RecordBins;
 
 /// The first `len` samples of a record.
 fn head(r: &Record, len: usize, name: String) -> Result<Record> {
@@ -307,4 +308,33 @@ pub(crate) fn columns_of(a: &Mat<f64>, cols: &[usize]) -> Mat<f64> {
         out.col_as_slice_mut(k).copy_from_slice(a.col_as_slice(j));
     }
     out
+}
+
+/// Criterion 3's bins of DOF `d` per record: the kept bins' frequencies (`freqs`, one slice per
+/// record), the record's reconstruction band and decimation `qs`.
+pub(crate) fn record_bins<'f>(
+    blocks: &[Record],
+    preps: &[Prepared<'_>],
+    d: usize,
+    qs: &[usize],
+    freqs: impl Iterator<Item = &'f [f64]>,
+) -> Vec<RecordBins> {
+    freqs
+        .zip(preps)
+        .zip(blocks)
+        .zip(qs)
+        .map(|(((f, p), r), &q)| {
+            let lo = f.iter().cloned().fold(f64::INFINITY, f64::min);
+            let hi = f.iter().cloned().fold(0.0, f64::max);
+            RecordBins {
+                record: r.source().to_string(),
+                cutoff_hz: p.smooth[d].band.cutoff_hz,
+                mse_cutoff_hz: p.smooth[d].band.mse_cutoff_hz,
+                in_band_noise_share: p.smooth[d].band.in_band_noise_share,
+                kept_bins: f.len(),
+                band_hz: [if lo.is_finite() { lo } else { 0.0 }, hi],
+                decimation: q,
+            }
+        })
+        .collect()
 }

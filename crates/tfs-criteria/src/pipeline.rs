@@ -12,7 +12,9 @@ use faer::Mat;
 use tfs_data::Record;
 use tfs_library::{Equation, Library, Model, ModelTerm};
 
-use crate::blocks::{Prepared, blocks_of, columns_of, prepare_all, time_domain_blocks};
+use crate::blocks::{
+    Prepared, blocks_of, columns_of, prepare_all, record_bins, time_domain_blocks,
+};
 use crate::criterion1::kappa::Criterion1;
 use crate::criterion1::{Criterion1Out, criterion1_stage};
 use crate::criterion2::criterion2_stage;
@@ -31,7 +33,7 @@ use crate::fit::{
 use crate::options::{Checked, IdentifySpec};
 use crate::trace::{
     AssemblyStep, AssemblyVerdict, ChosenSettings, Criterion4Outcome, DofTrace, Identified, Method,
-    RecordBins, Trace,
+    Trace,
 };
 use crate::uncertainty::{Uncertainty, uncertainty_stage};
 use crate::verdict::{SupportInput, inputs_offered_kept, no_input_term, support_verdict};
@@ -649,35 +651,6 @@ fn model_equation(
         dof: ctx.spec.dofs[ctx.d].clone(),
         terms,
     }
-}
-
-/// Criterion 3's bins of DOF `d` per record: the kept bins' frequencies (`freqs`, one slice per
-/// record), the record's reconstruction band and decimation `qs`.
-pub(crate) fn record_bins<'f>(
-    blocks: &[Record],
-    preps: &[Prepared<'_>],
-    d: usize,
-    qs: &[usize],
-    freqs: impl Iterator<Item = &'f [f64]>,
-) -> Vec<RecordBins> {
-    freqs
-        .zip(preps)
-        .zip(blocks)
-        .zip(qs)
-        .map(|(((f, p), r), &q)| {
-            let lo = f.iter().cloned().fold(f64::INFINITY, f64::min);
-            let hi = f.iter().cloned().fold(0.0, f64::max);
-            RecordBins {
-                record: r.source().to_string(),
-                cutoff_hz: p.smooth[d].band.cutoff_hz,
-                mse_cutoff_hz: p.smooth[d].band.mse_cutoff_hz,
-                in_band_noise_share: p.smooth[d].band.in_band_noise_share,
-                kept_bins: f.len(),
-                band_hz: [if lo.is_finite() { lo } else { 0.0 }, hi],
-                decimation: q,
-            }
-        })
-        .collect()
 }
 
 /// Every setting's score for the coefficients (grid order).

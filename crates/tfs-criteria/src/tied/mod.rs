@@ -25,6 +25,7 @@ use tfs_data::Record;
 use tfs_library::{Equation, Library, ModelTerm};
 use tfs_regress::{Compressed, lstsq_support};
 
+use crate::blocks::record_bins;
 use crate::blocks::{blocks_of, prepare_all, time_domain_blocks};
 use crate::criterion1::criterion1_dof;
 use crate::criterion1::kappa::Criterion1;
@@ -35,7 +36,7 @@ use crate::criterion4::{StepResult, StopRule, assemble, residual_stats};
 use crate::error::{Result, invalid};
 use crate::fit::{Selection, fit_select};
 use crate::options::{Checked, IdentifySpec};
-use crate::pipeline::{finish, ms, record_bins};
+use crate::pipeline::{finish, ms};
 use crate::trace::{
     AssemblyStep, AssemblyVerdict, ChosenSettings, Criterion4Outcome, DofTrace, Identified, Method,
     RecordBins, TieTrace, TiedTrace,
