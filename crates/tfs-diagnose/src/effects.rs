@@ -556,8 +556,7 @@ impl Effect for Offset {
 /// coordinate `q` runs into from above, `above(q, c)` for one from below, the contact stiffness
 /// the refitted coefficient. The position `c` is scanned inside either end of the range the data
 /// cover (1–20 % of the span in from the extreme): a stiff stop holds the coordinate just beyond
-/// its position, so the data's extreme lies a little past it. The best scanned position is then
-/// refined between its neighbours ([`crate::polish`]).
+/// its position, so the data's extreme lies a little past it.
 #[derive(Debug, Clone, Copy)]
 pub struct Stop;
 impl Effect for Stop {
@@ -565,7 +564,7 @@ impl Effect for Stop {
         "stop".into()
     }
     fn description(&self) -> String {
-        "one-sided stop (end stop, contact, folded state): k*below(x, c) or k*above(x, c), c scanned over 1 %..20 % of the displacement span in from either extreme, then refined between the scanned positions".into()
+        "one-sided stop (end stop, contact, folded state): k*below(x, c) or k*above(x, c), c scanned over 1 %..20 % of the displacement span in from either extreme".into()
     }
     fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
         let mut out = Vec::new();

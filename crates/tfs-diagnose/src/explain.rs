@@ -214,9 +214,8 @@ pub(crate) fn score_variant(
 }
 
 /// Scores every variant of one effect on the equation of DOF `idx` (terms `base`) and returns
-/// the best (lowest held-out RSS), an internal state's parameters, an input effect's delay or
-/// time constant and a stop's position then refined locally by the same criterion
-/// ([`crate::polish`]). The variants are scored side by side (an effect with
+/// the best (lowest held-out RSS), an internal state's parameters then refined locally by the
+/// same criterion ([`crate::polish`]). The variants are scored side by side (an effect with
 /// many variants was otherwise the scan's serial tail), the choice the same as in order
 /// ([`crate::stats::first_lowest`]).
 pub(crate) fn best_variant(

@@ -12,10 +12,7 @@
 //! different effect (a Maxwell element with τ → 0 is a plain damper).
 //!
 //! An input effect (a delayed or low-pass filtered input) is refined the same way in its one
-//! parameter: the scan's delays are whole samples, a true delay rarely is. So is a one-sided
-//! stop's position: the scan tries five positions per end of the data's range, a contact sits
-//! anywhere between them, and a position off by a grid gap leaves the contact's kink where the
-//! data have none, so that a smooth stiffness power fits the equation better than the stop.
+//! parameter: the scan's delays are whole samples, a true delay rarely is.
 
 use tfs_library::{Factor, StateLaw, Term};
 
@@ -132,9 +129,6 @@ pub(crate) fn polish(
 ) -> Result<Scored> {
     if let Some(input) = InputFamily::of(&best.variant) {
         return polish_input(best, &input, variants, score);
-    }
-    if let Some(stop) = StopOf::of(&best.variant) {
-        return polish_stop(best, &stop, variants, score);
     }
     let Some((_, law)) = state_of(&best.variant) else {
         return Ok(best);
@@ -286,83 +280,4 @@ fn polish_input(
         (value > 0.0).then(|| input_variant(&inputs, parameter, value, added))
     };
     pattern_search(best, vec![u0], vec![step], &[(lo, hi)], &make, score)
-}
-
-/// A stop variant: one added column `below(v, c)` or `above(v, c)`, nothing replaced.
-#[derive(Debug, Clone, PartialEq)]
-struct StopOf {
-    /// The coordinate the stop acts on.
-    var: tfs_library::Var,
-    /// From above (`above(v, c)`), or from below.
-    above: bool,
-    /// The position `c`.
-    at: f64,
-}
-
-impl StopOf {
-    fn of(v: &Variant) -> Option<Self> {
-        let ([col], true) = (v.add.as_slice(), v.replace.is_empty()) else {
-            return None;
-        };
-        if col.computed.is_some() {
-            return None;
-        }
-        match col.term.factors() {
-            [Factor::Below(var, c)] => Some(Self {
-                var: var.clone(),
-                above: false,
-                at: *c,
-            }),
-            [Factor::Above(var, c)] => Some(Self {
-                var: var.clone(),
-                above: true,
-                at: *c,
-            }),
-            _ => None,
-        }
-    }
-
-    fn variant(&self, at: f64) -> Variant {
-        let factor = if self.above {
-            Factor::Above(self.var.clone(), at)
-        } else {
-            Factor::Below(self.var.clone(), at)
-        };
-        Variant::adding(
-            Some(("c".into(), at)),
-            vec![EffectColumn::term(Term::new(vec![factor]))],
-        )
-    }
-}
-
-/// Refines a stop's position between the scanned positions of the same coordinate and side: the
-/// first step is half the wider gap to the scanned neighbours of the best position, and the
-/// search stays within the scanned positions (beyond the outermost the contact would barely
-/// touch the data, or not at all). Positions are rounded to 3 significant digits, as the scan
-/// writes them.
-fn polish_stop(
-    best: Scored,
-    stop: &StopOf,
-    variants: &[Variant],
-    score: &dyn Fn(&Variant) -> Result<Scored>,
-) -> Result<Scored> {
-    let mut scanned: Vec<f64> = variants
-        .iter()
-        .filter_map(StopOf::of)
-        .filter(|s| s.var == stop.var && s.above == stop.above)
-        .map(|s| s.at)
-        .collect();
-    scanned.sort_by(f64::total_cmp);
-    scanned.dedup();
-    let c0 = stop.at;
-    let below = scanned.iter().rev().find(|&&x| x < c0).map(|x| c0 - x);
-    let above = scanned.iter().find(|&&x| x > c0).map(|x| x - c0);
-    let step = match (below, above) {
-        (None, None) => return Ok(best),
-        (a, b) => 0.5 * a.unwrap_or(0.0).max(b.unwrap_or(0.0)),
-    };
-    let (lo, hi) = (scanned[0], scanned[scanned.len() - 1]);
-    let stop = stop.clone();
-    let make = move |_: &Variant, u: &[f64]| Some(stop.variant(round3(u[0])));
-    pattern_search(best, vec![c0], vec![step], &[(lo, hi)], &make, score)
 }
