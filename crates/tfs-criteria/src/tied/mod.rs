@@ -25,8 +25,7 @@ use tfs_data::Record;
 use tfs_library::{Equation, Library, ModelTerm};
 use tfs_regress::{Compressed, lstsq_support};
 
-use crate::blocks::record_bins;
-use crate::blocks::{blocks_of, prepare_all, time_domain_blocks};
+use crate::blocks::{blocks_of, prepare_all, record_bins, time_domain_blocks};
 use crate::criterion1::criterion1_dof;
 use crate::criterion1::kappa::Criterion1;
 use crate::criterion3::rows::{WindowTransform, rows_for};
