@@ -425,6 +425,14 @@ fn partner_equations(
 /// Judges every candidate's refitted per-fold models on held-out data ([`crate::judge`]) and
 /// takes significance away from one that predicts worse than the model without it by more than
 /// the judge can resolve. Returns the judge of each DOF with its reason.
+///
+/// The free run's verdict on a candidate is only as good as the candidate's own free run: a
+/// model closer to the truth can be the one whose motion the input's noise decides (a slower
+/// escape from an initial well, a snap-through the start model smoothed away), and then its
+/// worse free-run score says which way the noise tipped it, not that it is wrong. So when the
+/// free run vetoes a candidate the equation error finds significant, and that candidate's own
+/// per-fold free run is dominated by the input's noise on a held-out record, the free run
+/// cannot rank these candidates and all of them are judged again by short-horizon prediction.
 fn judge_candidates(
     model: &Model,
     setups: &[DofSetup],
@@ -435,6 +443,90 @@ fn judge_candidates(
     runs: &[BaseRun],
 ) -> Vec<(String, Judge, String)> {
     let choice = crate::judge::choose(model, states, opts, runs);
+    if choice.judge != Judge::FreeRun {
+        return judge_with(model, setups, states, layout, opts, ranked, &choice);
+    }
+    let found: Vec<(bool, String)> = ranked
+        .iter()
+        .map(|c| (c.entry.significant, c.entry.reason.clone()))
+        .collect();
+    let judged = judge_with(model, setups, states, layout, opts, ranked, &choice);
+    let dominated = ranked.iter().zip(&found).find(|(c, (was, _))| {
+        *was && !c.entry.significant && c.heldout.is_some() && {
+            let partners = partner_equations(model, &c.raw, states, layout);
+            let eqs = fold_equations(&c.raw, &partners);
+            folds_noise_dominated(model, &eqs, states, layout, opts)
+        }
+    });
+    let Some((c, _)) = dominated else {
+        return judged;
+    };
+    let why = format!(
+        "free-run simulation cannot rank these candidates: a fresh draw of the measured input's noise moves the free run of the model with {} about as far as its error",
+        c.entry.name
+    );
+    for (c, (was, reason)) in ranked.iter_mut().zip(found) {
+        c.entry.significant = was;
+        c.entry.reason = reason;
+    }
+    let choice = crate::judge::Choice {
+        judge: Judge::ShortHorizon,
+        why,
+        resolution: choice.resolution,
+    };
+    judge_with(model, setups, states, layout, opts, ranked, &choice)
+}
+
+/// True when on some held-out record the free run of a per-fold model whose equations `eqs`
+/// replace the model's is dominated by the input's own noise
+/// ([`crate::simulate::free_run_noise_dominated`]).
+fn folds_noise_dominated(
+    model: &Model,
+    eqs: &[FoldEquation<'_>],
+    states: &[RecordStates],
+    layout: &Layout,
+    opts: &DiagnoseOptions,
+) -> bool {
+    (0..layout.folds).into_par_iter().any(|f| {
+        let Some(m) = crate::design::fold_model(model, eqs, f) else {
+            return false;
+        };
+        (0..states.len()).any(|r| {
+            layout.blocks.iter().any(|b| b.fold == f && b.record == r)
+                && crate::simulate::free_run_noise_dominated(&m, &states[r].record, opts)
+        })
+    })
+}
+
+/// The equations the judge simulates for a candidate (`raw`): its own, then its partners'
+/// ([`partner_equations`]).
+fn fold_equations<'a>(
+    raw: &'a Raw,
+    partners: &'a [(usize, Vec<EffectColumn>, Cv)],
+) -> Vec<FoldEquation<'a>> {
+    let mut eqs = vec![FoldEquation {
+        idx: raw.dof_idx,
+        cols: &raw.scored.cols,
+        cv: &raw.scored.cv,
+    }];
+    eqs.extend(partners.iter().map(|(idx, cols, cv)| FoldEquation {
+        idx: *idx,
+        cols,
+        cv,
+    }));
+    eqs
+}
+
+/// [`judge_candidates`] under the judge `choice`.
+fn judge_with(
+    model: &Model,
+    setups: &[DofSetup],
+    states: &[RecordStates],
+    layout: &Layout,
+    opts: &DiagnoseOptions,
+    ranked: &mut [Candidate],
+    choice: &crate::judge::Choice,
+) -> Vec<(String, Judge, String)> {
     let judge = choice.judge;
     let dt = states[0].record.dt();
     // Pieces of two dominant periods at most; under the short horizon, as long as the start
@@ -472,16 +564,7 @@ fn judge_candidates(
         let d = &setups[raw.dof_idx];
         r.judge = Some(judge);
         let partners = partner_equations(model, raw, states, layout);
-        let mut eqs = vec![FoldEquation {
-            idx: raw.dof_idx,
-            cols: &raw.scored.cols,
-            cv: &raw.scored.cv,
-        }];
-        eqs.extend(partners.iter().map(|(idx, cols, cv)| FoldEquation {
-            idx: *idx,
-            cols,
-            cv,
-        }));
+        let eqs = fold_equations(raw, &partners);
         c.heldout =
             crate::judge::heldout_error(judge, model, &eqs, states, layout, opts, horizon(d));
         let before = &before[raw.dof_idx];

@@ -4,7 +4,9 @@
 //! the default. It cannot rank models when a fresh draw of the measured input's own noise moves
 //! the simulation about as far as the model's error (a multi-stable structure swept through
 //! chaotic snap-through: which well it is in decides the error, and the noise decides the well;
-//! `tfs_refine::noise_dominated`) on any record. Then the candidates are judged by
+//! `tfs_refine::noise_dominated`) on any record — the start model's, or that of a candidate the
+//! free run would veto (a model nearer the truth can be the one whose snap-through the noise
+//! times; `explain.rs` probes those). Then the candidates are judged by
 //! **short-horizon prediction**: held-out data cut into pieces, each simulated from the smoothed
 //! measured state at its start (internal states from the record), the squared error summed over
 //! the pieces — the model's error over a horizon the input noise cannot take over. The pieces are

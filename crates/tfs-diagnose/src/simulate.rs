@@ -74,3 +74,37 @@ pub(crate) fn base_runs(model: &Model, records: &[Record], opts: &DiagnoseOption
         })
         .collect()
 }
+
+/// True when the free run of `model` on `record` is dominated by the measured input's own noise
+/// in some DOF: a fresh draw of that noise moves the simulation about as far as its error from
+/// the measured displacement ([`tfs_refine::noise_dominated`]), so the free run cannot say how
+/// good the model is. False when the record's computed columns cannot be made, the simulation
+/// fails or no input can be perturbed: the free run then says what it says.
+pub(crate) fn free_run_noise_dominated(
+    model: &Model,
+    record: &Record,
+    opts: &DiagnoseOptions,
+) -> bool {
+    let Ok(rec) = augment_record(model, record, opts) else {
+        return false;
+    };
+    let sim = SimulateOptions::default();
+    let Ok(run) = simulate_model_on_record(model, &rec, &sim) else {
+        return false;
+    };
+    let Ok(Some(spread)) = tfs_refine::input_noise_spread_from(model, &rec, &sim, &run) else {
+        return false;
+    };
+    let error: Vec<f64> = model
+        .dofs
+        .iter()
+        .zip(&run.x)
+        .map(|(d, x)| {
+            rec.column(d)
+                .and_then(|m| tfs_dynamics::rms_error(m, x).ok())
+                .unwrap_or(f64::INFINITY)
+        })
+        .collect();
+    let noise = tfs_refine::displacement_noise_var(model, &rec);
+    tfs_refine::noise_dominated(&spread, &error, &noise)
+}
