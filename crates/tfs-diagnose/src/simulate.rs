@@ -75,10 +75,53 @@ pub(crate) fn base_runs(model: &Model, records: &[Record], opts: &DiagnoseOption
         .collect()
 }
 
+/// How the free run `run` of `model` on the augmented record `rec` reads against the measured
+/// input's own noise: whether a fresh draw of that noise moves the simulation about as far as
+/// its error from the measured displacement in some DOF ([`tfs_refine::noise_dominated`]: the
+/// free run then cannot say how good the model is), and how far it moves the R-MSE (the mean over
+/// DOFs of the squared spread over the measured displacement's variance). `None` when a DOF's
+/// measured column is missing or no input can be perturbed.
+pub(crate) fn noise_probe(
+    model: &Model,
+    rec: &Record,
+    run: &Trajectory,
+    sim: &SimulateOptions,
+) -> Option<NoiseProbe> {
+    let measured: Vec<&[f64]> = model
+        .dofs
+        .iter()
+        .map(|d| rec.column(d))
+        .collect::<Option<_>>()?;
+    let error: Vec<f64> = measured
+        .iter()
+        .zip(&run.x)
+        .map(|(m, x)| tfs_dynamics::rms_error(m, x).unwrap_or(f64::INFINITY))
+        .collect();
+    let spread = tfs_refine::input_noise_spread_from(model, rec, sim, run).ok()??;
+    let noise = tfs_refine::displacement_noise_var(model, rec);
+    let shift = spread
+        .iter()
+        .zip(&measured)
+        .map(|(sp, m)| sp * sp / crate::judge::variance(m).max(f64::MIN_POSITIVE))
+        .sum::<f64>()
+        / spread.len().max(1) as f64;
+    Some(NoiseProbe {
+        dominated: tfs_refine::noise_dominated(&spread, &error, &noise),
+        shift,
+    })
+}
+
+/// What [`noise_probe`] reads from one free run.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct NoiseProbe {
+    /// The input's noise moves the run about as far as its error in some DOF.
+    pub dominated: bool,
+    /// The R-MSE difference a fresh draw of the input's noise makes.
+    pub shift: f64,
+}
+
 /// True when the free run of `model` on `record` is dominated by the measured input's own noise
-/// in some DOF: a fresh draw of that noise moves the simulation about as far as its error from
-/// the measured displacement ([`tfs_refine::noise_dominated`]), so the free run cannot say how
-/// good the model is. False when the record's computed columns cannot be made, the simulation
+/// ([`noise_probe`]). False when the record's computed columns cannot be made, the simulation
 /// fails or no input can be perturbed: the free run then says what it says.
 pub(crate) fn free_run_noise_dominated(
     model: &Model,
@@ -92,19 +135,5 @@ pub(crate) fn free_run_noise_dominated(
     let Ok(run) = simulate_model_on_record(model, &rec, &sim) else {
         return false;
     };
-    let Ok(Some(spread)) = tfs_refine::input_noise_spread_from(model, &rec, &sim, &run) else {
-        return false;
-    };
-    let error: Vec<f64> = model
-        .dofs
-        .iter()
-        .zip(&run.x)
-        .map(|(d, x)| {
-            rec.column(d)
-                .and_then(|m| tfs_dynamics::rms_error(m, x).ok())
-                .unwrap_or(f64::INFINITY)
-        })
-        .collect();
-    let noise = tfs_refine::displacement_noise_var(model, &rec);
-    tfs_refine::noise_dominated(&spread, &error, &noise)
+    noise_probe(model, &rec, &run, &sim).is_some_and(|p| p.dominated)
 }
