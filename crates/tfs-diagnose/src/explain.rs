@@ -433,6 +433,9 @@ fn partner_equations(
 /// free run vetoes a candidate the equation error finds significant, and that candidate's own
 /// per-fold free run is dominated by the input's noise on a held-out record, the free run
 /// cannot rank these candidates and all of them are judged again by short-horizon prediction.
+/// Otherwise, when such a candidate's per-fold model cannot be simulated from the record's
+/// start at all, all of them are judged again by the free run over the fitted rows alone, each
+/// held-out unit from the measured state at its first row (`Choice::from_fitted_rows`).
 fn judge_candidates(
     model: &Model,
     setups: &[DofSetup],
@@ -458,22 +461,41 @@ fn judge_candidates(
             folds_noise_dominated(model, &eqs, states, layout, opts)
         }
     });
-    let Some((c, _)) = dominated else {
+    let choice = if let Some((c, _)) = dominated {
+        crate::judge::Choice {
+            judge: Judge::ShortHorizon,
+            why: format!(
+                "free-run simulation cannot rank these candidates: a fresh draw of the measured input's noise moves the free run of the model with {} about as far as its error",
+                c.entry.name
+            ),
+            resolution: choice.resolution,
+            from_fitted_rows: false,
+        }
+    } else if let Some((c, _)) = ranked
+        .iter()
+        .zip(&found)
+        .find(|(c, (was, _))| *was && !c.entry.significant && c.heldout.is_none())
+    {
+        // A significant candidate's per-fold model could not be simulated from the record's
+        // start: the smoothing margin before the fitted rows holds states none of the fold's
+        // rows taught it (a cell leaving its deployed well there). Every candidate is judged
+        // again over the fitted rows alone.
+        crate::judge::Choice {
+            judge: Judge::FreeRun,
+            why: format!(
+                "free-run simulation under the measured input over the rows the equations were fitted on, each from the measured state at its first (the model with {} could not be simulated from the start of the records)",
+                c.entry.name
+            ),
+            resolution: choice.resolution,
+            from_fitted_rows: true,
+        }
+    } else {
         return judged;
     };
-    let why = format!(
-        "free-run simulation cannot rank these candidates: a fresh draw of the measured input's noise moves the free run of the model with {} about as far as its error",
-        c.entry.name
-    );
     for (c, (was, reason)) in ranked.iter_mut().zip(found) {
         c.entry.significant = was;
         c.entry.reason = reason;
     }
-    let choice = crate::judge::Choice {
-        judge: Judge::ShortHorizon,
-        why,
-        resolution: choice.resolution,
-    };
     judge_with(model, setups, states, layout, opts, ranked, &choice)
 }
 
@@ -556,7 +578,7 @@ fn judge_with(
                 cols: &cols,
                 cv: &d.base_cv,
             };
-            crate::judge::heldout_error(judge, model, &[eq], states, layout, opts, h)
+            crate::judge::heldout_error(choice, model, &[eq], states, layout, opts, h)
         })
         .collect();
     ranked.par_iter_mut().for_each(|c| {
@@ -566,7 +588,7 @@ fn judge_with(
         let partners = partner_equations(model, raw, states, layout);
         let eqs = fold_equations(raw, &partners);
         c.heldout =
-            crate::judge::heldout_error(judge, model, &eqs, states, layout, opts, horizon(d));
+            crate::judge::heldout_error(choice, model, &eqs, states, layout, opts, horizon(d));
         let before = &before[raw.dof_idx];
         r.r_mse_before = before.as_ref().map(|h| h.mean);
         r.r_mse_after = c.heldout.as_ref().map(|h| h.mean);

@@ -1,8 +1,12 @@
 //! How a candidate's refitted model is judged on held-out data, and by which judge.
 //!
 //! The free-run simulation under the measured input is the judge the user sees (`compare`), and
-//! the default. It cannot rank models when a fresh draw of the measured input's own noise moves
-//! the simulation about as far as the model's error (a multi-stable structure swept through
+//! the default. When a candidate the equation error found significant cannot be simulated from
+//! the record's start, every candidate's per-fold models run instead over each held-out unit's
+//! rows from the smoothed measured state at its first row (internal states from the record's
+//! tracks): the rows their equations were fitted on, not the smoothing margin before them
+//! (`explain.rs`). It cannot rank models when a fresh draw of the measured input's own noise
+//! moves the simulation about as far as the model's error (a multi-stable structure swept through
 //! chaotic snap-through: which well it is in decides the error, and the noise decides the well;
 //! `tfs_refine::noise_dominated`) on any record — the start model's, or that of a candidate the
 //! free run would veto (a model nearer the truth can be the one whose snap-through the noise
@@ -56,6 +60,10 @@ impl Judge {
     }
 }
 
+/// The reason given for the free-run judge when nothing made it change (the verdict names the
+/// judge only when it is not this one).
+pub(crate) const FREE_RUN_WHY: &str = "free-run simulation under the measured input";
+
 /// The judge of the held-out predictions chosen for a model on its records.
 pub(crate) struct Choice {
     /// The judge.
@@ -67,6 +75,9 @@ pub(crate) struct Choice {
     /// variance (how far a fresh draw of the input's own noise moves the score; 0 when no
     /// input could be perturbed).
     pub resolution: f64,
+    /// Under the free run: simulate each held-out unit over its fitted rows from the measured
+    /// state there, not the record from t = 0 (see [`heldout_r_mse`]).
+    pub from_fitted_rows: bool,
 }
 
 /// The judge for `model` on `states`: short-horizon prediction when on any record the free-run
@@ -108,12 +119,14 @@ pub(crate) fn choose(
                 states.len()
             ),
             resolution,
+            from_fitted_rows: false,
         }
     } else {
         Choice {
             judge: Judge::FreeRun,
-            why: "free-run simulation under the measured input".to_string(),
+            why: FREE_RUN_WHY.to_string(),
             resolution,
+            from_fitted_rows: false,
         }
     }
 }
@@ -138,10 +151,11 @@ pub(crate) struct Heldout {
 }
 
 /// The held-out error of the per-fold models whose equations `eqs` replace the model's, under
-/// `judge` (mean over held-out units of the R-MSE; `None` when a simulation fails or the judge
-/// is the equation error). `horizon` is the piece length of the short-horizon judge (samples).
+/// the judge of `choice` (mean over held-out units of the R-MSE; `None` when a simulation fails
+/// or the judge is the equation error). `horizon` is the piece length of the short-horizon
+/// judge (samples).
 pub(crate) fn heldout_error(
-    judge: Judge,
+    choice: &Choice,
     model: &Model,
     eqs: &[FoldEquation<'_>],
     states: &[RecordStates],
@@ -149,50 +163,64 @@ pub(crate) fn heldout_error(
     opts: &DiagnoseOptions,
     horizon: usize,
 ) -> Option<Heldout> {
-    match judge {
-        Judge::FreeRun => heldout_r_mse(model, eqs, states, layout, opts),
+    match choice.judge {
+        Judge::FreeRun => heldout_r_mse(model, eqs, states, layout, opts, choice.from_fitted_rows),
         Judge::ShortHorizon => short_horizon(model, eqs, states, layout, opts, horizon),
         Judge::EquationError => None,
     }
 }
 
-/// Held-out simulation R-MSE of the per-fold models (per held-out unit; None on failure).
-/// The units are simulated side by side and summed in fold order, so the mean is the same on
-/// any number of threads; the first failure stops the units not yet started.
+/// Held-out free-run R-MSE of the per-fold models (per held-out unit; None on failure). A unit
+/// is one record's held-out blocks. By default each unit is simulated from t = 0 of its record
+/// (by-record folds: the whole record; time folds: the unit's segment, its initial state
+/// fitted there). With `from_fitted_rows`, each unit is simulated as one piece over exactly
+/// its rows from the smoothed measured state at the first, internal states from the record's
+/// tracks ([`predict_pieces`] with the whole range as its horizon): the rows the equation
+/// error was fitted on, without the smoothing margin before them, on which a per-fold model
+/// fitted elsewhere can run away. The units are simulated side by side and summed in fold
+/// order, so the mean is the same on any number of threads; the first failure stops the units
+/// not yet started.
 fn heldout_r_mse(
     model: &Model,
     eqs: &[FoldEquation<'_>],
     states: &[RecordStates],
     layout: &Layout,
     opts: &DiagnoseOptions,
+    from_fitted_rows: bool,
 ) -> Option<Heldout> {
-    // Per fold its model; per held-out unit (fold, record, rows: the whole record or a segment).
+    // Per fold its model; per held-out unit (fold, record, the rows of its held-out blocks).
     let mut models = Vec::with_capacity(layout.folds);
     let mut units = Vec::new();
     for f in 0..layout.folds {
         models.push(fold_model(model, eqs, f)?);
-        if layout.by_record {
-            for r in 0..states.len() {
-                if layout.blocks.iter().any(|b| b.record == r && b.fold == f) {
-                    units.push((f, r, None));
-                }
+        for (r, s) in states.iter().enumerate() {
+            let blocks: Vec<_> = layout
+                .blocks
+                .iter()
+                .filter(|b| b.record == r && b.fold == f)
+                .collect();
+            if let (Some(first), Some(last)) = (blocks.first(), blocks.last()) {
+                units.push((
+                    f,
+                    r,
+                    s.margin + first.start..s.margin + last.start + last.len,
+                ));
             }
-        } else {
-            let bl: Vec<_> = layout.blocks.iter().filter(|b| b.fold == f).collect();
-            let r = bl.first()?.record;
-            let start = states[r].margin + bl.first()?.start;
-            let end = states[r].margin + bl.last()?.start + bl.last()?.len;
-            units.push((f, r, Some(start..end)));
         }
     }
     let scores: Vec<f64> = units
         .par_iter()
         .map(|(f, r, range)| {
             let m = &models[*f];
+            if from_fitted_rows {
+                let n = range.len();
+                return predict_pieces(m, &states[*r], range.clone(), n, opts).map(|p| p.0);
+            }
             let full = crate::simulate::augment_record(m, &states[*r].record, opts).ok()?;
-            let u = match range {
-                None => full,
-                Some(range) => full.slice(range.clone()).ok()?,
+            let u = if layout.by_record {
+                full
+            } else {
+                full.slice(range.clone()).ok()?
             };
             crate::simulate::r_mse(m, &u).ok()
         })

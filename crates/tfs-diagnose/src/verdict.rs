@@ -15,8 +15,13 @@ pub(crate) fn verdict(
         Some(top) => {
             let judged = judges
                 .iter()
-                .find(|(d, j, _)| *d == top.dof && *j != Judge::FreeRun)
+                .find(|(d, j, why)| {
+                    *d == top.dof && (*j != Judge::FreeRun || why != crate::judge::FREE_RUN_WHY)
+                })
                 .map(|(_, j, why)| {
+                    if *j == Judge::FreeRun {
+                        return format!("; judged by {why}");
+                    }
                     let ties = if *j == Judge::ShortHorizon {
                         " (its ties broken by the geometric-mean error over the pieces)"
                     } else {
