@@ -193,18 +193,9 @@ fn heldout_r_mse(
     let mut units = Vec::new();
     for f in 0..layout.folds {
         models.push(fold_model(model, eqs, f)?);
-        for (r, s) in states.iter().enumerate() {
-            let blocks: Vec<_> = layout
-                .blocks
-                .iter()
-                .filter(|b| b.record == r && b.fold == f)
-                .collect();
-            if let (Some(first), Some(last)) = (blocks.first(), blocks.last()) {
-                units.push((
-                    f,
-                    r,
-                    s.margin + first.start..s.margin + last.start + last.len,
-                ));
+        for r in 0..states.len() {
+            if let Some(rows) = heldout_rows(layout, states, f, r) {
+                units.push((f, r, rows));
             }
         }
     }
@@ -235,6 +226,25 @@ fn heldout_r_mse(
     })
 }
 
+/// The rows of record `r` held out in fold `f` (from its first held-out block's first row to its
+/// last's end, in the record's own rows, past the smoothing margin); `None` when fold `f` holds
+/// none of record `r`.
+fn heldout_rows(
+    layout: &Layout,
+    states: &[RecordStates],
+    f: usize,
+    r: usize,
+) -> Option<std::ops::Range<usize>> {
+    let mut blocks = layout
+        .blocks
+        .iter()
+        .filter(|b| b.record == r && b.fold == f);
+    let first = blocks.next()?;
+    let last = blocks.next_back().unwrap_or(first);
+    let margin = states[r].margin;
+    Some(margin + first.start..margin + last.start + last.len)
+}
+
 /// Short-horizon prediction R-MSE of the per-fold models on their held-out blocks (see the
 /// module docs): per held-out unit (a record, or one record's held-out segment), the summed
 /// squared error of the pieces over the summed squared deviation of the measured displacement
@@ -253,15 +263,9 @@ fn short_horizon(
     for f in 0..layout.folds {
         let m = fold_model(model, eqs, f)?;
         for (r, s) in states.iter().enumerate() {
-            let blocks: Vec<_> = layout
-                .blocks
-                .iter()
-                .filter(|b| b.record == r && b.fold == f)
-                .collect();
-            let (Some(first), Some(last)) = (blocks.first(), blocks.last()) else {
+            let Some(range) = heldout_rows(layout, states, f, r) else {
                 continue;
             };
-            let range = s.margin + first.start..s.margin + last.start + last.len;
             let (r, pieces) = predict_pieces(&m, s, range, horizon, opts)?;
             sum += r;
             parts.extend(pieces);
