@@ -15,6 +15,7 @@ use tfs::diagnose::{DiagnoseOptions, Explanation};
 use tfs::identify::{IdentifyOptions, identify, plan};
 use tfs::library::{Library, Model};
 
+use super::SnrBase;
 use super::hide::{Hide, hide};
 use super::size;
 use super::truth::{self, Baseline, Kind};
@@ -305,10 +306,11 @@ fn round(
 /// Runs one case; failures are recorded in the result, not returned.
 /// With `keep`, the case's records and start model are also written into a folder of its own
 /// under `keep` ([`Args::keep_records`](super::Args)).
-pub fn run(spec: &CaseSpec, keep: Option<&Path>) -> CaseResult {
+/// `base` is what the noise level is relative to.
+pub fn run(spec: &CaseSpec, keep: Option<&Path>, base: SnrBase) -> CaseResult {
     let t0 = Instant::now();
     let mut out = CaseResult::new(spec);
-    if let Err(e) = run_into(spec, &mut out, keep) {
+    if let Err(e) = run_into(spec, &mut out, keep, base) {
         if out.status == "ok" {
             out.status = "failed".into();
         }
@@ -318,7 +320,12 @@ pub fn run(spec: &CaseSpec, keep: Option<&Path>) -> CaseResult {
     out
 }
 
-fn run_into(spec: &CaseSpec, out: &mut CaseResult, keep: Option<&Path>) -> Result<()> {
+fn run_into(
+    spec: &CaseSpec,
+    out: &mut CaseResult,
+    keep: Option<&Path>,
+    base: SnrBase,
+) -> Result<()> {
     let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
     let b = truth::draw(spec.kind, &mut rng)?;
     out.baseline = b.params.clone();
@@ -363,6 +370,7 @@ fn run_into(spec: &CaseSpec, out: &mut CaseResult, keep: Option<&Path>) -> Resul
             &name,
             c,
             spec.snr,
+            base,
             spec.seed ^ (0x5eed + 7919 * i as u64),
         )?);
     }

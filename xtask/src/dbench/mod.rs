@@ -59,6 +59,21 @@ pub struct Args {
     /// diagnose --model start.json train0.csv train1.csv train2.csv`.
     #[arg(long)]
     pub keep_records: Option<PathBuf>,
+    /// What the noise level is relative to on the displacement channels: `mean-square` (the
+    /// signal's mean square, the operating point included) or `variance` (the motion about its
+    /// mean; a sensor's noise does not grow with the static height it sits at). The rig's
+    /// offsets are added after the noise under either.
+    #[arg(long, value_enum, default_value_t = SnrBase::MeanSquare)]
+    pub snr_reference: SnrBase,
+}
+
+/// What a case's SNR is relative to ([`Args::snr_reference`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum SnrBase {
+    /// The mean square of each measured channel.
+    MeanSquare,
+    /// The variance of each measured channel (its motion about the mean).
+    Variance,
 }
 
 impl Args {
@@ -79,6 +94,9 @@ impl Args {
             if !v.is_empty() {
                 c.push_str(&format!(" {flag} {}", v.join(",")));
             }
+        }
+        if self.snr_reference == SnrBase::Variance {
+            c.push_str(" --snr-reference variance");
         }
         c
     }
@@ -299,7 +317,7 @@ pub fn run(args: Args) -> Result<()> {
     let results: Vec<CaseResult> = specs
         .par_iter()
         .map(|s| {
-            let r = case::run(s, args.keep_records.as_deref());
+            let r = case::run(s, args.keep_records.as_deref(), args.snr_reference);
             pb.inc(1);
             r
         })
