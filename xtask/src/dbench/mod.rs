@@ -49,8 +49,8 @@ pub struct Args {
     #[arg(long, value_delimiter = ',')]
     pub noise: Vec<String>,
     /// Run nothing: score again the run whose `results.json` is in this folder, writing
-    /// `report.md`, the CSV files and the figure to `--out` (give the same `--only`, `--noise`
-    /// and `--effects` as the run for the report's command line).
+    /// `report.md`, the CSV files and the figure to `--out` (give the same `--only`, `--noise`,
+    /// `--effects` and `--snr-reference` as the run for the report's command line).
     #[arg(long)]
     pub rescore: Option<PathBuf>,
     /// Also write each case's records and start model into a folder per case under this one
@@ -59,7 +59,7 @@ pub struct Args {
     /// diagnose --model start.json train0.csv train1.csv train2.csv`.
     #[arg(long)]
     pub keep_records: Option<PathBuf>,
-    /// What the noise level is relative to on the displacement channels: `mean-square` (the
+    /// What the noise level is relative to on each measured channel: `mean-square` (the
     /// signal's mean square, the operating point included) or `variance` (the motion about its
     /// mean; a sensor's noise does not grow with the static height it sits at). The rig's
     /// offsets are added after the noise under either.
