@@ -14,8 +14,8 @@ use tfs::data::Record;
 use tfs::diagnose::{DiagnoseOptions, Explanation};
 use tfs::identify::{IdentifyOptions, identify, plan};
 use tfs::library::{Library, Model};
+use tfs::signal::noise::SnrReference;
 
-use super::SnrBase;
 use super::hide::{Hide, hide};
 use super::size;
 use super::truth::{self, Baseline, Kind};
@@ -306,11 +306,11 @@ fn round(
 /// Runs one case; failures are recorded in the result, not returned.
 /// With `keep`, the case's records and start model are also written into a folder of its own
 /// under `keep` ([`Args::keep_records`](super::Args)).
-/// `base` is what the noise level is relative to.
-pub fn run(spec: &CaseSpec, keep: Option<&Path>, base: SnrBase) -> CaseResult {
+/// `reference` is what the noise level is relative to.
+pub fn run(spec: &CaseSpec, keep: Option<&Path>, reference: SnrReference) -> CaseResult {
     let t0 = Instant::now();
     let mut out = CaseResult::new(spec);
-    if let Err(e) = run_into(spec, &mut out, keep, base) {
+    if let Err(e) = run_into(spec, &mut out, keep, reference) {
         if out.status == "ok" {
             out.status = "failed".into();
         }
@@ -324,7 +324,7 @@ fn run_into(
     spec: &CaseSpec,
     out: &mut CaseResult,
     keep: Option<&Path>,
-    base: SnrBase,
+    reference: SnrReference,
 ) -> Result<()> {
     let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
     let b = truth::draw(spec.kind, &mut rng)?;
@@ -370,7 +370,7 @@ fn run_into(
             &name,
             c,
             spec.snr,
-            base,
+            reference,
             spec.seed ^ (0x5eed + 7919 * i as u64),
         )?);
     }

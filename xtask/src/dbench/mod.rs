@@ -21,6 +21,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde_json::json;
+use tfs::signal::noise::SnrReference;
 
 pub use case::{CaseResult, CaseSpec, Group};
 pub use truth::Kind;
@@ -63,17 +64,19 @@ pub struct Args {
     /// signal's mean square, the operating point included) or `variance` (the motion about its
     /// mean; a sensor's noise does not grow with the static height it sits at). The rig's
     /// offsets are added after the noise under either.
-    #[arg(long, value_enum, default_value_t = SnrBase::MeanSquare)]
-    pub snr_reference: SnrBase,
+    #[arg(long, value_parser = parse_snr_reference, default_value = "mean-square")]
+    pub snr_reference: SnrReference,
 }
 
-/// What a case's SNR is relative to ([`Args::snr_reference`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum SnrBase {
-    /// The mean square of each measured channel.
-    MeanSquare,
-    /// The variance of each measured channel (its motion about the mean).
-    Variance,
+/// Parses `--snr-reference`: `mean-square` or `variance`.
+fn parse_snr_reference(s: &str) -> std::result::Result<SnrReference, String> {
+    match s {
+        "mean-square" => Ok(SnrReference::MeanSquare),
+        "variance" => Ok(SnrReference::Variance),
+        _ => Err(format!(
+            "'{s}' is not a noise reference: give mean-square or variance"
+        )),
+    }
 }
 
 impl Args {
@@ -95,7 +98,7 @@ impl Args {
                 c.push_str(&format!(" {flag} {}", v.join(",")));
             }
         }
-        if self.snr_reference == SnrBase::Variance {
+        if self.snr_reference == SnrReference::Variance {
             c.push_str(" --snr-reference variance");
         }
         c

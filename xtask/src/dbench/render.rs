@@ -130,8 +130,9 @@ impl Summary<'_> {
             pct(super::SIZES.0),
             pct(super::SIZES.1),
             match args.snr_reference {
-                super::SnrBase::MeanSquare => "mean square, its static operating point included",
-                super::SnrBase::Variance => "variance, its motion about the mean",
+                tfs::signal::noise::SnrReference::MeanSquare =>
+                    "mean square, its static operating point included",
+                tfs::signal::noise::SnrReference::Variance => "variance, its motion about the mean",
             },
             pct(MIN_SHARE)
         );

@@ -16,8 +16,6 @@ use tfs::records::Offsets;
 use tfs::signal::noise::{SnrReference, noise_with};
 use tfs::signal::{Excitation, Multisine, NoiseKind, Sweep, SweepKind};
 
-use super::SnrBase;
-
 /// The baselines.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Kind {
@@ -398,15 +396,11 @@ fn rig(rng: &mut ChaCha8Rng) -> Result<Baseline> {
     })
 }
 
-/// `x` plus white noise at `snr` dB relative to its mean square or variance (`base`), drawn
+/// `x` plus white noise at `snr` dB relative to its mean square or variance (`reference`), drawn
 /// from a `ChaCha8Rng` seeded with `seed`; `x` itself when `snr` is `None`.
-fn noisy(x: &[f64], snr: Option<f64>, base: SnrBase, seed: u64) -> Result<Vec<f64>> {
+fn noisy(x: &[f64], snr: Option<f64>, reference: SnrReference, seed: u64) -> Result<Vec<f64>> {
     let Some(s) = snr else {
         return Ok(x.to_vec());
-    };
-    let reference = match base {
-        SnrBase::MeanSquare => SnrReference::MeanSquare,
-        SnrBase::Variance => SnrReference::Variance,
     };
     let e = noise_with(
         x,
@@ -468,19 +462,19 @@ pub fn simulate(b: &Baseline, i: usize, placed: &[Placed], exciter: &[Hidden]) -
 }
 
 /// The measured record: white noise at `snr` dB (or none) on every DOF and the input, relative
-/// to each channel's mean square or variance (`base`), each channel its own stream of `seed`;
+/// to each channel's mean square or variance (`reference`), each channel its own stream of `seed`;
 /// the rig's DC levels added after the noise.
 pub fn measure(
     b: &Baseline,
     name: &str,
     c: &Clean,
     snr: Option<f64>,
-    base: SnrBase,
+    reference: SnrReference,
     seed: u64,
 ) -> Result<Record> {
     let n = c.u.len();
     let t = tfs::signal::time_grid(n, b.dt);
-    let noisy = |x: &[f64], k: u64| noisy(x, snr, base, seed + k);
+    let noisy = |x: &[f64], k: u64| noisy(x, snr, reference, seed + k);
     let mut cols = Vec::new();
     for (d, name) in b.dofs.iter().enumerate() {
         let mut x = noisy(&c.motion.x[d], d as u64)?;
@@ -511,8 +505,8 @@ mod tests {
             .collect();
         let motion = rms(&x.iter().map(|v| v - 1.57).collect::<Vec<_>>());
         let added = |y: &[f64]| rms(&y.iter().zip(&x).map(|(a, b)| a - b).collect::<Vec<_>>());
-        let ms = noisy(&x, Some(40.0), SnrBase::MeanSquare, 7).unwrap();
-        let var = noisy(&x, Some(40.0), SnrBase::Variance, 7).unwrap();
+        let ms = noisy(&x, Some(40.0), SnrReference::MeanSquare, 7).unwrap();
+        let var = noisy(&x, Some(40.0), SnrReference::Variance, 7).unwrap();
         assert_eq!(
             ms,
             tfs::signal::noise::add_noise_seeded(&x, 40.0, NoiseKind::White, 7).unwrap()
@@ -524,6 +518,6 @@ mod tests {
             added(&var) / motion
         );
         assert!(added(&ms) > 20.0 * added(&var));
-        assert_eq!(noisy(&x, None, SnrBase::Variance, 7).unwrap(), x);
+        assert_eq!(noisy(&x, None, SnrReference::Variance, 7).unwrap(), x);
     }
 }
