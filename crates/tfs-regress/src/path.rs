@@ -120,8 +120,9 @@ impl LambdaPath {
 /// coordinate that moves little about a large offset reach shares of 10⁹). A grid anchored there
 /// would stop far above the terms that carry a tenth of the target (a dashpot, the input) and
 /// prune them at every point. With scaled columns the grid then continues with the same
-/// geometric step until the threshold falls below `min_ratio` itself; below a largest share of
-/// 1 it is the plain `n_thresholds`-point grid.
+/// geometric step until the threshold falls below `min_ratio` itself (for at most
+/// `8·(n_thresholds − 1)` more points); below a largest share of 1 it is the plain
+/// `n_thresholds`-point grid.
 pub fn lambda_path(train: &Compressed, val: &Compressed, opts: &PathOptions) -> Result<LambdaPath> {
     if opts.n_thresholds == 0 {
         return Err(RegressError::InvalidParameter {
@@ -173,9 +174,9 @@ pub fn lambda_path(train: &Compressed, val: &Compressed, opts: &PathOptions) -> 
         grid.push(top * opts.min_ratio.powf(frac));
     }
     // Cancelling columns (largest share above 1): go on with the same step down to
-    // `min_ratio` itself.
-    if base.scale_columns && nt > 1 && top.is_finite() {
-        for i in nt.. {
+    // `min_ratio` itself, at most 8 grids' worth of points (a share of 10³² on the default grid).
+    if base.scale_columns && nt > 1 && opts.min_ratio < 1.0 && top.is_finite() {
+        for i in nt..nt + 8 * (nt - 1) {
             let threshold = top * opts.min_ratio.powf(i as f64 / (nt - 1) as f64);
             if threshold < opts.min_ratio {
                 break;

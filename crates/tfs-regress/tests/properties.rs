@@ -393,6 +393,15 @@ fn path_reaches_small_terms_beside_cancelling_columns() {
                 .windows(2)
                 .all(|w| w[0].threshold > w[1].threshold)
         );
+        // A grid of one ratio (every threshold the largest share) has nowhere to go on to.
+        let flat = PathOptions {
+            min_ratio: 1.0,
+            ..opts
+        };
+        assert_eq!(
+            lambda_path(&train, &val, &flat).unwrap().points.len(),
+            flat.n_thresholds
+        );
     }
 }
 
