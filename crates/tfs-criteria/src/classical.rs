@@ -7,7 +7,7 @@ use faer::{ColRef, MatMut};
 use rayon::prelude::*;
 use tfs_data::Record;
 use tfs_library::{Equation, Library, ModelTerm};
-use tfs_regress::{Compressed, Regressor, Stlsq, lambda_path, lstsq_support};
+use tfs_regress::{Compressed, PathOptions, Regressor, Stlsq, lambda_path, lstsq_support};
 
 use crate::blocks::{blocks_of, check_record, raw_columns_sg};
 use crate::criterion3::TransformForm;
@@ -53,7 +53,14 @@ pub fn identify_sindy(records: &[Record], spec: &IdentifySpec) -> Result<Identif
             }
             None => {
                 let train = Compressed::merge(&comps[..nb - 1])?;
-                let path = lambda_path(&train, &comps[nb - 1], &path_opts(opt.n_thresholds))?;
+                // The paper's baseline keeps the plain grid: on clean records its derivative
+                // error is systematic, and a grid reaching below the largest share lets BIC
+                // pick up tiny spurious powers (the extension is T-F-S's own).
+                let opts = PathOptions {
+                    extend_when_cancelling: false,
+                    ..path_opts(opt.n_thresholds)
+                };
+                let path = lambda_path(&train, &comps[nb - 1], &opts)?;
                 let b = path.best();
                 let all = Compressed::merge(&comps)?;
                 let f = lstsq_support(&all, &b.support)?;

@@ -93,12 +93,16 @@ pub(crate) fn held_out_relative_rss(
     Ok(rss / yy.max(f64::MIN_POSITIVE))
 }
 
+/// The weak-form selection's λ path: `n` thresholds down to 1e-4 of the largest share, BIC,
+/// and the grid goes on below it where the library's columns cancel one another (the truss
+/// cell's monomials about its offset; see `docs/DECISIONS.md`).
 pub(crate) fn path_opts(n: usize) -> PathOptions {
     PathOptions {
         stlsq: Stlsq::default(),
         n_thresholds: n.max(2),
         min_ratio: 1e-4,
         criterion: InfoCriterion::Bic,
+        extend_when_cancelling: true,
     }
 }
 

@@ -709,7 +709,7 @@ fn why_lines(
         match opt.fit.threshold {
             Some(t) => format!("STLSQ threshold {t} given by the user"),
             None => format!(
-                "STLSQ threshold {thr:.4} (scaled): BIC of the frequency-domain rows of the held-out record '{}' along a {}-point λ path",
+                "STLSQ threshold {thr:.4} (scaled): BIC of the frequency-domain rows of the held-out record '{}' along a λ path of {} thresholds (more where the library's columns cancel one another)",
                 ctx.blocks[hold].source(),
                 opt.fit.n_thresholds
             ),

@@ -55,16 +55,21 @@ pub struct PathOptions {
     pub min_ratio: f64,
     /// Selection rule.
     pub criterion: InfoCriterion,
+    /// With scaled columns, when the largest scaled coefficient exceeds 1 (columns that cancel
+    /// one another), go on with the same step down to `min_ratio` itself (see
+    /// [`lambda_path`]). Off by default: the plain grid of the SINDy literature.
+    pub extend_when_cancelling: bool,
 }
 
 impl Default for PathOptions {
-    /// Default STLSQ, 40 thresholds down to 1e-4 of the largest, AICc.
+    /// Default STLSQ, 40 thresholds down to 1e-4 of the largest, AICc, no extension.
     fn default() -> Self {
         Self {
             stlsq: Stlsq::default(),
             n_thresholds: 40,
             min_ratio: 1e-4,
             criterion: InfoCriterion::Aicc,
+            extend_when_cancelling: false,
         }
     }
 }
@@ -112,6 +117,15 @@ impl LambdaPath {
 /// Run STLSQ over a geometric grid of thresholds from the largest |scaled coefficient| of the
 /// initial fit down to `min_ratio` times it; refit each distinct support by least squares on
 /// `train` and score it on the held-out `val` rows (also compressed). Returns every point.
+///
+/// **Cancelling columns.** A scaled coefficient is the share of the target's norm its term
+/// carries, so a largest one above 1 means columns that cancel one another (monomials of a
+/// coordinate that moves little about a large offset reach shares of 10⁹). A grid anchored there
+/// would stop far above the terms that carry a tenth of the target (a dashpot, the input) and
+/// prune them at every point. With `extend_when_cancelling` and scaled columns the grid then
+/// continues with the same geometric step until the threshold falls below `min_ratio` itself
+/// (for at most `8·(n_thresholds − 1)` more points); below a largest share of 1 it is the
+/// plain `n_thresholds`-point grid.
 pub fn lambda_path(train: &Compressed, val: &Compressed, opts: &PathOptions) -> Result<LambdaPath> {
     if opts.n_thresholds == 0 {
         return Err(RegressError::InvalidParameter {
@@ -153,14 +167,33 @@ pub fn lambda_path(train: &Compressed, val: &Compressed, opts: &PathOptions) -> 
     let mut seen: HashMap<Vec<bool>, (Vec<f64>, f64, f64)> = HashMap::new();
     let mut cache = crate::stlsq::SolveCache::new();
     let sc = crate::stlsq::scales(train, base.scale_columns);
-    let mut points = Vec::with_capacity(nt);
+    let mut grid = Vec::with_capacity(nt);
     for i in 0..nt {
         let frac = if nt == 1 {
             0.0
         } else {
             i as f64 / (nt - 1) as f64
         };
-        let threshold = top * opts.min_ratio.powf(frac);
+        grid.push(top * opts.min_ratio.powf(frac));
+    }
+    // Cancelling columns (largest share above 1): go on with the same step down to
+    // `min_ratio` itself, at most 8 grids' worth of points (a share of 10³² on the default grid).
+    if opts.extend_when_cancelling
+        && base.scale_columns
+        && nt > 1
+        && opts.min_ratio < 1.0
+        && top.is_finite()
+    {
+        for i in nt..nt + 8 * (nt - 1) {
+            let threshold = top * opts.min_ratio.powf(i as f64 / (nt - 1) as f64);
+            if threshold < opts.min_ratio {
+                break;
+            }
+            grid.push(threshold);
+        }
+    }
+    let mut points = Vec::with_capacity(grid.len());
+    for threshold in grid {
         // With the unbiased refit, STLSQ's coefficients are the least-squares ones on its
         // support: the residuals are computed once per distinct support.
         let (coef, ..) = Stlsq { threshold, ..base }.coef_scaled(train, &mut cache, &sc)?;

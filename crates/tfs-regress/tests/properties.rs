@@ -340,6 +340,87 @@ fn path_selects_true_support_on_noisy_data() {
     }
 }
 
+/// Monomials of a coordinate that moves ±0.04 about 1.57 cancel one another with scaled
+/// coefficients far above 1; the λ path must still reach the term that carries a tenth of the
+/// target (a grid anchored at the largest share alone stopped at 10⁻⁴ of it and pruned that term
+/// at every point).
+#[test]
+fn path_reaches_small_terms_beside_cancelling_columns() {
+    for seed in 0..4u64 {
+        let mut rng = ChaCha8Rng::seed_from_u64(500 + seed);
+        let make = |rng: &mut ChaCha8Rng, m: usize| {
+            let mut a = Mat::<f64>::zeros(m, 6);
+            let mut b = vec![0.0; m];
+            for i in 0..m {
+                let x: f64 = 1.57 + 0.04 * rng.random_range(-1.0..1.0);
+                let w: f64 = rng.random_range(-1.0..1.0);
+                for k in 0..5 {
+                    a[(i, k)] = x.powi(k as i32 + 1);
+                }
+                a[(i, 5)] = w;
+                // A restoring force about the offset (no constant column: the monomials make
+                // it up between them) and a small independent term.
+                b[i] = -50.0 * (x - 1.57) + 0.3 * w + 0.01 * rng.random_range(-1.0..1.0);
+            }
+            Compressed::from_rows(a.as_ref(), &b).unwrap()
+        };
+        let (train, val) = (make(&mut rng, 400), make(&mut rng, 200));
+        let opts = PathOptions {
+            criterion: InfoCriterion::Bic,
+            extend_when_cancelling: true,
+            ..PathOptions::default()
+        };
+        let top = Stlsq::default()
+            .initial_scaled_coef(&train)
+            .iter()
+            .fold(0.0_f64, |m, v| m.max(v.abs()));
+        assert!(
+            top > 1e3,
+            "seed {seed}: the columns should cancel (top {top})"
+        );
+        let path = lambda_path(&train, &val, &opts).unwrap();
+        let best = path.best();
+        assert!(best.support[5], "seed {seed}: the small term was pruned");
+        assert!(
+            (best.coef[5] - 0.3).abs() < 0.01,
+            "seed {seed}: {}",
+            best.coef[5]
+        );
+        // The grid goes on below the usual 40 points and stops at `min_ratio` itself.
+        assert!(path.points.len() > opts.n_thresholds);
+        assert!(path.points.iter().all(|p| p.threshold >= opts.min_ratio));
+        assert!(
+            path.points
+                .windows(2)
+                .all(|w| w[0].threshold > w[1].threshold)
+        );
+        // Without the extension the grid is the plain one and prunes the small term.
+        let plain = lambda_path(
+            &train,
+            &val,
+            &PathOptions {
+                extend_when_cancelling: false,
+                ..opts
+            },
+        )
+        .unwrap();
+        assert_eq!(plain.points.len(), opts.n_thresholds);
+        assert!(
+            !plain.best().support[5],
+            "seed {seed}: the plain grid kept it"
+        );
+        // A grid of one ratio (every threshold the largest share) has nowhere to go on to.
+        let flat = PathOptions {
+            min_ratio: 1.0,
+            ..opts
+        };
+        assert_eq!(
+            lambda_path(&train, &val, &flat).unwrap().points.len(),
+            flat.n_thresholds
+        );
+    }
+}
+
 /// Bagging over blocks: the true coefficients lie inside the 95 % intervals in most replicates.
 #[test]
 fn bagging_intervals_cover_truth() {
