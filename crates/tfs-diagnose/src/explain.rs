@@ -39,7 +39,7 @@ use crate::design::{
     variant_columns,
 };
 use crate::effects::{Catalogue, EffectColumn, EffectContext, Variant};
-use crate::judge::{Candidate, Heldout, Judge, mark_ties, order};
+use crate::judge::{Candidate, Heldout, Judge, JudgeUse, mark_ties, order};
 use crate::prepare::{DiagnoseOptions, Layout, RecordStates, rms};
 use crate::simulate::BaseRun;
 use crate::stats::{block_wald_p_value, bootstrap_interval, paired_p_value};
@@ -99,7 +99,7 @@ pub struct Explanation {
     /// Number of variants tested (the Bonferroni factor).
     pub tests: usize,
     /// Per DOF: the judge of the held-out predictions and why it was chosen.
-    pub judges: Vec<(String, Judge, String)>,
+    pub judges: Vec<JudgeUse>,
     /// Cut-off (Hz) used for the smoothed states, per record.
     pub cutoff_hz: Vec<f64>,
     /// Folds are records (true) or time segments (false).
@@ -444,7 +444,7 @@ fn judge_candidates(
     opts: &DiagnoseOptions,
     ranked: &mut [Candidate],
     runs: &[BaseRun],
-) -> Vec<(String, Judge, String)> {
+) -> Vec<JudgeUse> {
     let choice = crate::judge::choose(model, states, opts, runs);
     if choice.judge != Judge::FreeRun {
         return judge_with(model, setups, states, layout, opts, ranked, &choice);
@@ -468,6 +468,7 @@ fn judge_candidates(
                 "free-run simulation cannot rank these candidates: a fresh draw of the measured input's noise moves the free run of the model with {} about as far as its error",
                 c.entry.name
             ),
+            plain: false,
             resolution: choice.resolution,
             from_fitted_rows: false,
         }
@@ -486,6 +487,7 @@ fn judge_candidates(
                 "free-run simulation under the measured input over the rows the equations were fitted on, each from the measured state at its first (the model with {} could not be simulated from the start of the records)",
                 c.entry.name
             ),
+            plain: false,
             resolution: choice.resolution,
             from_fitted_rows: true,
         }
@@ -548,7 +550,7 @@ fn judge_with(
     opts: &DiagnoseOptions,
     ranked: &mut [Candidate],
     choice: &crate::judge::Choice,
-) -> Vec<(String, Judge, String)> {
+) -> Vec<JudgeUse> {
     let judge = choice.judge;
     let dt = states[0].record.dt();
     // Pieces of two dominant periods at most; under the short horizon, as long as the start
@@ -638,7 +640,12 @@ fn judge_with(
                 ),
                 None => choice.why.clone(),
             };
-            (model.dofs[d.idx].clone(), judge, why)
+            JudgeUse {
+                dof: model.dofs[d.idx].clone(),
+                judge,
+                why,
+                plain: choice.plain,
+            }
         })
         .collect()
 }
@@ -715,16 +722,15 @@ pub(crate) fn explain_with_runs(
     } else {
         setups
             .iter()
-            .map(|d| {
-                (
-                    model.dofs[d.idx].clone(),
-                    Judge::EquationError,
-                    "simulation of the candidates is switched off".to_string(),
-                )
+            .map(|d| JudgeUse {
+                dof: model.dofs[d.idx].clone(),
+                judge: Judge::EquationError,
+                why: "simulation of the candidates is switched off".to_string(),
+                plain: false,
             })
             .collect()
     };
-    let judge = judges.first().map_or(Judge::EquationError, |j| j.1);
+    let judge = judges.first().map_or(Judge::EquationError, |j| j.judge);
     order(&mut ranked, judge, opts.alpha);
     mark_ties(&mut ranked, judge, opts.alpha);
     let ranked: Vec<RankedEffect> = ranked.into_iter().map(|c| c.entry).collect();

@@ -60,9 +60,19 @@ impl Judge {
     }
 }
 
-/// The reason given for the free-run judge when nothing made it change (the verdict names the
-/// judge only when it is not this one).
-pub(crate) const FREE_RUN_WHY: &str = "free-run simulation under the measured input";
+/// The judge of one DOF's held-out predictions in an [`crate::Explanation`], and why.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct JudgeUse {
+    /// The DOF.
+    pub dof: String,
+    /// What ranked the candidates' held-out predictions.
+    pub judge: Judge,
+    /// Why this judge, in words.
+    pub why: String,
+    /// True for the plain free run under the measured input, chosen because nothing argued
+    /// against it; the verdict names the judge only when this is false.
+    pub plain: bool,
+}
 
 /// The judge of the held-out predictions chosen for a model on its records.
 pub(crate) struct Choice {
@@ -70,6 +80,8 @@ pub(crate) struct Choice {
     pub judge: Judge,
     /// Why it was chosen, in words.
     pub why: String,
+    /// The plain free run, chosen because nothing argued against it ([`JudgeUse::plain`]).
+    pub plain: bool,
     /// The free-run R-MSE difference the judge cannot resolve: the mean over records of the
     /// squared input-noise spread of the model's free run over the measured displacement's
     /// variance (how far a fresh draw of the input's own noise moves the score; 0 when no
@@ -118,13 +130,15 @@ pub(crate) fn choose(
                 "free-run simulation cannot rank models on these records: on {dominated} of {} a fresh draw of the measured input's noise moves it about as far as the model's error",
                 states.len()
             ),
+            plain: false,
             resolution,
             from_fitted_rows: false,
         }
     } else {
         Choice {
             judge: Judge::FreeRun,
-            why: FREE_RUN_WHY.to_string(),
+            why: "free-run simulation under the measured input".to_string(),
+            plain: true,
             resolution,
             from_fitted_rows: false,
         }

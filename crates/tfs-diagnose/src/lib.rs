@@ -68,7 +68,7 @@ pub use compare::{RecordComparison, compare};
 pub use effects::{Catalogue, ComputedColumn, Effect, EffectColumn, EffectContext, Variant};
 pub use error::{DiagnoseError, Result};
 pub use explain::{Explanation, RankedEffect, explain};
-pub use judge::Judge;
+pub use judge::{Judge, JudgeUse};
 pub use prepare::DiagnoseOptions;
 pub use refit::{
     LadderStep, SharedTerm, add_effect, add_effect_with, error_ladder, ladder_table, refit,

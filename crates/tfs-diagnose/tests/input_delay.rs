@@ -122,7 +122,7 @@ fn kresling_cell_one_sample_through_snap_through() {
         let top = &ex.ranked[0];
         println!(
             "{label}: {} judged by {:?}: {}",
-            top.name, ex.judges[0].1, ex.verdict
+            top.name, ex.judges[0].judge, ex.verdict
         );
         assert!(top.significant, "{label}: {}", ex.verdict);
         let delay_named = top.name == "input-delay"
@@ -133,15 +133,15 @@ fn kresling_cell_one_sample_through_snap_through() {
                     .any(|r| r.name == "input-delay" && r.tied_with_top));
         assert!(delay_named, "{label}: {}", ex.verdict);
         assert_eq!(
-            ex.judges[0].1,
+            ex.judges[0].judge,
             Judge::ShortHorizon,
             "{label}: {}",
-            ex.judges[0].2
+            ex.judges[0].why
         );
         assert!(
-            ex.judges[0].2.contains("free run of the model with"),
+            ex.judges[0].why.contains("free run of the model with"),
             "{label}: {}",
-            ex.judges[0].2
+            ex.judges[0].why
         );
     }
 }

@@ -195,6 +195,7 @@ fn the_free_run_from_the_fitted_rows_scores_what_the_equations_were_fitted_on() 
     let choice = |from_fitted_rows| Choice {
         judge: Judge::FreeRun,
         why: String::new(),
+        plain: false,
         resolution: 0.0,
         from_fitted_rows,
     };
