@@ -6,6 +6,7 @@ use std::path::Path;
 use anyhow::Result;
 use serde_json::{Value, json};
 use tfs::plot::{Figure, LineChart, Series};
+use tfs::signal::noise::SnrReference;
 
 use super::Args;
 use super::case::Group;
@@ -130,9 +131,8 @@ impl Summary<'_> {
             pct(super::SIZES.0),
             pct(super::SIZES.1),
             match args.snr_reference {
-                tfs::signal::noise::SnrReference::MeanSquare =>
-                    "mean square, its static operating point included",
-                tfs::signal::noise::SnrReference::Variance => "variance, its motion about the mean",
+                SnrReference::MeanSquare => "mean square, its static operating point included",
+                SnrReference::Variance => "variance, its motion about the mean",
             },
             pct(MIN_SHARE)
         );
