@@ -119,37 +119,23 @@ fn state_columns(b: &Baseline, c: &Clean) -> Result<Record> {
     Ok(Record::new("clean", tfs::signal::time_grid(n, b.dt), cols)?)
 }
 
-/// The least-squares residual of `y` regressed on the columns of `a` (scaled to unit norm; a
-/// column that is all zeros is dropped): `y` less its projection on the column space the thin
-/// SVD resolves (singular values above `max(n, p)·ε` times the largest). Columns that nearly
-/// cancel one another, as the truss cell's monomials about its offset do, leave a triangular
-/// solve with pivots at rounding level and a residual of garbage; the projection does not.
+/// The least-squares residual of `y` regressed on the columns of `a`: `y − a·ξ` with `ξ` from
+/// the project's least squares (`tfs::regress::lstsq`: columns scaled to unit norm, a
+/// column-pivoted QR that drops columns found dependent and columns that are all zeros).
+/// Columns that nearly cancel one another, as the truss cell's monomials about its offset do,
+/// are then dropped by the rank test instead of solved with pivots at rounding level.
 pub fn residual(a: &Mat<f64>, y: &[f64]) -> Result<Vec<f64>> {
     let (n, p) = (a.nrows(), a.ncols());
     if y.len() != n {
         bail!("residual: {} rows against {} values", n, y.len());
     }
-    let keep: Vec<(usize, f64)> = (0..p)
-        .filter_map(|j| {
-            let s = a.col(j).iter().map(|v| v * v).sum::<f64>().sqrt();
-            (s > 0.0 && s.is_finite()).then_some((j, s))
-        })
-        .collect();
-    if keep.is_empty() {
+    if p == 0 {
         return Ok(y.to_vec());
     }
-    let x = Mat::<f64>::from_fn(n, keep.len(), |i, k| a[(i, keep[k].0)] / keep[k].1);
-    let rhs = Mat::<f64>::from_fn(n, 1, |i, _| y[i]);
-    let svd = x
-        .thin_svd()
-        .map_err(|e| anyhow::anyhow!("residual: the SVD did not converge ({e:?})"))?;
-    let s = svd.S().column_vector();
-    let tol = s.iter().fold(0.0_f64, |m, v| m.max(*v)) * f64::EPSILON * n.max(p) as f64;
-    let u = svd.U();
-    let resolved: Vec<usize> = (0..s.nrows()).filter(|&k| s[k] > tol).collect();
-    let uk = Mat::<f64>::from_fn(n, resolved.len(), |i, k| u[(i, resolved[k])]);
-    let fit = &uk * (uk.transpose() * &rhs);
-    Ok((0..n).map(|i| y[i] - fit[(i, 0)]).collect())
+    let fit = tfs::regress::lstsq(a.as_ref(), y).context("residual: the least-squares fit")?;
+    let xi = Mat::<f64>::from_fn(p, 1, |j, _| fit.coef[j]);
+    let held = a * &xi;
+    Ok((0..n).map(|i| y[i] - held[(i, 0)]).collect())
 }
 
 /// The unrepresentable part of each hidden effect: the RMS of the least-squares residual of its
@@ -256,13 +242,12 @@ mod tests {
         );
     }
 
-    /// On a drawn Duffing truth with quadratic damping hidden: the full library leaves the
-    /// effect's force whole but no more (the part is at most the realised size); a library that
-    /// holds the effect's own law exactly leaves nothing of it.
+    /// Columns that nearly cancel one another (monomials about an offset, one repeated) give a
+    /// finite residual: nearly nothing of a force they hold, most of one they cannot.
     #[test]
     fn residual_of_columns_that_cancel_is_finite() {
         // Monomials of a coordinate that moves ±0.04 about 1.57, and a copy of one of them:
-        // the triangular solve meets a zero pivot; the residual must still be the projection's.
+        // an unpivoted triangular solve meets a zero pivot; the rank test must drop it.
         let n = 600;
         let x: Vec<f64> = (0..n)
             .map(|i| 1.57 + 0.04 * (0.05 * i as f64).sin())
@@ -272,7 +257,7 @@ mod tests {
         let held: Vec<f64> = x.iter().map(|x| 2.0 * x - 0.5 * x * x).collect();
         let e = residual(&a, &held).unwrap();
         assert!(e.iter().all(|v| v.is_finite()));
-        // Directions below the SVD's rank tolerance are dropped, so "held" is to about 1e-6
+        // Columns the rank test finds dependent are dropped, so "held" is only to about 1e-6
         // here (the part is reported in per cent of the acceleration: far below its digits).
         assert!(rms(&e) < 1e-4 * rms(&held), "held: {}", rms(&e));
         let outside: Vec<f64> = (0..n).map(|i| (0.37 * i as f64).cos()).collect();
@@ -282,6 +267,9 @@ mod tests {
         assert!(ratio > 0.5 && ratio <= 1.0 + 1e-12, "{ratio}");
     }
 
+    /// On a drawn Duffing truth with quadratic damping hidden: the full library leaves the
+    /// effect's force whole but no more (the part is at most the realised size); a library that
+    /// holds the effect's own law exactly leaves nothing of it.
     #[test]
     fn unrepresentable_part_on_a_drawn_truth() {
         use super::super::hide::hide;
