@@ -40,6 +40,11 @@ pub fn progress(len: u64, what: &str) -> indicatif::ProgressBar {
     pb
 }
 
+/// Root mean square.
+pub fn rms(v: &[f64]) -> f64 {
+    (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
+}
+
 /// A JSON number, or null when not finite.
 pub fn num(v: f64) -> Value {
     if v.is_finite() { json!(v) } else { Value::Null }

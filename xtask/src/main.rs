@@ -1,7 +1,8 @@
 //! tfs automation. `cargo xtask reproduce-paper [--quick] [--out DIR]` rebuilds the paper's
 //! numerical studies (§3.1 white and pink noise, §3.2 two-cell chain, Appendix B, §4 experiment-like
 //! study) from the workspace's own simulators and prints our numbers beside the paper's;
-//! `cargo xtask diagnose-bench [--quick]` scores the diagnosis loop on hidden-effect records.
+//! `cargo xtask diagnose-bench [--quick]` scores the diagnosis loop on hidden-effect records;
+//! `cargo xtask truss-loop` runs the loop on the Kresling truss cell and scores its force and basins.
 //!
 //! Orchestration and presentation only: every number comes from the `tfs` crates.
 
@@ -13,6 +14,7 @@ mod peers;
 mod peers_study;
 mod report;
 mod sdof;
+mod truss_loop;
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -56,6 +58,9 @@ enum Cmd {
     /// truths of six baselines, at drawn sizes and noise levels, with controls and pairs
     /// (report.md, results.json, figures).
     DiagnoseBench(dbench::Args),
+    /// The diagnosis loop on the Kresling truss cell as the CLI runs it (simulate, identify,
+    /// refit --until-clean, basin), scored against the truss force and its basin map.
+    TrussLoop(truss_loop::Args),
 }
 
 type StudyFn = fn(&mut Study, &Opts) -> Result<()>;
@@ -129,6 +134,12 @@ fn main() {
         }
         Cmd::DiagnoseBench(a) => {
             if let Err(e) = dbench::run(a) {
+                eprintln!("error: {e:#}");
+                std::process::exit(2);
+            }
+        }
+        Cmd::TrussLoop(a) => {
+            if let Err(e) = truss_loop::run(a) {
                 eprintln!("error: {e:#}");
                 std::process::exit(2);
             }

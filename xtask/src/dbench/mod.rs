@@ -9,7 +9,7 @@ mod case;
 mod hide;
 mod render;
 mod rescore;
-mod size;
+pub(crate) mod size;
 mod summary;
 mod truth;
 

@@ -16,6 +16,8 @@ use tfs::records::Offsets;
 use tfs::signal::noise::{SnrReference, noise_with};
 use tfs::signal::{Excitation, Multisine, NoiseKind, Sweep, SweepKind};
 
+pub use crate::common::rms;
+
 /// The baselines.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Kind {
@@ -410,11 +412,6 @@ fn noisy(x: &[f64], snr: Option<f64>, reference: SnrReference, seed: u64) -> Res
         &mut ChaCha8Rng::seed_from_u64(seed),
     )?;
     Ok(x.iter().zip(&e).map(|(a, b)| a + b).collect())
-}
-
-/// Root mean square.
-pub fn rms(v: &[f64]) -> f64 {
-    (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
 }
 
 /// RMS about the mean.

@@ -1,0 +1,507 @@
+//! `cargo xtask truss-loop`: the diagnosis loop on the Kresling truss cell, measured as the user
+//! runs it. For each noise level and seed it runs the `tfs` binary's own commands — `simulate
+//! kresling --truth truss`, `identify` with `x^1..7, x', xb_acc`, `refit --until-clean 4`,
+//! `basin --truth kresling:truss` — and scores the start and the final model against the truss
+//! force: the restoring-force error over 0 ≤ h ≤ 1.8 beside the least-squares floor of the
+//! start library's position columns there, and the basin-of-attraction error.
+//! Writes `report.md`, `results.json` and one force figure per noise level.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use anyhow::{Context, Result, anyhow, bail};
+use faer::Mat;
+use serde_json::{Value, json};
+use tfs::data::Record;
+use tfs::library::{Library, Model};
+use tfs::origami::KreslingCell;
+use tfs::plot::{Figure, LineChart, Series};
+use tfs::records::read_model;
+
+use crate::common::{curve, f4, num, pct, rms};
+
+/// The start library, as the issue's commands give it.
+const LIBRARY: &str = "x^1..7, x', xb_acc";
+/// Its columns that depend on the position only: the part a least-squares floor can use.
+const POSITION_LIBRARY: &str = "x^1..7";
+/// The heights over which the force is compared (the cell's folded state to past its deployed
+/// one).
+const H_RANGE: (f64, f64) = (0.0, 1.8);
+/// Points of the comparison grid (step 1e-4): fine enough that a contact stop a few 1e-4 from
+/// the truth's counts by the width it is wrong over, not by the width of one grid cell.
+const GRID: usize = 18_001;
+/// The force error may be at most this many times the floor.
+const FLOOR_FACTOR: f64 = 1.5;
+/// The basin error must stay below this share of the map.
+const BASIN_BAR: f64 = 0.01;
+
+/// Arguments of `cargo xtask truss-loop`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Noise levels (SNR in dB, on each recorded channel).
+    #[arg(long, value_delimiter = ',', default_value = "60,30")]
+    pub snr: Vec<f64>,
+    /// Noise seeds (one run of the loop per seed and noise level).
+    #[arg(long, value_delimiter = ',', default_value = "1,2,3")]
+    pub seeds: Vec<u64>,
+    /// Output folder (one subfolder of records and models per run).
+    #[arg(long, default_value = "target/truss-loop")]
+    pub out: PathBuf,
+    /// The `tfs` binary to run (default: the one beside this xtask, built first with cargo).
+    #[arg(long)]
+    pub tfs: Option<PathBuf>,
+}
+
+/// The truth's restoring force per unit mass and the grid it is compared on.
+pub struct ForceTruth {
+    /// Heights of the grid.
+    pub h: Vec<f64>,
+    /// The truss force per unit mass at each height.
+    pub f: Vec<f64>,
+    /// RMS of `f` over the grid.
+    pub rms: f64,
+}
+
+impl ForceTruth {
+    /// The default cell's truss force (the cell `tfs simulate kresling` simulates) on `n`
+    /// points of `range`.
+    pub fn kresling(range: (f64, f64), n: usize) -> Result<Self> {
+        let cell = KreslingCell::new(Default::default()).context("the default Kresling cell")?;
+        let m = cell.params().m;
+        let pts = curve(range.0, range.1, n, |h| cell.force(h) / m);
+        Ok(Self::new(pts))
+    }
+
+    /// A truth given by its points.
+    pub fn new(pts: Vec<(f64, f64)>) -> Self {
+        let (h, f): (Vec<f64>, Vec<f64>) = pts.into_iter().unzip();
+        let rms = rms(&f);
+        Self { h, f, rms }
+    }
+
+    /// RMS of `model − truth` over the grid, over the RMS of the truth.
+    pub fn error_of(&self, model: impl Fn(f64) -> f64) -> f64 {
+        let e: Vec<f64> = self
+            .h
+            .iter()
+            .zip(&self.f)
+            .map(|(h, f)| model(*h) - f)
+            .collect();
+        rms(&e) / self.rms
+    }
+
+    /// The least-squares floor of a library of position columns: the smallest [`error_of`]
+    /// any coefficients of `library` (over the DOF `x`) reach on this grid.
+    ///
+    /// [`error_of`]: ForceTruth::error_of
+    pub fn floor(&self, library: &str) -> Result<f64> {
+        let lib = Library::parse(library, &["x"])?;
+        let rec = Record::new(
+            "grid",
+            (0..self.h.len()).map(|i| i as f64).collect(),
+            vec![("x".into(), self.h.clone())],
+        )?;
+        let a: Mat<f64> = lib.evaluate(&rec)?;
+        let e = crate::dbench::size::residual(&a, &self.f)?;
+        Ok(rms(&e) / self.rms)
+    }
+}
+
+/// The restoring force per unit mass of a 1-DOF model (`−x''` at the height with no velocity
+/// and no input).
+pub fn model_force(model: &Model) -> Result<impl Fn(f64) -> f64> {
+    let dof = model
+        .dofs
+        .first()
+        .ok_or_else(|| anyhow!("the model has no DOF"))?;
+    if model.dofs.len() != 1 {
+        bail!(
+            "the model has {} DOFs; the truss cell has one",
+            model.dofs.len()
+        );
+    }
+    let r = model.restoring(dof)?;
+    Ok(move |h| r.force(h))
+}
+
+/// One model's scores.
+#[derive(Debug, Clone)]
+struct Score {
+    force_error: f64,
+    basin_error: Option<f64>,
+    terms: String,
+}
+
+/// One run of the loop.
+#[derive(Debug, Clone)]
+struct Run {
+    snr: f64,
+    seed: u64,
+    start: Score,
+    end: Score,
+    added: Vec<String>,
+    seconds: f64,
+}
+
+/// Runs `cargo xtask truss-loop`.
+pub fn run(args: Args) -> Result<()> {
+    if args.snr.is_empty() || args.seeds.is_empty() {
+        bail!("--snr and --seeds each need at least one value");
+    }
+    if let Some(s) = args.snr.iter().find(|s| !s.is_finite() || **s <= 0.0) {
+        bail!("--snr {s}: give SNRs in dB above 0 (e.g. --snr 60,30)");
+    }
+    let tfs = tfs_binary(args.tfs.as_deref())?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("--out {}: cannot create it", args.out.display()))?;
+    let truth = ForceTruth::kresling(H_RANGE, GRID)?;
+    let floor = truth.floor(POSITION_LIBRARY)?;
+    let pb = crate::common::progress((args.snr.len() * args.seeds.len()) as u64, "runs");
+    let mut runs = Vec::new();
+    for &snr in &args.snr {
+        for &seed in &args.seeds {
+            pb.set_message(format!("{snr} dB, seed {seed}"));
+            let dir = args.out.join(format!("snr{snr}-seed{seed}"));
+            let r = one_run(&tfs, &dir, snr, seed, &truth)
+                .with_context(|| format!("{snr} dB, seed {seed} (files in {})", dir.display()))?;
+            runs.push(r);
+            pb.inc(1);
+        }
+    }
+    pb.finish_and_clear();
+    let md = report(&args, &runs, floor);
+    print!("{md}");
+    tfs::data::write_atomic(args.out.join("report.md"), &md)?;
+    let js = json!({
+        "library": LIBRARY,
+        "h_range": [H_RANGE.0, H_RANGE.1],
+        "grid_points": GRID,
+        "floor": floor,
+        "floor_library": POSITION_LIBRARY,
+        "force_bound": FLOOR_FACTOR * floor,
+        "basin_bar": BASIN_BAR,
+        "runs": runs.iter().map(run_json).collect::<Vec<_>>(),
+    });
+    tfs::data::write_atomic(
+        args.out.join("results.json"),
+        serde_json::to_string_pretty(&js)?,
+    )?;
+    for &snr in &args.snr {
+        figure(&args.out, snr, &runs, &truth)?;
+    }
+    Ok(())
+}
+
+/// The `tfs` binary: `given`, or the one beside this program, built first by the cargo that
+/// runs this program (same profile).
+fn tfs_binary(given: Option<&Path>) -> Result<PathBuf> {
+    if let Some(p) = given {
+        if !p.is_file() {
+            bail!(
+                "--tfs {}: no such file (build it: cargo build -p tfs)",
+                p.display()
+            );
+        }
+        return Ok(p.to_path_buf());
+    }
+    let me = std::env::current_exe().context("locating this program")?;
+    let path = me.with_file_name(format!("tfs{}", std::env::consts::EXE_SUFFIX));
+    if let Ok(cargo) = std::env::var("CARGO") {
+        let release = me
+            .parent()
+            .and_then(|d| d.file_name())
+            .is_some_and(|n| n == "release");
+        let mut cmd = Command::new(cargo);
+        cmd.args(["build", "-q", "-p", "tfs", "--bin", "tfs"]);
+        if release {
+            cmd.arg("--release");
+        }
+        let st = cmd.status().context("running cargo build -p tfs")?;
+        if !st.success() {
+            bail!("cargo build -p tfs failed ({st})");
+        }
+    }
+    if !path.is_file() {
+        bail!(
+            "{}: no tfs binary beside this program; build it (cargo build -p tfs) or give --tfs",
+            path.display()
+        );
+    }
+    Ok(path)
+}
+
+/// Runs `tfs` with `args` in `dir`; returns its standard output, or an error with its
+/// standard error.
+fn tfs_run(tfs: &Path, dir: &Path, args: &[&str]) -> Result<String> {
+    let out = Command::new(tfs)
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .with_context(|| format!("running {}", tfs.display()))?;
+    if !out.status.success() {
+        bail!(
+            "`tfs {}` failed: {}",
+            args.join(" "),
+            String::from_utf8_lossy(&out.stderr).trim()
+        );
+    }
+    Ok(String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
+fn one_run(tfs: &Path, dir: &Path, snr: f64, seed: u64, truth: &ForceTruth) -> Result<Run> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let t0 = std::time::Instant::now();
+    let (snr_s, seed_s) = (snr.to_string(), seed.to_string());
+    tfs_run(
+        tfs,
+        dir,
+        &[
+            "simulate",
+            "kresling",
+            "--truth",
+            "truss",
+            "--excitation",
+            "sweep:0.05:1.5:4",
+            "--excitation",
+            "sweep:0.1:1.5:3.5",
+            "--duration",
+            "80",
+            "--snr-db",
+            &snr_s,
+            "--seed",
+            &seed_s,
+            "--out",
+            "k.csv",
+        ],
+    )?;
+    tfs_run(
+        tfs,
+        dir,
+        &[
+            "identify",
+            "k-1.csv",
+            "k-2.csv",
+            "--library",
+            LIBRARY,
+            "--out",
+            "m.json",
+        ],
+    )?;
+    let refit = tfs_run(
+        tfs,
+        dir,
+        &[
+            "refit",
+            "--model",
+            "m.json",
+            "--until-clean",
+            "4",
+            "--json",
+            "--out",
+            "u.json",
+            "k-1.csv",
+            "k-2.csv",
+        ],
+    )?;
+    let refit: Value = serde_json::from_str(&refit).context("reading refit's --json output")?;
+    tfs::data::write_atomic(
+        dir.join("refit.json"),
+        serde_json::to_string_pretty(&refit)?,
+    )?;
+    let added = refit["rounds"]
+        .as_array()
+        .map(|rs| {
+            rs.iter()
+                .filter_map(|r| r["added"].as_str().map(str::to_string))
+                .collect()
+        })
+        .unwrap_or_default();
+    let start = score(tfs, dir, "m.json", truth)?;
+    let end = score(tfs, dir, "u.json", truth)?;
+    Ok(Run {
+        snr,
+        seed,
+        start,
+        end,
+        added,
+        seconds: t0.elapsed().as_secs_f64(),
+    })
+}
+
+/// A model file's force error and basin error (`tfs basin --truth kresling:truss`). A model
+/// whose basin map cannot be drawn (no two stable states, say) has no basin error.
+fn score(tfs: &Path, dir: &Path, file: &str, truth: &ForceTruth) -> Result<Score> {
+    let model = read_model(&dir.join(file))?;
+    let force_error = truth.error_of(model_force(&model)?);
+    let basin_error = tfs_run(
+        tfs,
+        dir,
+        &[
+            "basin",
+            "--model",
+            file,
+            "--truth",
+            "kresling:truss",
+            "--json",
+        ],
+    )
+    .ok()
+    .and_then(|s| serde_json::from_str::<Value>(&s).ok())
+    .and_then(|v| v["boa_error"].as_f64());
+    Ok(Score {
+        force_error,
+        basin_error,
+        terms: model.equation_string(),
+    })
+}
+
+fn run_json(r: &Run) -> Value {
+    let s = |s: &Score| {
+        json!({"force_error": num(s.force_error), "basin_error": s.basin_error.map(num),
+            "model": s.terms})
+    };
+    json!({"snr_db": r.snr, "seed": r.seed, "start": s(&r.start), "end": s(&r.end),
+        "added": r.added, "seconds": r.seconds})
+}
+
+fn report(args: &Args, runs: &[Run], floor: f64) -> String {
+    let bound = FLOOR_FACTOR * floor;
+    let basin = |b: Option<f64>| b.map_or("no map".to_string(), pct);
+    let mut s = String::new();
+    s.push_str("# The diagnosis loop on the Kresling truss cell\n\n");
+    s.push_str(&format!(
+        "`cargo xtask truss-loop --snr {} --seeds {}`. Each run: `tfs simulate kresling --truth truss --excitation sweep:0.05:1.5:4 --excitation sweep:0.1:1.5:3.5 --duration 80 --snr-db D --seed S`, `tfs identify` with `{LIBRARY}`, `tfs refit --until-clean 4`, `tfs basin --truth kresling:truss`.\n\n",
+        args.snr.iter().map(|s| s.to_string()).collect::<Vec<_>>().join(","),
+        args.seeds.iter().map(|s| s.to_string()).collect::<Vec<_>>().join(","),
+    ));
+    s.push_str(&format!(
+        "Force error: RMS of the model's restoring force per unit mass minus the truss force over {} ≤ h ≤ {} ({GRID} points), over the RMS of the truss force. Floor: the least-squares fit of `{POSITION_LIBRARY}` to the truss force on the same grid misses it by **{}**; the bound is {FLOOR_FACTOR}× that, **{}**. Basin error: share of the 200 × 200 map of starts (0 ≤ x ≤ 2, −3 ≤ v ≤ 3) that settle in another well than the truth's; bar {}.\n\n",
+        H_RANGE.0,
+        H_RANGE.1,
+        pct(floor),
+        pct(bound),
+        pct(BASIN_BAR)
+    ));
+    s.push_str("| SNR | seed | start: force, basin | the loop added | end: force | end: basin | within both | time |\n|---|---|---|---|---|---|---|---|\n");
+    for r in runs {
+        let ok = r.end.force_error <= bound && r.end.basin_error.is_some_and(|b| b < BASIN_BAR);
+        s.push_str(&format!(
+            "| {} dB | {} | {}, {} | {} | {} | {} | {} | {} s |\n",
+            r.snr,
+            r.seed,
+            pct(r.start.force_error),
+            basin(r.start.basin_error),
+            if r.added.is_empty() {
+                "nothing".to_string()
+            } else {
+                r.added.join(", ")
+            },
+            pct(r.end.force_error),
+            basin(r.end.basin_error),
+            if ok { "yes" } else { "no" },
+            f4(r.seconds)
+        ));
+    }
+    s.push_str("\nFinal models:\n\n");
+    for r in runs {
+        s.push_str(&format!(
+            "- {} dB, seed {}: `{}`\n",
+            r.snr, r.seed, r.end.terms
+        ));
+    }
+    s
+}
+
+/// The truss force and each seed's final model at one noise level: `force-<snr>dB.png/.svg`.
+fn figure(out: &Path, snr: f64, runs: &[Run], truth: &ForceTruth) -> Result<()> {
+    let mut chart = LineChart::new(
+        format!("Restoring force after the loop, {snr} dB"),
+        "cell height h (length unit of the crease lengths)",
+        "restoring force per unit mass F(h)/m (length/s²)",
+    );
+    let pts: Vec<(f64, f64)> = truth
+        .h
+        .iter()
+        .zip(&truth.f)
+        .step_by(50)
+        .map(|(h, f)| (*h, *f))
+        .collect();
+    chart = chart.with_series(Series::line("truss force (truth)", pts).color(0));
+    for (k, r) in runs.iter().filter(|r| r.snr == snr).enumerate() {
+        let dir = out.join(format!("snr{}-seed{}", r.snr, r.seed));
+        let model = read_model(&dir.join("u.json"))?;
+        let f = model_force(&model)?;
+        let pts = curve(H_RANGE.0, H_RANGE.1, 361, f);
+        chart = chart.with_series(
+            Series::dashed(format!("seed {}: {}", r.seed, pct(r.end.force_error)), pts)
+                .color(k + 1),
+        );
+    }
+    Figure::from(chart).save(&out.join(format!("force-{snr}dB")))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The floor is what the best coefficients reach: a model built from them scores the floor,
+    /// a model with one of them off scores worse, and a library holding the truth scores 0.
+    #[test]
+    fn floor_is_the_best_error_of_the_library() {
+        use faer::prelude::Solve;
+        let truth = ForceTruth::new(curve(0.0, 1.8, 901, |h| (3.0 * h).sin() + 0.1 * h));
+        let floor = truth.floor("x^1..3").unwrap();
+        assert!(floor > 0.01 && floor < 1.0, "{floor}");
+        // The best cubic, found independently by the normal equations on the same grid.
+        let cols = |h: f64| [h, h * h, h * h * h];
+        let mut g = Mat::<f64>::zeros(3, 3);
+        let mut b = Mat::<f64>::zeros(3, 1);
+        for (h, f) in truth.h.iter().zip(&truth.f) {
+            let c = cols(*h);
+            for i in 0..3 {
+                b[(i, 0)] += c[i] * f;
+                for j in 0..3 {
+                    g[(i, j)] += c[i] * c[j];
+                }
+            }
+        }
+        let xi = g.partial_piv_lu().solve(&b);
+        let best = |h: f64| (0..3).map(|i| xi[(i, 0)] * cols(h)[i]).sum::<f64>();
+        assert!((truth.error_of(best) / floor - 1.0).abs() < 1e-6);
+        let off = |h: f64| best(h) + 0.05 * h;
+        assert!(truth.error_of(off) > floor * 1.01);
+        let poly = ForceTruth::new(curve(0.0, 1.8, 901, |h| 2.0 * h - h.powi(3)));
+        assert!(poly.floor("x^1..3").unwrap() < 1e-12);
+    }
+
+    /// A model's force is `−x''` at rest: the dashpot and the input do not enter it, a stop
+    /// does where it engages.
+    #[test]
+    fn model_force_is_the_restoring_part() {
+        let m = Model::from_json_str(
+            r#"{"format": "tfs-model/1", "dofs": ["x"], "inputs": ["xb_acc"],
+                "equations": [{"dof": "x", "terms": [
+                  {"term": "x", "coef": -2.0}, {"term": "x^3", "coef": 1.0},
+                  {"term": "x'", "coef": -0.5}, {"term": "xb_acc", "coef": -1.0},
+                  {"term": "below(x, 0.1)", "coef": 100.0}]}]}"#,
+        )
+        .unwrap();
+        let f = model_force(&m).unwrap();
+        assert!((f(0.5) - (2.0 * 0.5 - 0.125)).abs() < 1e-12);
+        assert!((f(0.0) - (-100.0 * 0.1)).abs() < 1e-12);
+    }
+
+    /// The truth is the cell `tfs simulate kresling` simulates: zero force at its two stable
+    /// states, none between them.
+    #[test]
+    fn the_truth_is_the_default_cell() {
+        let t = ForceTruth::kresling(H_RANGE, 1801).unwrap();
+        let cell = KreslingCell::new(Default::default()).unwrap();
+        for s in cell.stable() {
+            let i = t.h.iter().position(|h| (h - s).abs() < 5e-4).unwrap();
+            assert!(t.f[i].abs() < 0.05 * t.rms, "{} at {s}", t.f[i]);
+        }
+        assert!(t.rms > 0.0 && t.f.iter().all(|f| f.is_finite()));
+    }
+}
