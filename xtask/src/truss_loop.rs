@@ -13,7 +13,7 @@ use anyhow::{Context, Result, anyhow, bail};
 use faer::Mat;
 use serde_json::{Value, json};
 use tfs::data::Record;
-use tfs::library::{Library, Model};
+use tfs::library::{Factor, Library, Model};
 use tfs::origami::KreslingCell;
 use tfs::plot::{Figure, LineChart, Series};
 use tfs::records::read_model;
@@ -130,6 +130,8 @@ struct Score {
     force_error: f64,
     basin_error: Option<f64>,
     terms: String,
+    /// The model's stop terms with their stiffness, e.g. `below(x, 0.0003), k = 10637`.
+    stops: Vec<String>,
 }
 
 /// One run of the loop.
@@ -352,12 +354,29 @@ fn score(tfs: &Path, dir: &Path, file: &str, truth: &ForceTruth) -> Result<Score
         force_error,
         basin_error,
         terms: model.equation_string(),
+        stops: stop_terms(&model),
     })
+}
+
+/// The stop terms (`below`, `above`) of a model's equations with their coefficients.
+fn stop_terms(model: &Model) -> Vec<String> {
+    model
+        .equations
+        .iter()
+        .flat_map(|e| &e.terms)
+        .filter(|t| {
+            t.term
+                .factors()
+                .iter()
+                .any(|f| matches!(f, Factor::Below(..) | Factor::Above(..)))
+        })
+        .map(|t| format!("{}, k = {}", t.term, f4(t.coef)))
+        .collect()
 }
 
 fn run_json(r: &Run) -> Value {
     let s = |s: &Score| {
-        json!({"force_error": num(s.force_error), "basin_error": s.basin_error.map(num),
+        json!({"force_error": num(s.force_error), "basin_error": s.basin_error.map(num), "stops": s.stops,
             "model": s.terms})
     };
     json!({"snr_db": r.snr, "seed": r.seed, "start": s(&r.start), "end": s(&r.end),
@@ -393,8 +412,10 @@ fn report(args: &Args, runs: &[Run], floor: f64) -> String {
             basin(r.start.basin_error),
             if r.added.is_empty() {
                 "nothing".to_string()
-            } else {
+            } else if r.end.stops.is_empty() {
                 r.added.join(", ")
+            } else {
+                format!("{}: {}", r.added.join(", "), r.end.stops.join("; "))
             },
             pct(r.end.force_error),
             basin(r.end.basin_error),
