@@ -20,7 +20,7 @@ use tfs::records::read_model;
 
 use crate::common::{curve, f4, num, pct, rms};
 
-/// The start library, as the commands give it.
+/// The start library of the loop (the cell's position powers, its dashpot and the base input).
 const LIBRARY: &str = "x^1..7, x', xb_acc";
 /// Its columns that depend on the position only: the part a least-squares floor can use.
 const POSITION_LIBRARY: &str = "x^1..7";
