@@ -128,7 +128,10 @@ pub fn model_force(model: &Model) -> Result<impl Fn(f64) -> f64> {
 #[derive(Debug, Clone)]
 struct Score {
     force_error: f64,
-    basin_error: Option<f64>,
+    /// The basin error, or why `tfs basin` gave none.
+    basin_error: std::result::Result<f64, String>,
+    /// The model itself (its force is drawn in the figure).
+    model: Model,
     terms: String,
     /// The model's stop terms with their stiffness, e.g. `below(x, 0.0003), k = 10637`.
     stops: Vec<String>,
@@ -331,7 +334,8 @@ fn one_run(tfs: &Path, dir: &Path, snr: f64, seed: u64, truth: &ForceTruth) -> R
 }
 
 /// A model file's force error and basin error (`tfs basin --truth kresling:truss`). A model
-/// whose basin map cannot be drawn (no two stable states, say) has no basin error.
+/// whose basin map cannot be drawn (no two stable states, say) has no basin error, and the
+/// score keeps what `tfs basin` said.
 fn score(tfs: &Path, dir: &Path, file: &str, truth: &ForceTruth) -> Result<Score> {
     let model = read_model(&dir.join(file))?;
     let force_error = truth.error_of(model_force(&model)?);
@@ -347,14 +351,20 @@ fn score(tfs: &Path, dir: &Path, file: &str, truth: &ForceTruth) -> Result<Score
             "--json",
         ],
     )
-    .ok()
-    .and_then(|s| serde_json::from_str::<Value>(&s).ok())
-    .and_then(|v| v["boa_error"].as_f64());
+    .map_err(|e| format!("{e:#}"))
+    .and_then(|out| {
+        let v: Value = serde_json::from_str(&out)
+            .map_err(|e| format!("reading tfs basin's --json output: {e}"))?;
+        v["boa_error"]
+            .as_f64()
+            .ok_or_else(|| "tfs basin gave no boa_error".to_string())
+    });
     Ok(Score {
         force_error,
         basin_error,
         terms: model.equation_string(),
         stops: stop_terms(&model),
+        model,
     })
 }
 
@@ -376,7 +386,8 @@ fn stop_terms(model: &Model) -> Vec<String> {
 
 fn run_json(r: &Run) -> Value {
     let s = |s: &Score| {
-        json!({"force_error": num(s.force_error), "basin_error": s.basin_error.map(num), "stops": s.stops,
+        json!({"force_error": num(s.force_error), "basin_error": s.basin_error.as_ref().map_or(Value::Null, |b| num(*b)),
+            "basin_note": s.basin_error.as_ref().err(), "stops": s.stops,
             "model": s.terms})
     };
     json!({"snr_db": r.snr, "seed": r.seed, "start": s(&r.start), "end": s(&r.end),
@@ -385,7 +396,10 @@ fn run_json(r: &Run) -> Value {
 
 fn report(args: &Args, runs: &[Run], floor: f64) -> String {
     let bound = FLOOR_FACTOR * floor;
-    let basin = |b: Option<f64>| b.map_or("no map".to_string(), pct);
+    let basin = |b: &std::result::Result<f64, String>| match b {
+        Ok(b) => pct(*b),
+        Err(_) => "no map (below)".to_string(),
+    };
     let mut s = String::new();
     s.push_str("# The diagnosis loop on the Kresling truss cell\n\n");
     s.push_str(&format!(
@@ -403,13 +417,14 @@ fn report(args: &Args, runs: &[Run], floor: f64) -> String {
     ));
     s.push_str("| SNR | seed | start: force, basin | the loop added | end: force | end: basin | within both | time |\n|---|---|---|---|---|---|---|---|\n");
     for r in runs {
-        let ok = r.end.force_error <= bound && r.end.basin_error.is_some_and(|b| b < BASIN_BAR);
+        let ok =
+            r.end.force_error <= bound && r.end.basin_error.as_ref().is_ok_and(|b| *b < BASIN_BAR);
         s.push_str(&format!(
             "| {} dB | {} | {}, {} | {} | {} | {} | {} | {} s |\n",
             r.snr,
             r.seed,
             pct(r.start.force_error),
-            basin(r.start.basin_error),
+            basin(&r.start.basin_error),
             if r.added.is_empty() {
                 "nothing".to_string()
             } else if r.end.stops.is_empty() {
@@ -418,10 +433,20 @@ fn report(args: &Args, runs: &[Run], floor: f64) -> String {
                 format!("{}: {}", r.added.join(", "), r.end.stops.join("; "))
             },
             pct(r.end.force_error),
-            basin(r.end.basin_error),
+            basin(&r.end.basin_error),
             if ok { "yes" } else { "no" },
             f4(r.seconds)
         ));
+    }
+    for r in runs {
+        for (which, sc) in [("start", &r.start), ("end", &r.end)] {
+            if let Err(why) = &sc.basin_error {
+                s.push_str(&format!(
+                    "\n{} dB, seed {}, {which} model: no basin map: {why}\n",
+                    r.snr, r.seed
+                ));
+            }
+        }
     }
     s.push_str("\nFinal models:\n\n");
     for r in runs {
@@ -449,9 +474,7 @@ fn figure(out: &Path, snr: f64, runs: &[Run], truth: &ForceTruth) -> Result<()> 
         .collect();
     chart = chart.with_series(Series::line("truss force (truth)", pts).color(0));
     for (k, r) in runs.iter().filter(|r| r.snr == snr).enumerate() {
-        let dir = out.join(format!("snr{}-seed{}", r.snr, r.seed));
-        let model = read_model(&dir.join("u.json"))?;
-        let f = model_force(&model)?;
+        let f = model_force(&r.end.model)?;
         let pts = curve(H_RANGE.0, H_RANGE.1, 361, f);
         chart = chart.with_series(
             Series::dashed(format!("seed {}: {}", r.seed, pct(r.end.force_error)), pts)
