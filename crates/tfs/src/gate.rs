@@ -20,7 +20,10 @@
 //! - The loop ([`loop_choice`]) otherwise takes the top significant candidate whose addition
 //!   does not make the model simulate the records worse (more records failing, or as many and a
 //!   higher mean R-MSE: what the error ladder warns the records do not support); one that does is
-//!   passed over, and the next significant one is tried.
+//!   passed over, and the next significant one is tried; one that cannot be added is passed over
+//!   too. `diagnose` names its effect the same way ([`on_diagnosis`]) when the free run judged
+//!   the candidates, so that it names what the loop adds; where the short horizon judged (the
+//!   input's own noise decides a free run there) it names the ranking's top one.
 //! - When no significant candidate remains, a stop whose held-out equation error falls is looked
 //!   at by T-F-S: the stop's equation-error evidence is weak where the contact is stiff (the
 //!   smoothing spreads its short acceleration burst), while T-F-S, re-identifying the model with
@@ -33,12 +36,12 @@
 use serde::Serialize;
 use tfs_data::Record;
 use tfs_diagnose::{
-    Catalogue, DiagnoseOptions, Diagnosis, Explanation, RankedEffect, error_ladder,
+    Catalogue, DiagnoseOptions, Diagnosis, Explanation, Judge, RankedEffect, error_ladder,
 };
 use tfs_library::Model;
 
 use crate::contact::StopRescan;
-use crate::error::{Context, Result};
+use crate::error::Result;
 
 /// How a model simulates the records: how many fail (blow up, leave the range, give a
 /// non-finite R-MSE), and the mean R-MSE of the others.
@@ -346,30 +349,65 @@ pub fn simulation_choice(
 pub type Simulated = (GateReport, Option<Chosen>);
 
 /// Whether the diagnosis `d` could not simulate some of its records (then [`on_diagnosis`]
-/// adds and simulates the candidates).
+/// adds and simulates the candidates to see which makes them simulate).
 pub fn fails_somewhere(d: &Diagnosis) -> bool {
     d.records.iter().any(|r| r.error.is_some())
 }
 
 /// The simulations' say on the diagnosis `d` of `model` on `records`, as `tfs diagnose` (and
 /// `tfs.diagnose` in Python) gives it: when the diagnosis could not simulate some records,
-/// [`simulation_choice`] with the further steps; else `None`.
+/// [`simulation_choice`] with the further steps; otherwise, when the free run judged, the first
+/// significant candidate whose addition does not make the records simulate worse (the one the
+/// diagnosis loop would add; `None` when that is the top one or nothing is significant).
 pub fn on_diagnosis(
     model: &Model,
     d: &Diagnosis,
     records: &[Record],
     opts: &DiagnoseOptions,
 ) -> Result<Option<Simulated>> {
-    if !fails_somewhere(d) {
-        return Ok(None);
-    }
     let catalogue = Catalogue::standard(opts.max_power);
+    if !fails_somewhere(d) {
+        return Ok(supported_choice(
+            model, &d.ranked, records, &catalogue, opts,
+        ));
+    }
     simulation_choice(model, &d.ranked, records, &catalogue, opts, true)
+}
+
+/// [`on_diagnosis`] on a ranking alone (an [`Explanation`]'s, without the comparison that says
+/// whether every record simulates: the model is simulated here to find out).
+pub fn on_ranking(
+    model: &Model,
+    ranked: &[RankedEffect],
+    records: &[Record],
+    opts: &DiagnoseOptions,
+) -> Result<Option<Simulated>> {
+    let catalogue = Catalogue::standard(opts.max_power);
+    match simulation_choice(model, ranked, records, &catalogue, opts, true)? {
+        Some(s) => Ok(Some(s)),
+        None => Ok(supported_choice(model, ranked, records, &catalogue, opts)),
+    }
+}
+
+/// The effect the verdict names first, given the ranking and what the simulations said
+/// (`gate`, from [`on_diagnosis`] or [`on_ranking`]): the simulations' choice; none when they
+/// passed over every significant candidate of a model that simulates every record; else the top
+/// significant candidate of the ranking.
+pub fn named<'a>(ranked: &'a [RankedEffect], gate: Option<&'a Simulated>) -> Option<&'a str> {
+    match gate {
+        Some((_, Some(chosen))) => Some(chosen.effect.as_str()),
+        Some((report, None)) if report.before.failed == 0 => None,
+        _ => ranked
+            .iter()
+            .find(|r| r.significant)
+            .map(|r| r.name.as_str()),
+    }
 }
 
 /// The verdict of a diagnosis `d` with what the simulations said (`gate`, from
 /// [`on_diagnosis`]): the effect (or effects, in order) the simulations chose, with why and the
-/// `--add` flags; else the diagnosis's own verdict by equation error.
+/// `--add` flags; that no significant candidate is supported when the simulations passed over
+/// every one; else the diagnosis's own verdict by equation error.
 pub fn verdict(d: &Diagnosis, gate: Option<&Simulated>) -> String {
     match gate {
         Some((report, Some(chosen))) if report.then.is_empty() => format!(
@@ -385,6 +423,10 @@ pub fn verdict(d: &Diagnosis, gate: Option<&Simulated>) -> String {
                 effects.join(" --add ")
             )
         }
+        Some((report, None)) if report.before.failed == 0 => format!(
+            "no missing effect that the simulations support ({})",
+            report.why
+        ),
         _ => d.verdict.clone(),
     }
 }
@@ -411,34 +453,17 @@ pub(crate) fn loop_choice(
         notes.push(report.why);
     }
     let before = SimScore::of(model, records);
-    for top in ex.ranked.iter().filter(|r| r.significant) {
-        let mut added = crate::refit::AddNotes::default();
-        let m = crate::refit::add_one(model, &top.name, records, catalogue, opts, &mut added)
-            .with_context(|| format!("adding {}", top.name))?;
-        let score = SimScore::of(&m, records);
-        if worsens(&before, &score) {
-            notes.push(format!(
-                "{} passed over: with it {}, without it {}",
-                top.name,
-                score.describe(),
-                before.describe()
-            ));
-            continue;
-        }
+    let significant = ex.ranked.iter().filter(|r| r.significant);
+    let supported = first_supported(model, significant, &before, records, catalogue, opts);
+    notes.extend(supported.notes);
+    if let Some(chosen) = supported.chosen {
         if !notes.is_empty() {
             notes.push(format!(
                 "{} added, the next significant: with it {}",
-                top.name,
-                score.describe()
+                chosen.effect,
+                chosen.score.describe()
             ));
         }
-        let chosen = Chosen {
-            effect: top.name.clone(),
-            model: m,
-            stops: added.stops,
-            warnings: added.warnings,
-            score,
-        };
         return Ok((Some(chosen), (!notes.is_empty()).then(|| notes.join("; "))));
     }
     // A stop the equation error cannot resolve: T-F-S's own test of it (module docs).
@@ -492,6 +517,134 @@ pub(crate) fn loop_choice(
         notes.push(format!("{words}: not added"));
     }
     Ok((None, (!notes.is_empty()).then(|| notes.join("; "))))
+}
+
+/// What [`first_supported`] found: the candidate chosen, every candidate tried (in order) and
+/// a sentence for each passed over.
+struct Supported {
+    chosen: Option<Chosen>,
+    tried: Vec<Trial>,
+    notes: Vec<String>,
+}
+
+/// The first of `candidates` (in the diagnosis's order) whose addition, as `refit --add` makes
+/// it, does not make the model simulate the records worse than `before` ([`worsens`]); one that
+/// does, or that cannot be added, is passed over with a sentence saying so. The diagnosis loop
+/// and the diagnosis's verdict both choose this way, so `tfs diagnose` names what
+/// `refit --until-clean` adds.
+fn first_supported<'a>(
+    model: &Model,
+    candidates: impl Iterator<Item = &'a RankedEffect>,
+    before: &SimScore,
+    records: &[Record],
+    catalogue: &Catalogue,
+    opts: &DiagnoseOptions,
+) -> Supported {
+    let mut out = Supported {
+        chosen: None,
+        tried: Vec::new(),
+        notes: Vec::new(),
+    };
+    for cand in candidates {
+        let mut added = crate::refit::AddNotes::default();
+        let m = match crate::refit::add_one(model, &cand.name, records, catalogue, opts, &mut added)
+        {
+            Ok(m) => m,
+            Err(e) => {
+                let e = crate::one_line(&e);
+                out.notes.push(format!(
+                    "{} passed over: it could not be added ({e})",
+                    cand.name
+                ));
+                out.tried.push(Trial {
+                    effect: cand.name.clone(),
+                    score: None,
+                    error: Some(e),
+                });
+                continue;
+            }
+        };
+        let score = SimScore::of(&m, records);
+        out.tried.push(Trial {
+            effect: cand.name.clone(),
+            score: Some(score),
+            error: None,
+        });
+        if worsens(before, &score) {
+            out.notes.push(format!(
+                "{} passed over: with it {}, without it {}",
+                cand.name,
+                score.describe(),
+                before.describe()
+            ));
+            continue;
+        }
+        out.chosen = Some(Chosen {
+            effect: cand.name.clone(),
+            model: m,
+            stops: added.stops,
+            warnings: added.warnings,
+            score,
+        });
+        break;
+    }
+    out
+}
+
+/// The simulations' say on a ranking whose model simulates every record: when the top
+/// significant candidate was judged by the free run (the free run then ranks models on these
+/// records), the significant candidates are added in the ranking's order as `refit --add` makes
+/// them and the first that does not make the model simulate the records worse is the one named
+/// ([`first_supported`]), as the diagnosis loop chooses. `None` when the top one is that one
+/// (the ranking's own verdict stands), when nothing is significant, or when the free run did not
+/// judge (the input's own noise decides a free run there, so it says nothing either way).
+fn supported_choice(
+    model: &Model,
+    ranked: &[RankedEffect],
+    records: &[Record],
+    catalogue: &Catalogue,
+    opts: &DiagnoseOptions,
+) -> Option<Simulated> {
+    let free_run = |r: &&RankedEffect| r.significant && r.judge == Some(Judge::FreeRun);
+    let top = ranked.iter().find(|r| r.significant)?;
+    if !free_run(&top) {
+        return None;
+    }
+    let before = SimScore::of(model, records);
+    if before.failed > 0 {
+        return None;
+    }
+    let supported = first_supported(
+        model,
+        ranked.iter().filter(free_run),
+        &before,
+        records,
+        catalogue,
+        opts,
+    );
+    if supported.tried.len() == 1 && supported.chosen.is_some() {
+        return None;
+    }
+    let why = match &supported.chosen {
+        Some(c) => format!(
+            "{}; {} is the next significant: with it {}",
+            supported.notes.join("; "),
+            c.effect,
+            c.score.describe()
+        ),
+        None => format!(
+            "{}: no significant candidate that the simulations support",
+            supported.notes.join("; ")
+        ),
+    };
+    let report = GateReport {
+        before,
+        tried: supported.tried,
+        chosen: supported.chosen.as_ref().map(|c| c.effect.clone()),
+        then: Vec::new(),
+        why,
+    };
+    Some((report, supported.chosen))
 }
 
 /// The candidate (index into `scores`; `None` entries could not be added) that leaves the
@@ -659,6 +812,138 @@ mod tests {
         );
         let (untested, stop) = with_stop([95.0, 105.0], false);
         assert!(tfs_stop_p_value(&untested, &stop).is_none());
+    }
+
+    /// Two clean records of `x'' = −x − 0.1·x' − 0.5·x³ + u` under multisines, and the model
+    /// without the dashpot fitted to them.
+    fn undamped_start() -> (Model, Vec<Record>) {
+        let truth = Model::from_json_str(
+            &serde_json::json!({"format": "tfs-model/1", "dofs": ["x"], "inputs": ["u"],
+                "equations": [{"dof": "x", "terms": [{"term": "x", "coef": -1.0},
+                    {"term": "x'", "coef": -0.1}, {"term": "x^3", "coef": -0.5},
+                    {"term": "u", "coef": 1.0}]}]})
+            .to_string(),
+        )
+        .unwrap();
+        let dt = 0.02;
+        let t: Vec<f64> = (0..2000).map(|k| k as f64 * dt).collect();
+        let records: Vec<Record> = [(0.7, 1.3), (0.5, 1.9)]
+            .iter()
+            .enumerate()
+            .map(|(i, &(f1, f2))| {
+                let u: Vec<f64> = t
+                    .iter()
+                    .map(|&t| (f1 * t).sin() + 0.6 * (f2 * t + 0.4).sin())
+                    .collect();
+                let tr =
+                    crate::simulate::simulate_model(&truth, &t, vec![u.clone()], &[0.0], &[0.0])
+                        .unwrap();
+                let cols = vec![("x".to_string(), tr.x[0].clone()), ("u".to_string(), u)];
+                Record::new(format!("r{i}"), t.clone(), cols).unwrap()
+            })
+            .collect();
+        let mut start = truth.clone();
+        start.equations[0]
+            .terms
+            .retain(|t| t.term.to_string() != "x'");
+        let start = tfs_diagnose::refit(&start, &records, &DiagnoseOptions::default()).unwrap();
+        (start, records)
+    }
+
+    /// A significant candidate as the free run judged it.
+    fn candidate(name: &str) -> RankedEffect {
+        RankedEffect {
+            name: name.into(),
+            effect: name.into(),
+            dof: "x".into(),
+            parameter: None,
+            terms: Vec::new(),
+            significant: true,
+            p_value_raw: 1e-9,
+            p_value: 1e-8,
+            delta_heldout: 0.5,
+            coef: 0.0,
+            interval: [0.0, 0.0],
+            share: 0.1,
+            judge: Some(Judge::FreeRun),
+            r_mse_before: None,
+            r_mse_after: None,
+            tied_with_top: false,
+            reason: String::new(),
+        }
+    }
+
+    /// The diagnosis names what the loop would add: a top candidate the refit cannot make is
+    /// passed over, with the reason, for the next significant one (the missing dashpot, which
+    /// makes the records simulate better); when the top one is supported the simulations have
+    /// nothing to add to the ranking; candidates the free run did not judge are not simulated.
+    #[test]
+    fn the_diagnosis_names_the_first_candidate_the_simulations_support() {
+        let (start, records) = undamped_start();
+        let opts = DiagnoseOptions::default();
+        let cat = Catalogue::standard(opts.max_power);
+        let ranked = vec![candidate("no-such-effect"), candidate("linear-damping")];
+        let (report, chosen) = supported_choice(&start, &ranked, &records, &cat, &opts).unwrap();
+        let chosen = chosen.unwrap();
+        assert_eq!(chosen.effect, "linear-damping");
+        assert_eq!(report.tried.len(), 2);
+        assert!(report.tried[0].error.is_some() && report.tried[1].score.is_some());
+        assert!(chosen.score.key() < report.before.key(), "{report:?}");
+        assert!(
+            report
+                .why
+                .contains("no-such-effect passed over: it could not be added")
+                && report
+                    .why
+                    .contains("linear-damping is the next significant"),
+            "{}",
+            report.why
+        );
+        let gate = (report, Some(chosen));
+        assert_eq!(named(&ranked, Some(&gate)), Some("linear-damping"));
+        // The top one supported: the ranking's verdict stands.
+        assert!(supported_choice(&start, &ranked[1..], &records, &cat, &opts).is_none());
+        // Not judged by the free run: nothing is simulated.
+        let mut short = ranked.clone();
+        short
+            .iter_mut()
+            .for_each(|r| r.judge = Some(Judge::ShortHorizon));
+        assert!(supported_choice(&start, &short, &records, &cat, &opts).is_none());
+    }
+
+    /// When the simulations pass over every significant candidate of a model that simulates
+    /// its records, the verdict names none and says why; when the model fails some records
+    /// and no candidate helps, the ranking's top one is still what the verdict names.
+    #[test]
+    fn a_verdict_whose_candidates_were_all_passed_over_names_none() {
+        let ranked = vec![candidate("maxwell")];
+        let report = |failed| GateReport {
+            before: s(failed, 0.1),
+            tried: Vec::new(),
+            chosen: None,
+            then: Vec::new(),
+            why: "maxwell passed over".into(),
+        };
+        let passed = (report(0), None);
+        assert_eq!(named(&ranked, Some(&passed)), None);
+        let failing = (report(2), None);
+        assert_eq!(named(&ranked, Some(&failing)), Some("maxwell"));
+        assert_eq!(named(&ranked, None), Some("maxwell"));
+        let d = Diagnosis {
+            ranked,
+            verdict: "missing effect: maxwell".into(),
+            residual_summary: Vec::new(),
+            records: Vec::new(),
+            localisation: Vec::new(),
+            tests: 1,
+            cutoff_hz: Vec::new(),
+        };
+        let v = verdict(&d, Some(&passed));
+        assert!(
+            v.starts_with("no missing effect that the simulations support (maxwell passed over"),
+            "{v}"
+        );
+        assert_eq!(verdict(&d, Some(&failing)), d.verdict);
     }
 
     /// The words say how many records fail of how many, and the mean where there is one.

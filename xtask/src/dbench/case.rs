@@ -65,8 +65,11 @@ pub struct Round {
     pub top_effect: Option<String>,
     /// Its scanned parameter.
     pub top_parameter: Option<(String, f64)>,
-    /// The diagnosis's verdict.
+    /// The diagnosis's verdict by equation error.
     pub verdict: String,
+    /// What the simulations said when they decided the effect named (`tfs::gate`: the model
+    /// fails some records, or a significant candidate makes them simulate worse), if they did.
+    pub simulation: Option<String>,
     /// The five best-ranked candidates.
     pub ranked: Vec<Ranked>,
     /// Effects (`name` as `--add` takes it) the diagnosis reports as tied with the top one.
@@ -244,7 +247,12 @@ fn round(
         &opts,
     )
     .context("diagnose")?;
-    let top = d.ranked.iter().find(|r| r.significant);
+    // What `tfs diagnose` names: the ranking's top significant effect unless simulating the
+    // candidates decides otherwise (`tfs::gate`).
+    let gate = tfs::gate::on_ranking(model, &d.ranked, train, &opts)
+        .context("diagnose: simulating the candidates")?;
+    let named = tfs::gate::named(&d.ranked, gate.as_ref());
+    let top = named.and_then(|n| d.ranked.iter().find(|r| r.name == n));
     let before = tfs::diagnose::r_mse(model, heldout);
     let mut failure = before.as_ref().err().map(|e| format!("before: {e}"));
     let mut after = before.as_ref().ok().copied();
@@ -274,6 +282,7 @@ fn round(
             top_effect: top.map(|t| t.effect.clone()),
             top_parameter: top.and_then(|t| t.parameter.clone()),
             verdict: d.verdict.clone(),
+            simulation: gate.map(|g| g.0.why),
             ranked: d
                 .ranked
                 .iter()

@@ -79,6 +79,7 @@ fn case(v: &Value) -> Result<CaseResult> {
                         Some((p.first()?.as_str()?.to_string(), p.get(1)?.as_f64()?))
                     }),
                     verdict: r["verdict"].as_str().unwrap_or_default().to_string(),
+                    simulation: opt_string(&r["simulation"]),
                     ranked: Vec::new(),
                     tied: strings(&r["tied"]),
                     before: r["before"].as_f64(),
@@ -137,6 +138,7 @@ mod tests {
             top_effect: Some("maxwell".into()),
             top_parameter: Some(("tau".into(), 0.01)),
             verdict: "v".into(),
+            simulation: None,
             ranked: Vec::new(),
             tied: vec!["hysteresis".into()],
             before: Some(2.0),

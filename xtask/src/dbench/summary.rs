@@ -482,6 +482,7 @@ mod tests {
             top_effect: named.map(|n| n.split('@').next().unwrap_or(n).to_string()),
             top_parameter: None,
             verdict: String::new(),
+            simulation: None,
             ranked: Vec::new(),
             tied: Vec::new(),
             before: Some(before),

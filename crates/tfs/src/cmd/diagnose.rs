@@ -88,16 +88,18 @@ pub fn run(args: Args) -> Result<()> {
     })
     .context("diagnosing the model")?;
     // A model that fails to simulate some records: the candidates are added and simulated, and
-    // the one that makes the records simulate is what they are missing (tfs::gate).
-    let gate = if tfs::gate::fails_somewhere(&d) {
-        super::with_spinner(
-            "the model fails to simulate some records: adding each candidate and simulating",
-            || tfs::gate::on_diagnosis(&model, &d, &records, &opts),
-        )
-        .context("simulating the candidates")?
+    // the one that makes the records simulate is what they are missing; otherwise a significant
+    // candidate whose addition makes the records simulate worse is passed over, as the loop
+    // does (tfs::gate).
+    let spinner = if tfs::gate::fails_somewhere(&d) {
+        "the model fails to simulate some records: adding each candidate and simulating"
     } else {
-        None
+        "adding the top significant candidate and simulating"
     };
+    let gate = super::with_spinner(spinner, || {
+        tfs::gate::on_diagnosis(&model, &d, &records, &opts)
+    })
+    .context("simulating the candidates")?;
     let verdict = tfs::gate::verdict(&d, gate.as_ref());
     if let Some(dir) = &args.plots {
         std::fs::create_dir_all(dir)
@@ -105,12 +107,12 @@ pub fn run(args: Args) -> Result<()> {
         write_plots(dir, &d)?;
         // The loop before and after adding the top significant effect, on the first record.
         let chosen = gate.as_ref().and_then(|g| g.1.as_ref());
-        let after = match (chosen, d.ranked.iter().find(|r| r.significant)) {
+        let after = match (chosen, tfs::gate::named(&d.ranked, gate.as_ref())) {
             (Some(c), _) => Some((format!("model + {}", c.effect), c.model.clone())),
             (None, Some(top)) => Some((
-                format!("model + {}", top.name),
-                tfs::diagnose::add_effect(&model, &top.name, &records)
-                    .with_context(|| format!("--plots: adding {} for the loop figure", top.name))?,
+                format!("model + {top}"),
+                tfs::diagnose::add_effect(&model, top, &records)
+                    .with_context(|| format!("--plots: adding {top} for the loop figure"))?,
             )),
             (None, None) => None,
         };
@@ -137,7 +139,8 @@ pub fn run(args: Args) -> Result<()> {
     } else {
         println!("{verdict}");
         if let Some((report, chosen)) = &gate {
-            if chosen.is_some() {
+            // The verdict gives the simulations' reasons when it follows them.
+            if chosen.is_some() || report.before.failed == 0 {
                 println!("equation-error ranking: {}", d.verdict);
             } else {
                 println!("simulation: {}", report.why);
