@@ -197,6 +197,14 @@ impl GateReport {
             .chain(self.then.iter().map(|s| s.effect.as_str()))
             .collect()
     }
+
+    /// Whether the verdict follows the simulations: they chose an effect, or the model
+    /// simulates every record and they passed over every significant candidate (then nothing is
+    /// named). Otherwise (the model fails some records and no candidate makes fewer fail) the
+    /// equation-error ranking's verdict stands.
+    pub fn decides(&self) -> bool {
+        self.chosen.is_some() || self.before.failed == 0
+    }
 }
 
 /// Adds every name of `names` to `model` in turn as `refit --add` does (a stop re-scanned by
@@ -396,7 +404,7 @@ pub fn on_ranking(
 pub fn named<'a>(ranked: &'a [RankedEffect], gate: Option<&'a Simulated>) -> Option<&'a str> {
     match gate {
         Some((_, Some(chosen))) => Some(chosen.effect.as_str()),
-        Some((report, None)) if report.before.failed == 0 => None,
+        Some((report, None)) if report.decides() => None,
         _ => ranked
             .iter()
             .find(|r| r.significant)
@@ -423,7 +431,7 @@ pub fn verdict(d: &Diagnosis, gate: Option<&Simulated>) -> String {
                 effects.join(" --add ")
             )
         }
-        Some((report, None)) if report.before.failed == 0 => format!(
+        Some((report, None)) if report.decides() => format!(
             "no missing effect that the simulations support ({})",
             report.why
         ),

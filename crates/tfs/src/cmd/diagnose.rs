@@ -138,9 +138,9 @@ pub fn run(args: Args) -> Result<()> {
         }))?;
     } else {
         println!("{verdict}");
-        if let Some((report, chosen)) = &gate {
+        if let Some((report, _)) = &gate {
             // The verdict gives the simulations' reasons when it follows them.
-            if chosen.is_some() || report.before.failed == 0 {
+            if report.decides() {
                 println!("equation-error ranking: {}", d.verdict);
             } else {
                 println!("simulation: {}", report.why);
