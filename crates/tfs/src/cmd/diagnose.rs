@@ -94,7 +94,7 @@ pub fn run(args: Args) -> Result<()> {
     let spinner = if tfs::gate::fails_somewhere(&d) {
         "the model fails to simulate some records: adding each candidate and simulating"
     } else {
-        "adding the top significant candidate and simulating"
+        "checking the significant candidates: adding them in turn and simulating the records"
     };
     let gate = super::with_spinner(spinner, || {
         tfs::gate::on_diagnosis(&model, &d, &records, &opts)
