@@ -8,7 +8,10 @@ from conftest import PAPER_MODEL, TEST, TRAIN
 
 # The paper's model of the cell without its x^7 term: the restoring force no longer turns the
 # cell back at large heights, so the free run of the test record blows up.
-WITHOUT_X7 = PAPER_MODEL.replace('{"term":"x^7","coef":-6.56}', '{"term":"x^7","coef":0.0}')
+WITHOUT_X7 = PAPER_MODEL.replace('{"term":"x^7","coef":-6.56},', "")
+# The same failure with the term kept at a zero coefficient: refitting the model's own terms
+# mends it, so no effect is missing.
+ZERO_X7 = PAPER_MODEL.replace('{"term":"x^7","coef":-6.56}', '{"term":"x^7","coef":0.0}')
 
 
 def run_json(cmd):
@@ -27,6 +30,14 @@ def test_diagnose_simulates_the_candidates_as_the_cli_does(cli, tmp_path):
     assert d["verdict"] == c["verdict"]
     assert d["equation_error_verdict"] == c["equation_error_verdict"]
     assert sim == c["simulation"]
+
+
+def test_a_failure_its_own_terms_mend_names_no_effect():
+    d = tfs.diagnose(tfs.Model.from_json(ZERO_X7), TEST)
+    sim = d["simulation"]
+    assert sim["before"]["failed"] == 1 and sim["refitted"]["failed"] == 0, sim
+    assert sim["chosen"] is None and "the start fit's" in sim["why"], sim
+    assert not d["verdict"].startswith("missing effect"), d["verdict"]
 
 
 def test_a_model_that_simulates_gets_no_simulation_report():

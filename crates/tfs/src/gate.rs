@@ -11,7 +11,11 @@
 //!   equation error falls is added in turn (as `refit --add` would, a stop re-scanned by T-F-S)
 //!   and simulated on the records; the candidate that leaves the fewest records failing (then the
 //!   lowest mean R-MSE of the others, then the diagnosis's order) is chosen, provided it leaves
-//!   fewer failing than the model without it. [`simulation_choice`] does this for `tfs diagnose`
+//!   fewer failing than the model without it, and fewer than the model's own terms refitted on
+//!   the records with nothing added: a candidate's model is that refit plus the candidate, so a
+//!   failure the refit alone cures was the start fit's (a model identified on noisy records
+//!   that runs away on one of them), and any candidate would seem to cure it.
+//!   [`simulation_choice`] does this for `tfs diagnose`
 //!   and for each round of `refit --until-clean`. When the chosen one still leaves records
 //!   failing, `diagnose` goes on from the model with it the same way (forward selection, at most
 //!   [`MAX_FURTHER`] more), so that it names what the records need together: one effect may not
@@ -176,6 +180,14 @@ pub struct Step {
 pub struct GateReport {
     /// How the model without any candidate simulates the records.
     pub before: SimScore,
+    /// How the model's own terms, refitted on the records as every candidate's model is
+    /// (nothing added), simulate them. A candidate must leave fewer records failing than this
+    /// too: when the refit alone makes them simulate, the failure was the start fit's, not a
+    /// missing effect's. `None` when not looked at (the model simulates every record, or is an
+    /// untied multi-DOF model, whose candidates refit only their own equations) or when that
+    /// refit could not be made.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub refitted: Option<SimScore>,
     /// Every candidate tried, in the diagnosis's order.
     pub tried: Vec<Trial>,
     /// The candidate chosen (`None`: the simulations chose none).
@@ -291,7 +303,8 @@ fn further_steps(
 
 /// When `model` fails to simulate some of `records`: every candidate of the diagnosis's
 /// ranking `ranked` whose held-out equation error falls is added and simulated (module docs), and the one that
-/// leaves the fewest records failing is chosen if it leaves fewer than `model` does. With
+/// leaves the fewest records failing is chosen if it leaves fewer than `model` does and than
+/// `model`'s terms refitted with nothing added ([`GateReport::refitted`]). With
 /// `further`, when it still leaves records failing, the effects needed with it are looked for
 /// (module docs; [`GateReport::then`]). `None` when `model` simulates every record (the
 /// simulations then have nothing to say here).
@@ -312,9 +325,21 @@ pub fn simulation_choice(
         .filter(|r| r.delta_heldout > 0.0)
         .map(|r| r.name.as_str())
         .collect();
+    let refitted = refitted_as_is(model, records, opts)
+        .ok()
+        .flatten()
+        .map(|m| crate::contact::score(&m, records).summary());
+    // A candidate's model is the start's terms refitted with it: it has to leave fewer records
+    // failing than that refit alone as well as the start model. Where the refit alone makes as
+    // many simulate, the failures say nothing about the candidates (the equation-error
+    // ranking and the judge then decide, as for a model that simulates).
+    let bar = match refitted {
+        Some(r) if r.failed < before.failed => r,
+        _ => before,
+    };
     let (tried, mut made) = try_each(model, &names, records, catalogue, opts);
     let scores: Vec<Option<SimScore>> = tried.iter().map(|t| t.score).collect();
-    let best = fewest_failing(&before, &scores).and_then(|i| made[i].take());
+    let best = fewest_failing(&bar, &scores).and_then(|i| made[i].take());
     let then = match &best {
         Some(b) if further => further_steps(b, &names, records, catalogue, opts),
         _ => Vec::new(),
@@ -337,6 +362,12 @@ pub fn simulation_choice(
             }
             why
         }
+        None if bar.failed < before.failed => format!(
+            "the model fails to simulate {}, but its own terms refitted on these records (nothing added) leave {} failing, and none of the {} candidates whose held-out equation error falls leaves fewer: the failure is the start fit's, not a missing effect's (identify the model again on these records)",
+            before.failing(),
+            bar.failed,
+            names.len()
+        ),
         None => format!(
             "the model fails to simulate {} and none of the {} candidates whose held-out equation error falls makes fewer fail",
             before.failing(),
@@ -345,6 +376,7 @@ pub fn simulation_choice(
     };
     let report = GateReport {
         before,
+        refitted,
         tried,
         chosen: best.as_ref().map(|b| b.effect.clone()),
         then,
@@ -647,12 +679,33 @@ fn supported_choice(
     };
     let report = GateReport {
         before,
+        refitted: None,
         tried: supported.tried,
         chosen: supported.chosen.as_ref().map(|c| c.effect.clone()),
         then: Vec::new(),
         why,
     };
     Some((report, supported.chosen))
+}
+
+/// `model`'s own terms refitted by equation error on `records` as a candidate's model is
+/// refitted, with nothing added: the control every candidate of [`simulation_choice`] is
+/// measured against. A candidate refits every equation of a one-DOF model or of a tied chain
+/// (jointly, with its ties); in an untied multi-DOF model it refits only the equations it
+/// enters, so there is no one control for all candidates and `None` is returned.
+fn refitted_as_is(
+    model: &Model,
+    records: &[Record],
+    opts: &DiagnoseOptions,
+) -> Result<Option<Model>> {
+    let shared = crate::refit::shared_terms(model)?;
+    Ok(if !shared.is_empty() {
+        Some(tfs_diagnose::refit_shared(model, records, &shared, opts)?)
+    } else if model.dofs.len() == 1 {
+        Some(tfs_diagnose::refit(model, records, opts)?)
+    } else {
+        None
+    })
 }
 
 /// The candidate (index into `scores`; `None` entries could not be added) that leaves the

@@ -202,6 +202,7 @@ fn a_verdict_whose_candidates_were_all_passed_over_names_none() {
     let ranked = vec![candidate("maxwell")];
     let report = |failed| GateReport {
         before: s(failed, 0.1),
+        refitted: None,
         tried: Vec::new(),
         chosen: None,
         then: Vec::new(),
@@ -250,4 +251,49 @@ fn the_score_is_described_in_words() {
         two.starts_with("2 of 4 records fail") && two.contains("5.0000e-1"),
         "{two}"
     );
+}
+
+/// A model that fails to simulate only because its coefficients are off (nothing is missing
+/// from its terms: the cubic spring's sign is flipped, so the records carry it out of its
+/// well) is not given an effect: every candidate's model is the start's terms refitted with
+/// it, and those terms refitted alone already make the records simulate. Without that control
+/// any candidate that can be added would be chosen.
+#[test]
+fn a_failure_that_the_refit_alone_cures_names_no_effect() {
+    let (fitted, records) = undamped_start();
+    let damped = crate::refit::add_one(
+        &fitted,
+        "linear-damping",
+        &records,
+        &Catalogue::standard(DiagnoseOptions::default().max_power),
+        &DiagnoseOptions::default(),
+        &mut crate::refit::AddNotes::default(),
+    )
+    .unwrap();
+    let mut start = damped.clone();
+    start.history.clear();
+    for t in &mut start.equations[0].terms {
+        if t.term.to_string() == "x^3" {
+            t.coef = -t.coef;
+        }
+    }
+    let opts = DiagnoseOptions::default();
+    let cat = Catalogue::standard(opts.max_power);
+    assert!(SimScore::of(&start, &records).failed > 0);
+    let ranked = vec![candidate("cubic-damping"), candidate("dry-friction")];
+    let (report, chosen) = simulation_choice(&start, &ranked, &records, &cat, &opts, true)
+        .unwrap()
+        .unwrap();
+    let refitted = report.refitted.unwrap();
+    assert_eq!(refitted.failed, 0, "{report:?}");
+    // The candidates make the records simulate too, but no better than the refit alone.
+    assert!(
+        report
+            .tried
+            .iter()
+            .any(|t| t.score.is_some_and(|s| s.failed < report.before.failed)),
+        "{report:?}"
+    );
+    assert!(chosen.is_none(), "{report:?}");
+    assert!(report.why.contains("the start fit's"), "{}", report.why);
 }
