@@ -328,6 +328,8 @@ pub fn simulation_choice(
     let refitted = refitted_as_is(model, records, opts)
         .ok()
         .flatten()
+        // Simulated here: the refit keeps the start's history, whose last rung scored the
+        // start's coefficients (what `SimScore::of` would read).
         .map(|m| crate::contact::score(&m, records).summary());
     // A candidate's model is the start's terms refitted with it: it has to leave fewer records
     // failing than that refit alone as well as the start model. Where the refit alone makes as

@@ -261,24 +261,18 @@ fn the_score_is_described_in_words() {
 #[test]
 fn a_failure_that_the_refit_alone_cures_names_no_effect() {
     let (fitted, records) = undamped_start();
-    let damped = crate::refit::add_one(
-        &fitted,
-        "linear-damping",
-        &records,
-        &Catalogue::standard(DiagnoseOptions::default().max_power),
-        &DiagnoseOptions::default(),
-        &mut crate::refit::AddNotes::default(),
-    )
-    .unwrap();
-    let mut start = damped.clone();
+    let opts = DiagnoseOptions::default();
+    let cat = Catalogue::standard(opts.max_power);
+    let mut notes = crate::refit::AddNotes::default();
+    let mut start =
+        crate::refit::add_one(&fitted, "linear-damping", &records, &cat, &opts, &mut notes)
+            .unwrap();
     start.history.clear();
     for t in &mut start.equations[0].terms {
         if t.term.to_string() == "x^3" {
             t.coef = -t.coef;
         }
     }
-    let opts = DiagnoseOptions::default();
-    let cat = Catalogue::standard(opts.max_power);
     assert!(SimScore::of(&start, &records).failed > 0);
     let ranked = vec![candidate("cubic-damping"), candidate("dry-friction")];
     let (report, chosen) = simulation_choice(&start, &ranked, &records, &cat, &opts, true)
