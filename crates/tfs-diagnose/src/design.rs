@@ -200,17 +200,33 @@ pub(crate) fn with_equation(
     cols: &[EffectColumn],
     coef: &[f64],
 ) -> Result<Model> {
-    let mut equations = model.equations.clone();
-    // Centred columns expand into plain powers that merge with the equation's own terms.
-    let mut merged: Vec<(Term, f64)> = Vec::new();
+    let mut merged = Vec::new();
+    merge_columns(&mut merged, cols, coef, 1.0);
+    with_terms(model, dof_idx, merged)
+}
+
+/// Adds `sign · Σ coef·column` to `merged`, term by term: centred columns expand into plain
+/// powers that merge with the equation's own terms.
+fn merge_columns(merged: &mut Vec<(Term, f64)>, cols: &[EffectColumn], coef: &[f64], sign: f64) {
     for (c, v) in cols.iter().zip(coef) {
         for (t, w) in c.expansion() {
-            match merged.iter_mut().find(|(m, _)| *m == t) {
-                Some(slot) => slot.1 += v * w,
-                None => merged.push((t, v * w)),
-            }
+            merge_term(merged, t, sign * v * w);
         }
     }
+}
+
+/// Adds `v · t` to `merged`.
+fn merge_term(merged: &mut Vec<(Term, f64)>, t: Term, v: f64) {
+    match merged.iter_mut().find(|(m, _)| *m == t) {
+        Some(slot) => slot.1 += v,
+        None => merged.push((t, v)),
+    }
+}
+
+/// A copy of `model` whose equation `dof_idx` is `Σ coef·term` over `merged` (zero and
+/// non-finite coefficients left out).
+fn with_terms(model: &Model, dof_idx: usize, merged: Vec<(Term, f64)>) -> Result<Model> {
+    let mut equations = model.equations.clone();
     equations[dof_idx] = Equation {
         dof: model.dofs[dof_idx].clone(),
         terms: merged
@@ -235,13 +251,124 @@ pub(crate) struct FoldEquation<'a> {
     pub cols: &'a [EffectColumn],
     /// Its cross-validated coefficients, one set per fold.
     pub cv: &'a Cv,
+    /// The equation's columns without the candidate and their per-fold fit, when the per-fold
+    /// model keeps the model's own coefficients and takes only what the candidate changes
+    /// ([`fold_model`]; a tied chain, see [`anchored`]).
+    pub anchor: Option<(&'a [EffectColumn], &'a Cv)>,
 }
 
-/// Fold `f`'s model: `model` with each of `eqs` refitted on the other folds.
+/// Fold `f`'s model: `model` with each of `eqs` refitted on the other folds. An anchored
+/// equation ([`FoldEquation::anchor`]) is the model's own plus the change the candidate's fold
+/// fit makes against the fold fit without it: `Σ coef·term + Σ cand_f·column − Σ base_f·column`;
+/// without the candidate it is the model's own equation.
 pub(crate) fn fold_model(model: &Model, eqs: &[FoldEquation<'_>], f: usize) -> Option<Model> {
     let mut m = model.clone();
     for e in eqs {
-        m = with_equation(&m, e.idx, e.cols, &e.cv.coefs[f]).ok()?;
+        let mut merged = Vec::new();
+        if let Some((cols, cv)) = e.anchor {
+            for t in &model.equations[e.idx].terms {
+                merge_term(&mut merged, t.term.clone(), t.coef);
+            }
+            merge_columns(&mut merged, cols, &cv.coefs[f], -1.0);
+        }
+        merge_columns(&mut merged, e.cols, &e.cv.coefs[f], 1.0);
+        m = with_terms(&m, e.idx, merged).ok()?;
     }
     Some(m)
+}
+
+/// Whether the judge's per-fold models are anchored on `model`'s own coefficients
+/// ([`FoldEquation::anchor`]): when it was fitted with laws tied between its equations (its
+/// trace lists `"ties"`). A diagnosis refits one equation at a time by least squares, untied,
+/// and such a refit of a chain's equation on part of the records can predict the rest far worse
+/// than the tied model does (a coupling law that no longer matches the next cell's): any
+/// candidate that steadies it would look like an improvement. Anchored, the per-fold model
+/// without a candidate is the model itself, and a candidate is judged by what its fit changes.
+pub(crate) fn anchored(model: &Model) -> bool {
+    model.trace["ties"]
+        .as_array()
+        .is_some_and(|t| !t.is_empty())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn term(s: &str) -> Term {
+        Term::parse(s, &["x1", "x2"]).unwrap()
+    }
+
+    /// `x1'' = −4·x1 + 2·(x2−x1)` with a tie in its trace.
+    fn tied_model() -> Model {
+        let eq = |dof: &str, terms: &[(&str, f64)]| Equation {
+            dof: dof.into(),
+            terms: terms
+                .iter()
+                .map(|(t, c)| ModelTerm::new(term(t), *c))
+                .collect(),
+        };
+        let mut m = Model::new(
+            vec!["x1".into(), "x2".into()],
+            vec![
+                eq("x1", &[("x1", -4.0), ("(x2-x1)", 2.0)]),
+                eq("x2", &[("(x2-x1)", -2.0)]),
+            ],
+            "test",
+        )
+        .unwrap();
+        m.trace = serde_json::json!({"ties": [{"term": "(x2-x1)", "owner": "x2", "partner": "x1", "factor_in_partner": -1.0}]});
+        m
+    }
+
+    fn cv(coefs: Vec<Vec<f64>>) -> Cv {
+        Cv {
+            heldout: vec![0.0; coefs.len()],
+            coefs,
+        }
+    }
+
+    /// Anchored, fold `f`'s equation is the model's own plus what the candidate's fold fit
+    /// changes against the fold fit without it; with no candidate it is the model's own.
+    #[test]
+    fn an_anchored_fold_model_keeps_the_model_and_adds_the_candidates_change() {
+        let model = tied_model();
+        assert!(anchored(&model));
+        let base: Vec<EffectColumn> = ["x1", "(x2-x1)"]
+            .iter()
+            .map(|t| EffectColumn::term(term(t)))
+            .collect();
+        let base_cv = cv(vec![vec![-3.0, 1.0], vec![-5.0, 3.0]]);
+        let mut cand = base.clone();
+        cand.push(EffectColumn::term(term("x1^3")));
+        let cand_cv = cv(vec![vec![-3.5, 1.0, 0.25], vec![-5.0, 2.0, 0.5]]);
+        let anchor = Some((base.as_slice(), &base_cv));
+        let with = |cols: &[EffectColumn], cv: &Cv, anchor, f| {
+            let eq = FoldEquation {
+                idx: 0,
+                cols,
+                cv,
+                anchor,
+            };
+            fold_model(&model, &[eq], f).unwrap()
+        };
+        let m = with(&cand, &cand_cv, anchor, 0);
+        assert_eq!(m.coef("x1", &term("x1")).unwrap(), -4.5);
+        assert_eq!(m.coef("x1", &term("(x2-x1)")).unwrap(), 2.0);
+        assert_eq!(m.coef("x1", &term("x1^3")).unwrap(), 0.25);
+        let m = with(&cand, &cand_cv, anchor, 1);
+        assert_eq!(m.coef("x1", &term("(x2-x1)")).unwrap(), 1.0);
+        assert_eq!(m.coef("x1", &term("x1^3")).unwrap(), 0.5);
+        assert_eq!(m.coef("x2", &term("(x2-x1)")).unwrap(), -2.0);
+        for f in 0..2 {
+            let m = with(&base, &base_cv, anchor, f);
+            assert_eq!(m.equations, model.equations);
+        }
+        // Not anchored, the fold's equation is its own fit.
+        let m = with(&cand, &cand_cv, None, 1);
+        assert_eq!(m.coef("x1", &term("x1")).unwrap(), -5.0);
+        assert_eq!(m.coef("x1", &term("(x2-x1)")).unwrap(), 2.0);
+        let mut untied = model.clone();
+        untied.trace = serde_json::Value::Null;
+        assert!(!anchored(&untied));
+    }
 }

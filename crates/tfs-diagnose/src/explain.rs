@@ -112,6 +112,8 @@ pub struct Explanation {
 pub(crate) struct DofSetup {
     pub idx: usize,
     pub base_terms: Vec<Term>,
+    /// Those terms as columns.
+    base_cols: Vec<EffectColumn>,
     base_design: Design,
     base_blocks: Vec<Compressed>,
     pub base_cv: Cv,
@@ -119,6 +121,14 @@ pub(crate) struct DofSetup {
     scales: crate::prepare::DataScales,
     /// Start-library terms the equation lacks ([`crate::readmit`]).
     left_out: Vec<Term>,
+}
+
+impl DofSetup {
+    /// What an anchored per-fold model of this equation takes away again (its columns and their
+    /// per-fold fit, [`FoldEquation::anchor`]); `None` when `anchored` is false.
+    fn anchor(&self, anchored: bool) -> Option<(&[EffectColumn], &Cv)> {
+        anchored.then_some((self.base_cols.as_slice(), &self.base_cv))
+    }
 }
 
 /// The start model's equation of DOF `idx` on `states`.
@@ -142,8 +152,8 @@ pub(crate) fn setup_dof(
             ),
         });
     }
-    let cols: Vec<EffectColumn> = base_terms.iter().cloned().map(EffectColumn::term).collect();
-    let base_design = design(states, idx, &cols)?;
+    let base_cols: Vec<EffectColumn> = base_terms.iter().cloned().map(EffectColumn::term).collect();
+    let base_design = design(states, idx, &base_cols)?;
     let base_blocks = compress_blocks(&base_design, layout)?;
     let base_cv = cross_validate(&base_blocks, layout)?;
     let all_acc: Vec<f64> = base_design.b.iter().flatten().copied().collect();
@@ -151,6 +161,7 @@ pub(crate) fn setup_dof(
     Ok(DofSetup {
         idx,
         base_terms,
+        base_cols,
         base_design,
         base_blocks,
         base_cv,
@@ -457,7 +468,7 @@ fn judge_candidates(
     let dominated = ranked.iter().zip(&found).find(|(c, (was, _))| {
         *was && !c.entry.significant && c.heldout.is_some() && {
             let partners = partner_equations(model, &c.raw, states, layout);
-            let eqs = fold_equations(&c.raw, &partners);
+            let eqs = fold_equations(model, setups, &c.raw, &partners);
             folds_noise_dominated(model, &eqs, states, layout, opts)
         }
     });
@@ -523,20 +534,27 @@ fn folds_noise_dominated(
 }
 
 /// The equations the judge simulates for a candidate (`raw`): its own, then its partners'
-/// ([`partner_equations`]).
+/// ([`partner_equations`]); anchored on the model's own coefficients when
+/// [`crate::design::anchored`] says so.
 fn fold_equations<'a>(
+    model: &Model,
+    setups: &'a [DofSetup],
     raw: &'a Raw,
     partners: &'a [(usize, Vec<EffectColumn>, Cv)],
 ) -> Vec<FoldEquation<'a>> {
+    let anchored = crate::design::anchored(model);
+    let anchor = |idx: usize| setups[idx].anchor(anchored);
     let mut eqs = vec![FoldEquation {
         idx: raw.dof_idx,
         cols: &raw.scored.cols,
         cv: &raw.scored.cv,
+        anchor: anchor(raw.dof_idx),
     }];
     eqs.extend(partners.iter().map(|(idx, cols, cv)| FoldEquation {
         idx: *idx,
         cols,
         cv,
+        anchor: anchor(*idx),
     }));
     eqs
 }
@@ -568,17 +586,12 @@ fn judge_with(
     let before: Vec<Option<Heldout>> = setups
         .par_iter()
         .map(|d| {
-            let cols: Vec<EffectColumn> = d
-                .base_terms
-                .iter()
-                .cloned()
-                .map(EffectColumn::term)
-                .collect();
             let h = horizon(d);
             let eq = FoldEquation {
                 idx: d.idx,
-                cols: &cols,
+                cols: &d.base_cols,
                 cv: &d.base_cv,
+                anchor: d.anchor(crate::design::anchored(model)),
             };
             crate::judge::heldout_error(choice, model, &[eq], states, layout, opts, h)
         })
@@ -588,7 +601,7 @@ fn judge_with(
         let d = &setups[raw.dof_idx];
         r.judge = Some(judge);
         let partners = partner_equations(model, raw, states, layout);
-        let eqs = fold_equations(raw, &partners);
+        let eqs = fold_equations(model, setups, raw, &partners);
         c.heldout =
             crate::judge::heldout_error(choice, model, &eqs, states, layout, opts, horizon(d));
         let before = &before[raw.dof_idx];

@@ -25,6 +25,18 @@
 //! Over chaotic divergence the short-horizon error is too coarse to order candidates on its own,
 //! so the significant ones are then ordered by their held-out equation error, and the pieces
 //! only break that order's ties, by their geometric-mean error ([`order`]).
+//!
+//! A candidate's per-fold model is the model with the candidate's equations refitted on the
+//! other folds. For a model fitted with laws tied between its equations (a chain) the refit
+//! would untie them, so there the per-fold model keeps the model's own coefficients and takes
+//! only what the candidate's fold fit changes against the fold fit without it
+//! ([`crate::design::anchored`]): the model without a candidate is then the model itself.
+//!
+//! A judged prediction that leaves the record's own motion far behind (any state beyond
+//! [`RANGE_FACTOR`] times the record's largest smoothed displacement, velocity or tracked internal
+//! state) is stopped there and counts as failed: it has lost the record, and a polynomial model
+//! far outside the range it was fitted on is stiff, so finishing the run would cost many small
+//! steps to learn only that.
 
 use rayon::prelude::*;
 use serde::Serialize;
@@ -221,13 +233,18 @@ fn heldout_r_mse(
                 let n = range.len();
                 return predict_pieces(m, &states[*r], range.clone(), n, opts).map(|p| p.0);
             }
-            let full = crate::simulate::augment_record(m, &states[*r].record, opts).ok()?;
+            let s = &states[*r];
+            let full = crate::simulate::augment_record(m, &s.record, opts).ok()?;
             let u = if layout.by_record {
                 full
             } else {
                 full.slice(range.clone()).ok()?
             };
-            crate::simulate::r_mse(m, &u).ok()
+            let sim = SimulateOptions {
+                integrator: bounded(&RecordScale::of(m, s)?),
+                ..SimulateOptions::default()
+            };
+            crate::simulate::r_mse_with(m, &u, &sim).ok()
         })
         .collect::<Option<_>>()?;
     let mut sum = 0.0;
@@ -362,7 +379,9 @@ pub(crate) fn divergence_horizon(
     let per_record: Vec<Option<Vec<f64>>> = states
         .par_iter()
         .map(|s| {
-            let p = Predictor::new(model, s, opts)?;
+            // The model's own predictions, unbounded: where they leave the record's range they
+            // lose their skill, which is what this measures.
+            let p = Predictor::new(model, s, opts)?.unbounded();
             let (lo, hi) = (s.margin, s.margin + s.usable());
             let n = model.dofs.len().max(1) as f64;
             let vars: Vec<f64> = (0..model.dofs.len())
@@ -397,6 +416,67 @@ pub(crate) fn divergence_horizon(
         .map_or(window, |k| k.max(floor))
 }
 
+/// How far a judged prediction may leave the record's own motion before it counts as failed:
+/// this many times the largest magnitude among the record's smoothed displacements, velocities
+/// and the model's internal states tracked along it. A polynomial model far outside the range
+/// it was fitted on is stiff: its prediction crawls there in ever smaller steps and ends with an
+/// error that says only "no skill", so stopping it as failed costs no information.
+pub(crate) const RANGE_FACTOR: f64 = 10.0;
+
+/// The record's own motion as a model's judged predictions see it: per DOF its smoothed
+/// displacement and velocity, per internal state its track along the smoothed motion.
+struct RecordScale<'a> {
+    xs: Vec<&'a [f64]>,
+    vs: Vec<&'a [f64]>,
+    tracks: Vec<Vec<f64>>,
+}
+
+impl<'a> RecordScale<'a> {
+    /// `None` when a DOF's smoothed column or an internal state's track cannot be had.
+    fn of(model: &Model, s: &'a RecordStates) -> Option<Self> {
+        let xs = model
+            .dofs
+            .iter()
+            .map(|d| tfs_data::Columns::column(s, d))
+            .collect::<Option<_>>()?;
+        let vs = model
+            .dofs
+            .iter()
+            .map(|d| tfs_data::Columns::column(s, &format!("{d}'")))
+            .collect::<Option<_>>()?;
+        let tracks = model
+            .internal_states()
+            .into_iter()
+            .map(|(v, law)| evaluate_term(&Term::new(vec![Factor::State(v, law)]), s).ok())
+            .collect::<Option<_>>()?;
+        Some(Self { xs, vs, tracks })
+    }
+
+    /// The largest finite magnitude over every column.
+    fn peak(&self) -> f64 {
+        let tracks = self.tracks.iter().map(Vec::as_slice);
+        self.xs
+            .iter()
+            .chain(&self.vs)
+            .copied()
+            .chain(tracks)
+            .flatten()
+            .filter(|z| z.is_finite())
+            .fold(0.0_f64, |m, z| m.max(z.abs()))
+    }
+}
+
+/// The judge's integrator for predictions along a record of scale `scale`: the default Dopri5,
+/// stopped as blown up once any state passes [`RANGE_FACTOR`] times the record's peak (the
+/// default's own limit when the record has no motion to measure by).
+fn bounded(scale: &RecordScale<'_>) -> Dopri5 {
+    let peak = scale.peak();
+    Dopri5 {
+        blowup_limit: (peak > 0.0).then_some(RANGE_FACTOR * peak),
+        ..Dopri5::default()
+    }
+}
+
 /// Predictions of a model along one record, each from the smoothed measured state at its start
 /// (internal states from the record, run from rest along the smoothed motion).
 struct Predictor<'a> {
@@ -404,9 +484,9 @@ struct Predictor<'a> {
     input: SampledInput,
     /// The record with the model's computed input columns.
     rec: tfs_data::Record,
-    xs: Vec<&'a [f64]>,
-    vs: Vec<&'a [f64]>,
-    tracks: Vec<Vec<f64>>,
+    scale: RecordScale<'a>,
+    /// The integrator, bounded by the record's scale ([`bounded`]).
+    integrator: Dopri5,
     dofs: Vec<String>,
 }
 
@@ -425,30 +505,24 @@ impl<'a> Predictor<'a> {
         } else {
             SampledInput::new(rec.t()[0], rec.dt(), channels).ok()?
         };
-        let xs = model
-            .dofs
-            .iter()
-            .map(|d| tfs_data::Columns::column(s, d))
-            .collect::<Option<_>>()?;
-        let vs = model
-            .dofs
-            .iter()
-            .map(|d| tfs_data::Columns::column(s, &format!("{d}'")))
-            .collect::<Option<_>>()?;
-        let tracks = model
-            .internal_states()
-            .into_iter()
-            .map(|(v, law)| evaluate_term(&Term::new(vec![Factor::State(v, law)]), s).ok())
-            .collect::<Option<_>>()?;
+        let scale = RecordScale::of(model, s)?;
         Some(Self {
             compiled,
             input,
             rec,
-            xs,
-            vs,
-            tracks,
+            integrator: bounded(&scale),
+            scale,
             dofs: model.dofs.clone(),
         })
+    }
+
+    /// The same predictor with the integrator's default blow-up limit instead of the record's
+    /// bound.
+    fn unbounded(self) -> Self {
+        Self {
+            integrator: Dopri5::default(),
+            ..self
+        }
     }
 
     /// The measured displacement of DOF `i`.
@@ -459,11 +533,13 @@ impl<'a> Predictor<'a> {
     /// Per DOF, the squared error of the prediction over samples `k0..k1` against the measured
     /// displacement; `None` when the integration fails.
     fn errors(&self, k0: usize, k1: usize) -> Option<Vec<Vec<f64>>> {
-        let mut x0: Vec<f64> = self.xs.iter().map(|x| x[k0]).collect();
-        let mut v0: Vec<f64> = self.vs.iter().map(|v| v[k0]).collect();
+        let sc = &self.scale;
+        let mut x0: Vec<f64> = sc.xs.iter().map(|x| x[k0]).collect();
+        let mut v0: Vec<f64> = sc.vs.iter().map(|v| v[k0]).collect();
         x0.resize(self.compiled.system_dofs(), 0.0);
-        v0.extend(self.tracks.iter().map(|z| z[k0]));
-        let tr = Dopri5::default()
+        v0.extend(sc.tracks.iter().map(|z| z[k0]));
+        let tr = self
+            .integrator
             .integrate(&self.compiled, &self.input, &x0, &v0, &self.rec.t()[k0..k1])
             .ok()?;
         Some(

@@ -34,22 +34,32 @@ pub fn augment_record(model: &Model, record: &Record, _opts: &DiagnoseOptions) -
 /// Simulates `model` under `record`'s inputs at its sample times (input-derived columns are
 /// computed first when the record lacks them; internal states start at rest).
 pub fn simulate(model: &Model, record: &Record) -> Result<Trajectory> {
+    simulate_with(model, record, &SimulateOptions::default())
+}
+
+/// [`simulate`] with the integrator settings `sim` (the judge's bounded runs).
+pub(crate) fn simulate_with(
+    model: &Model,
+    record: &Record,
+    sim: &SimulateOptions,
+) -> Result<Trajectory> {
     let record = if computed_columns(model).is_empty() {
         std::borrow::Cow::Borrowed(record)
     } else {
         std::borrow::Cow::Owned(augment_record(model, record, &DiagnoseOptions::default())?)
     };
-    Ok(simulate_model_on_record(
-        model,
-        &record,
-        &SimulateOptions::default(),
-    )?)
+    Ok(simulate_model_on_record(model, &record, sim)?)
 }
 
 /// R-MSE of a simulation of `model` on `record` on each DOF's variance (its mean removed, so
 /// the record's DC level does not flatter or penalise the score), averaged over the DOFs.
 pub fn r_mse(model: &Model, record: &Record) -> Result<f64> {
-    let tr = simulate(model, record)?;
+    r_mse_with(model, record, &SimulateOptions::default())
+}
+
+/// [`r_mse`] with the integrator settings `sim`.
+pub(crate) fn r_mse_with(model: &Model, record: &Record, sim: &SimulateOptions) -> Result<f64> {
+    let tr = simulate_with(model, record, sim)?;
     let mut s = 0.0;
     for (i, d) in model.dofs.iter().enumerate() {
         let m = record.column(d).ok_or_else(|| missing(model, record, d))?;

@@ -220,3 +220,45 @@ fn the_free_run_from_the_fitted_rows_scores_what_the_equations_were_fitted_on() 
         );
     }
 }
+
+#[test]
+fn a_prediction_that_leaves_the_records_range_far_behind_fails() {
+    // Truth `x'' = −k x − c x' + u`; the other model has the linear spring's sign flipped and a
+    // cubic spring that holds the motion at wells near ±500, some 40 times the records' largest
+    // velocity: the integrator's own limit lets its free run finish (with an R-MSE that says
+    // nothing but "no skill"), the judge's bound stops it as failed.
+    let (k, c) = (std::f64::consts::TAU.powi(2), 0.5 * std::f64::consts::TAU);
+    let lib = tfs_library::Library::parse("x, x^3, x', xb_acc", &["x"]).unwrap();
+    let truth = Model::from_coefficients(&lib, &[vec![-k, 0.0, -c, 1.0]], "test").unwrap();
+    let away =
+        Model::from_coefficients(&lib, &[vec![k, -k / 500f64.powi(2), -c, 1.0]], "test").unwrap();
+    let opts = DiagnoseOptions {
+        cutoff_hz: Some(2.0),
+        ..Default::default()
+    };
+    let records = [released("a", 2.5, 8.0), released("b", -2.2, 9.0)];
+    let states: Vec<RecordStates> = records
+        .iter()
+        .map(|r| RecordStates::new(&truth, r, &opts).unwrap())
+        .collect();
+    let layout = Layout::new(&states, &opts).unwrap();
+    let judged = |judge, model: &Model| {
+        let choice = Choice {
+            judge,
+            why: String::new(),
+            plain: false,
+            resolution: 0.0,
+            from_fitted_rows: false,
+        };
+        heldout_error(&choice, model, &[], &states, &layout, &opts, 400)
+    };
+    for r in &records {
+        let e = crate::simulate::r_mse(&away, r).expect("the default limit lets it finish");
+        assert!(e > 1e3, "{}: R-MSE {e}", r.source());
+    }
+    for judge in [Judge::FreeRun, Judge::ShortHorizon] {
+        assert_eq!(judged(judge, &away), None, "{judge:?}");
+        let h = judged(judge, &truth).expect("the truth stays in range");
+        assert!(h.mean < 0.05, "{judge:?}: {}", h.mean);
+    }
+}
