@@ -168,6 +168,40 @@ fn released(name: &str, x0: f64, f: f64) -> tfs_data::Record {
     .unwrap()
 }
 
+/// The two released records, their smoothed states for `model` (2 Hz cut-off) and their layout.
+fn released_setup(
+    model: &Model,
+) -> (
+    Vec<tfs_data::Record>,
+    Vec<RecordStates>,
+    Layout,
+    DiagnoseOptions,
+) {
+    let opts = DiagnoseOptions {
+        cutoff_hz: Some(2.0),
+        ..Default::default()
+    };
+    let records = vec![released("a", 2.5, 8.0), released("b", -2.2, 9.0)];
+    let states: Vec<RecordStates> = records
+        .iter()
+        .map(|r| RecordStates::new(model, r, &opts).unwrap())
+        .collect();
+    let layout = Layout::new(&states, &opts).unwrap();
+    (records, states, layout, opts)
+}
+
+/// The judge `judge`, resolving every difference, simulating from the records' start
+/// unless `from_fitted_rows`.
+fn choice_of(judge: Judge, from_fitted_rows: bool) -> Choice {
+    Choice {
+        judge,
+        why: String::new(),
+        plain: false,
+        resolution: 0.0,
+        from_fitted_rows,
+    }
+}
+
 #[test]
 fn the_free_run_from_the_fitted_rows_scores_what_the_equations_were_fitted_on() {
     // Released from 2.5 and 2.2 (a transient that has decayed below 0.25 by the end of the
@@ -181,24 +215,9 @@ fn the_free_run_from_the_fitted_rows_scores_what_the_equations_were_fitted_on() 
     let c = 0.5 * std::f64::consts::TAU;
     let lib = tfs_library::Library::parse("x, x^3, x', xb_acc", &["x"]).unwrap();
     let model = Model::from_coefficients(&lib, &[vec![-k, 0.5 * k, -c, 1.0]], "test").unwrap();
-    let opts = DiagnoseOptions {
-        cutoff_hz: Some(2.0),
-        ..Default::default()
-    };
-    let records = [released("a", 2.5, 8.0), released("b", -2.2, 9.0)];
-    let states: Vec<RecordStates> = records
-        .iter()
-        .map(|r| RecordStates::new(&model, r, &opts).unwrap())
-        .collect();
+    let (records, states, layout, opts) = released_setup(&model);
     assert!(states.iter().all(|s| s.margin == 150));
-    let layout = Layout::new(&states, &opts).unwrap();
-    let choice = |from_fitted_rows| Choice {
-        judge: Judge::FreeRun,
-        why: String::new(),
-        plain: false,
-        resolution: 0.0,
-        from_fitted_rows,
-    };
+    let choice = |from_fitted_rows| choice_of(Judge::FreeRun, from_fitted_rows);
     // From t = 0 the first record's run is lost, and with it the score.
     let from_start = heldout_error(&choice(false), &model, &[], &states, &layout, &opts, 0);
     assert_eq!(from_start, None);
@@ -232,25 +251,17 @@ fn a_prediction_that_leaves_the_records_range_far_behind_fails() {
     let truth = Model::from_coefficients(&lib, &[vec![-k, 0.0, -c, 1.0]], "test").unwrap();
     let away =
         Model::from_coefficients(&lib, &[vec![k, -k / 500f64.powi(2), -c, 1.0]], "test").unwrap();
-    let opts = DiagnoseOptions {
-        cutoff_hz: Some(2.0),
-        ..Default::default()
-    };
-    let records = [released("a", 2.5, 8.0), released("b", -2.2, 9.0)];
-    let states: Vec<RecordStates> = records
-        .iter()
-        .map(|r| RecordStates::new(&truth, r, &opts).unwrap())
-        .collect();
-    let layout = Layout::new(&states, &opts).unwrap();
+    let (records, states, layout, opts) = released_setup(&truth);
     let judged = |judge, model: &Model| {
-        let choice = Choice {
-            judge,
-            why: String::new(),
-            plain: false,
-            resolution: 0.0,
-            from_fitted_rows: false,
-        };
-        heldout_error(&choice, model, &[], &states, &layout, &opts, 400)
+        heldout_error(
+            &choice_of(judge, false),
+            model,
+            &[],
+            &states,
+            &layout,
+            &opts,
+            400,
+        )
     };
     for r in &records {
         let e = crate::simulate::r_mse(&away, r).expect("the default limit lets it finish");
