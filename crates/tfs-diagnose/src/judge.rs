@@ -420,7 +420,8 @@ pub(crate) fn divergence_horizon(
 /// this many times the largest magnitude among the record's smoothed displacements, velocities
 /// and the model's internal states tracked along it. A polynomial model far outside the range
 /// it was fitted on is stiff: its prediction crawls there in ever smaller steps and ends with an
-/// error that says only "no skill", so stopping it as failed costs no information.
+/// error that says only "no skill". The bound is on every state, velocities too, so a brief
+/// velocity transient at a noisy run's start can also pass it (`docs/DECISIONS.md`, session 22).
 pub(crate) const RANGE_FACTOR: f64 = 10.0;
 
 /// The record's own motion as a model's judged predictions see it: per DOF its smoothed
