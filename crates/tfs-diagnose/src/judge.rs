@@ -32,11 +32,11 @@
 //! only what the candidate's fold fit changes against the fold fit without it
 //! ([`crate::design::anchored`]): the model without a candidate is then the model itself.
 //!
-//! A judged prediction that leaves the record's own motion far behind (any state beyond
-//! [`RANGE_FACTOR`] times the record's largest smoothed displacement, velocity or tracked internal
-//! state) is stopped there and counts as failed: it has lost the record, and a polynomial model
-//! far outside the range it was fitted on is stiff, so finishing the run would cost many small
-//! steps to learn only that.
+//! For such an anchored model, a judged prediction that leaves the record's own motion far
+//! behind (any state beyond [`RANGE_FACTOR`] times the record's largest smoothed displacement,
+//! velocity or tracked internal state) is stopped there and counts as failed: it has lost the
+//! record, and a polynomial model far outside the range it was fitted on is stiff, so finishing
+//! the run would cost many small steps to learn only that ([`judge_integrator`]).
 
 use rayon::prelude::*;
 use serde::Serialize;
@@ -241,7 +241,7 @@ fn heldout_r_mse(
                 full.slice(range.clone()).ok()?
             };
             let sim = SimulateOptions {
-                integrator: bounded(&RecordScale::of(m, s)?),
+                integrator: judge_integrator(m, &RecordScale::of(m, s)?),
                 ..SimulateOptions::default()
             };
             crate::simulate::r_mse_with(m, &u, &sim).ok()
@@ -421,7 +421,8 @@ pub(crate) fn divergence_horizon(
 /// and the model's internal states tracked along it. A polynomial model far outside the range
 /// it was fitted on is stiff: its prediction crawls there in ever smaller steps and ends with an
 /// error that says only "no skill". The bound is on every state, velocities too, so a brief
-/// velocity transient at a noisy run's start can also pass it (`docs/DECISIONS.md`, session 22).
+/// velocity transient at a noisy run's start can also pass it; it is applied to anchored models
+/// only ([`judge_integrator`]).
 pub(crate) const RANGE_FACTOR: f64 = 10.0;
 
 /// The record's own motion as a model's judged predictions see it: per DOF its smoothed
@@ -467,13 +468,17 @@ impl<'a> RecordScale<'a> {
     }
 }
 
-/// The judge's integrator for predictions along a record of scale `scale`: the default Dopri5,
-/// stopped as blown up once any state passes [`RANGE_FACTOR`] times the record's peak (the
-/// default's own limit when the record has no motion to measure by).
-fn bounded(scale: &RecordScale<'_>) -> Dopri5 {
+/// The judge's integrator for `model`'s predictions along a record of scale `scale`: for a model
+/// whose per-fold models are anchored ([`crate::design::anchored`], a tied chain) the default
+/// Dopri5 stopped as blown up once any state passes [`RANGE_FACTOR`] times the record's peak
+/// (the default's own limit when the record has no motion to measure by); for any other model
+/// the default Dopri5. The anchored fold models are the ones whose runs wander off the records;
+/// an untied model's fold models are refits on the records, and bounding their runs turned
+/// brief velocity transients at a noisy run's start into failures (`docs/DECISIONS.md`).
+fn judge_integrator(model: &Model, scale: &RecordScale<'_>) -> Dopri5 {
     let peak = scale.peak();
     Dopri5 {
-        blowup_limit: (peak > 0.0).then_some(RANGE_FACTOR * peak),
+        blowup_limit: (crate::design::anchored(model) && peak > 0.0).then_some(RANGE_FACTOR * peak),
         ..Dopri5::default()
     }
 }
@@ -486,7 +491,7 @@ struct Predictor<'a> {
     /// The record with the model's computed input columns.
     rec: tfs_data::Record,
     scale: RecordScale<'a>,
-    /// The integrator, bounded by the record's scale ([`bounded`]).
+    /// The integrator, bounded by the record's scale for an anchored model ([`judge_integrator`]).
     integrator: Dopri5,
     dofs: Vec<String>,
 }
@@ -511,7 +516,7 @@ impl<'a> Predictor<'a> {
             compiled,
             input,
             rec,
-            integrator: bounded(&scale),
+            integrator: judge_integrator(model, &scale),
             scale,
             dofs: model.dofs.clone(),
         })

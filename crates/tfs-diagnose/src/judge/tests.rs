@@ -241,15 +241,15 @@ fn the_free_run_from_the_fitted_rows_scores_what_the_equations_were_fitted_on() 
 }
 
 #[test]
-fn a_prediction_that_leaves_the_records_range_far_behind_fails() {
+fn an_anchored_prediction_that_leaves_the_records_range_far_behind_fails() {
     // Truth `x'' = −k x − c x' + u`; the other model has the linear spring's sign flipped and a
     // cubic spring that holds the motion at wells near ±500, some 40 times the records' largest
     // velocity: the integrator's own limit lets its free run finish (with an R-MSE that says
-    // nothing but "no skill"), the judge's bound stops it as failed.
+    // nothing but "no skill"); for a tied model the judge's bound stops it as failed.
     let (k, c) = (std::f64::consts::TAU.powi(2), 0.5 * std::f64::consts::TAU);
     let lib = tfs_library::Library::parse("x, x^3, x', xb_acc", &["x"]).unwrap();
-    let truth = Model::from_coefficients(&lib, &[vec![-k, 0.0, -c, 1.0]], "test").unwrap();
-    let away =
+    let mut truth = Model::from_coefficients(&lib, &[vec![-k, 0.0, -c, 1.0]], "test").unwrap();
+    let mut away =
         Model::from_coefficients(&lib, &[vec![k, -k / 500f64.powi(2), -c, 1.0]], "test").unwrap();
     let (records, states, layout, opts) = released_setup(&truth);
     let judged = |judge, model: &Model| {
@@ -267,6 +267,14 @@ fn a_prediction_that_leaves_the_records_range_far_behind_fails() {
         let e = crate::simulate::r_mse(&away, r).expect("the default limit lets it finish");
         assert!(e > 1e3, "{}: R-MSE {e}", r.source());
     }
+    // The bound is the anchored models' (a model fitted with ties, [`crate::design::anchored`]):
+    // without ties the run finishes, with them it is stopped.
+    let free = judged(Judge::FreeRun, &away).expect("untied, the judge runs it to the end");
+    assert!(free.mean > 1e3, "{}", free.mean);
+    let ties = serde_json::json!({"ties": [{"term": "x", "owner": "x", "partner": "x", "factor_in_partner": 1.0}]});
+    away.trace = ties.clone();
+    truth.trace = ties;
+    assert!(crate::design::anchored(&away));
     for judge in [Judge::FreeRun, Judge::ShortHorizon] {
         assert_eq!(judged(judge, &away), None, "{judge:?}");
         let h = judged(judge, &truth).expect("the truth stays in range");
