@@ -285,9 +285,7 @@ pub(crate) fn fold_model(model: &Model, eqs: &[FoldEquation<'_>], f: usize) -> O
 /// candidate that steadies it would look like an improvement. Anchored, the per-fold model
 /// without a candidate is the model itself, and a candidate is judged by what its fit changes.
 pub(crate) fn anchored(model: &Model) -> bool {
-    model.trace["ties"]
-        .as_array()
-        .is_some_and(|t| !t.is_empty())
+    model.is_tied()
 }
 
 #[cfg(test)]

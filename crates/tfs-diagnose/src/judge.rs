@@ -241,7 +241,7 @@ fn heldout_r_mse(
                 full.slice(range.clone()).ok()?
             };
             let sim = SimulateOptions {
-                integrator: judge_integrator(m, &RecordScale::of(m, s)?),
+                integrator: judge_integrator(m, || RecordScale::of(m, s).map(|sc| sc.peak()))?,
                 ..SimulateOptions::default()
             };
             crate::simulate::r_mse_with(m, &u, &sim).ok()
@@ -468,19 +468,23 @@ impl<'a> RecordScale<'a> {
     }
 }
 
-/// The judge's integrator for `model`'s predictions along a record of scale `scale`: for a model
-/// whose per-fold models are anchored ([`crate::design::anchored`], a tied chain) the default
-/// Dopri5 stopped as blown up once any state passes [`RANGE_FACTOR`] times the record's peak
-/// (the default's own limit when the record has no motion to measure by); for any other model
-/// the default Dopri5. The anchored fold models are the ones whose runs wander off the records;
-/// an untied model's fold models are refits on the records, and bounding their runs turned
-/// brief velocity transients at a noisy run's start into failures (`docs/DECISIONS.md`).
-fn judge_integrator(model: &Model, scale: &RecordScale<'_>) -> Dopri5 {
-    let peak = scale.peak();
-    Dopri5 {
-        blowup_limit: (crate::design::anchored(model) && peak > 0.0).then_some(RANGE_FACTOR * peak),
-        ..Dopri5::default()
+/// The judge's integrator for `model`'s predictions along a record whose peak
+/// ([`RecordScale::peak`]) `peak` gives: for a model whose per-fold models are anchored
+/// ([`crate::design::anchored`], a tied chain) the default Dopri5 stopped as blown up once any
+/// state passes [`RANGE_FACTOR`] times that peak (the default's own limit when the record has no
+/// motion to measure by); for any other model the default Dopri5, and `peak` is not asked for.
+/// `None` when `peak` has none. The anchored fold models are the ones whose runs wander off the
+/// records; an untied model's fold models are refits on the records, and bounding their runs
+/// turned brief velocity transients at a noisy run's start into failures (`docs/DECISIONS.md`).
+fn judge_integrator(model: &Model, peak: impl FnOnce() -> Option<f64>) -> Option<Dopri5> {
+    if !crate::design::anchored(model) {
+        return Some(Dopri5::default());
     }
+    let peak = peak()?;
+    Some(Dopri5 {
+        blowup_limit: (peak > 0.0).then_some(RANGE_FACTOR * peak),
+        ..Dopri5::default()
+    })
 }
 
 /// Predictions of a model along one record, each from the smoothed measured state at its start
@@ -516,7 +520,7 @@ impl<'a> Predictor<'a> {
             compiled,
             input,
             rec,
-            integrator: judge_integrator(model, &scale),
+            integrator: judge_integrator(model, || Some(scale.peak()))?,
             scale,
             dofs: model.dofs.clone(),
         })

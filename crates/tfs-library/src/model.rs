@@ -613,6 +613,12 @@ impl Model {
             .collect()
     }
 
+    /// Whether the model was fitted with laws tied between its equations (a chain's coupling
+    /// terms, one force law per cell): its trace lists the ties (`"ties"`, non-empty).
+    pub fn is_tied(&self) -> bool {
+        self.trace["ties"].as_array().is_some_and(|t| !t.is_empty())
+    }
+
     /// Readable equations, one line per DOF, 4 significant digits, e.g.
     /// `x'' = -1.990·x' - 12.12·x^5 + 18.03·x^6 - 1.000·xb_acc`; coefficients with an interval
     /// print as `(1.990 ± 0.01200)` with the interval's half-width.

@@ -102,9 +102,7 @@ pub struct ChainModel {
 /// Whether `model` was fitted with its chain elements' laws tied between the equations they
 /// enter: its trace lists the ties (`"ties"`, beside the fit's `"masses"`).
 pub fn is_tied(model: &Model) -> bool {
-    model.trace["ties"]
-        .as_array()
-        .is_some_and(|t| !t.is_empty())
+    model.is_tied()
 }
 
 /// The model with DOF `i`'s equation reduced to the terms of cell `i` (those not naming the next
