@@ -17,7 +17,9 @@
 //! Blocks are long enough — four cut-off periods or more — to be nearly independent. The
 //! combined p-value is Bonferroni-corrected over every variant of every effect tested. An effect is significant when the corrected p-value is below
 //! `alpha`, the held-out error falls, and its size (RMS change of the fitted force over the RMS of
-//! `x''`) is at least `min_share`, and the judge of held-out predictions ([`crate::judge`]) does not
+//! `x''`) is at least `min_share` — or, below it, the judge finds that the refitted model predicts
+//! the held-out data better by at least `min_share` of the motion's RMS (its size on the motion:
+//! `judge::predicts_better_by`) — and the judge of held-out predictions does not
 //! find that it predicts worse by more than the judge resolves, and its held-out drop lies beyond
 //! what the same scan finds on the start model's own simulated records (`null.rs`: the
 //! equation error's bias with nothing missing). Significant effects are ordered
@@ -640,6 +642,35 @@ fn judge_with(
                     ),
                 };
             }
+        }
+        // Too small on the force, large on the motion: it passes the block tests, and the
+        // refitted model predicts the held-out data better by at least `min_share` of the
+        // motion's RMS.
+        if !r.significant
+            && r.p_value < opts.alpha
+            && r.delta_heldout > 0.0
+            && let (Some(before), Some(after)) = (before, &c.heldout)
+            && crate::judge::predicts_better_by(
+                judge,
+                before,
+                after,
+                choice.resolution,
+                opts.alpha,
+                opts.min_share,
+            )
+        {
+            r.significant = true;
+            r.reason = format!(
+                "held-out equation error falls {:.1} %, p = {:.2e}; size {:.2} % of the force RMS, under {:.1} %, but the refitted model predicts the held-out data better by {:.1} % of the motion's RMS ({} R-MSE {:.3e} vs {:.3e})",
+                100.0 * r.delta_heldout,
+                r.p_value,
+                100.0 * r.share,
+                100.0 * opts.min_share,
+                100.0 * (before.mean.sqrt() - after.mean.sqrt()),
+                judge.describe(),
+                after.mean,
+                before.mean
+            );
         }
     });
     setups

@@ -27,7 +27,8 @@ pub struct DiagnoseOptions {
     pub time_folds: usize,
     /// Family-wise significance level (Bonferroni over every candidate variant tested).
     pub alpha: f64,
-    /// Minimum size of an effect: RMS change of the fitted force over the RMS of `x''`.
+    /// Minimum size of an effect: RMS change of the fitted force over the RMS of `x''`, or, on
+    /// the motion, the drop of the held-out RMS prediction error over the displacement's RMS.
     pub min_share: f64,
     /// Bootstrap resamples of blocks for coefficient intervals.
     pub bootstrap: usize,

@@ -67,6 +67,54 @@ fn short_horizon_vetoes_only_a_worsening_the_pieces_bear_out() {
     ));
 }
 
+/// An effect is large on the motion when its model's RMS prediction error is lower by at least
+/// `min_share` of the motion's RMS, beyond what the judge resolves.
+#[test]
+fn a_small_force_is_large_on_the_motion_only_when_the_prediction_falls_by_min_share() {
+    let score = |mean: f64| Heldout {
+        mean,
+        parts: vec![mean],
+    };
+    let better =
+        |j, b: f64, a: f64, res| predicts_better_by(j, &score(b), &score(a), res, 0.01, 0.02);
+    // √0.0468 − √0.00685 = 0.134: large; √0.0468 − √0.0420 = 0.011: under 2 %.
+    assert!(better(Judge::FreeRun, 0.0468, 0.00685, 0.0));
+    assert!(!better(Judge::FreeRun, 0.0468, 0.0420, 0.0));
+    // A drop within the free run's resolution, or to a run without skill, is not evidence.
+    assert!(!better(Judge::FreeRun, 0.0468, 0.00685, 0.05));
+    assert!(!better(Judge::FreeRun, 4.0, 1.2, 0.0));
+    // Worse is never better; the equation error judges nothing.
+    assert!(!better(Judge::FreeRun, 0.00685, 0.0468, 0.0));
+    assert!(!better(Judge::EquationError, 0.0468, 0.00685, 0.0));
+    // Short horizon: the pieces must bear the drop out, and it must be large enough.
+    let (before, after) = pieces(60, 0.3, 0.3, 7);
+    assert!(predicts_better_by(
+        Judge::ShortHorizon,
+        &before,
+        &after,
+        0.0,
+        0.01,
+        0.02
+    ));
+    assert!(!predicts_better_by(
+        Judge::ShortHorizon,
+        &after,
+        &before,
+        0.0,
+        0.01,
+        0.02
+    ));
+    let (before, after) = pieces(60, 1.0, 1.0, 3);
+    assert!(!predicts_better_by(
+        Judge::ShortHorizon,
+        &before,
+        &after,
+        0.0,
+        0.01,
+        0.0
+    ));
+}
+
 #[test]
 fn free_run_vetoes_only_beyond_its_resolution() {
     let score = |mean: f64| Heldout {

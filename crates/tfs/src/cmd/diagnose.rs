@@ -31,7 +31,8 @@ pub struct Args {
     /// Family-wise significance level of the effect tests.
     #[arg(long, default_value_t = 0.01)]
     pub alpha: f64,
-    /// Minimum effect size as a share of the force RMS.
+    /// Minimum effect size as a share of the force RMS; an effect below it still counts when the
+    /// refitted model predicts the held-out data better by this share of the motion's RMS.
     #[arg(long, default_value_t = 0.02)]
     pub min_share: f64,
     /// DC offsets of the DOF and input channels: `auto` (default) does what `tfs identify` did
