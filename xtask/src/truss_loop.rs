@@ -602,19 +602,24 @@ mod tests {
         assert!(poly.floor("x^1..3").unwrap() < 1e-12);
     }
 
+    /// `x'' = a·x + b·x^3 − 0.5·x' − xb_acc + 100·below(x, 0.1)`.
+    fn cell_model(a: f64, b: f64) -> Model {
+        Model::from_json_str(&format!(
+            r#"{{"format": "tfs-model/1", "dofs": ["x"], "inputs": ["xb_acc"],
+                "equations": [{{"dof": "x", "terms": [
+                  {{"term": "x", "coef": {a}}}, {{"term": "x^3", "coef": {b}}},
+                  {{"term": "x'", "coef": -0.5}}, {{"term": "xb_acc", "coef": -1.0}},
+                  {{"term": "below(x, 0.1)", "coef": 100.0}}]}}]}}"#
+        ))
+        .unwrap()
+    }
+
     /// At their best the powers reach the truth where the truth is in their span (a stop's
     /// force taken out first), and the library's floor where it is not; the other terms keep
     /// their coefficients.
     #[test]
     fn powers_at_best_reach_the_supports_floor() {
-        let m = Model::from_json_str(
-            r#"{"format": "tfs-model/1", "dofs": ["x"], "inputs": ["xb_acc"],
-                "equations": [{"dof": "x", "terms": [
-                  {"term": "x", "coef": -1.5}, {"term": "x^3", "coef": 0.7},
-                  {"term": "x'", "coef": -0.5}, {"term": "xb_acc", "coef": -1.0},
-                  {"term": "below(x, 0.1)", "coef": 100.0}]}]}"#,
-        )
-        .unwrap();
+        let m = cell_model(-1.5, 0.7);
         let stop = |h: f64| -100.0 * (0.1 - h).max(0.0);
         let truth = ForceTruth::new(curve(0.0, 1.8, 901, |h| 2.0 * h - h.powi(3) + stop(h)));
         assert!(truth.error_of(model_force(&m).unwrap()) > 0.05);
@@ -653,14 +658,7 @@ mod tests {
     /// does where it engages.
     #[test]
     fn model_force_is_the_restoring_part() {
-        let m = Model::from_json_str(
-            r#"{"format": "tfs-model/1", "dofs": ["x"], "inputs": ["xb_acc"],
-                "equations": [{"dof": "x", "terms": [
-                  {"term": "x", "coef": -2.0}, {"term": "x^3", "coef": 1.0},
-                  {"term": "x'", "coef": -0.5}, {"term": "xb_acc", "coef": -1.0},
-                  {"term": "below(x, 0.1)", "coef": 100.0}]}]}"#,
-        )
-        .unwrap();
+        let m = cell_model(-2.0, 1.0);
         let f = model_force(&m).unwrap();
         assert!((f(0.5) - (2.0 * 0.5 - 0.125)).abs() < 1e-12);
         assert!((f(0.0) - (-100.0 * 0.1)).abs() < 1e-12);
