@@ -90,18 +90,22 @@ impl ForceTruth {
         rms(&e) / self.rms
     }
 
+    /// The grid as a record with the one column `x` (the heights), for evaluating terms on it.
+    fn grid(&self) -> Result<Record> {
+        Ok(Record::new(
+            "grid",
+            (0..self.h.len()).map(|i| i as f64).collect(),
+            vec![("x".into(), self.h.clone())],
+        )?)
+    }
+
     /// The least-squares floor of a library of position columns: the smallest [`error_of`]
     /// any coefficients of `library` (over the DOF `x`) reach on this grid.
     ///
     /// [`error_of`]: ForceTruth::error_of
     pub fn floor(&self, library: &str) -> Result<f64> {
         let lib = Library::parse(library, &["x"])?;
-        let rec = Record::new(
-            "grid",
-            (0..self.h.len()).map(|i| i as f64).collect(),
-            vec![("x".into(), self.h.clone())],
-        )?;
-        let a: Mat<f64> = lib.evaluate(&rec)?;
+        let a: Mat<f64> = lib.evaluate(&self.grid()?)?;
         let e = crate::dbench::size::residual(&a, &self.f)?;
         Ok(rms(&e) / self.rms)
     }
@@ -112,22 +116,19 @@ impl ForceTruth {
 /// force is taken out of the truth first): what the model's own support could reach with the
 /// best coefficients. `None` when the model has no power term.
 pub fn powers_at_best(model: &Model, truth: &ForceTruth) -> Result<Option<Model>> {
-    let power = |t: &tfs::library::Term| match t.factors() {
-        [Factor::Pow(tfs::library::Var::Disp(d), k)] if d == "x" => Some(*k),
-        _ => None,
-    };
+    let power = |t: &tfs::library::Term| matches!(t.factors(), [Factor::Pow(tfs::library::Var::Disp(d), _)] if d == "x");
     let eq = model
         .equations
         .first()
         .ok_or_else(|| anyhow!("the model has no equation"))?;
-    let powers: Vec<(usize, u32)> = (0..eq.terms.len())
-        .filter_map(|i| power(&eq.terms[i].term).map(|k| (i, k)))
+    let powers: Vec<usize> = (0..eq.terms.len())
+        .filter(|&i| power(&eq.terms[i].term))
         .collect();
     if powers.is_empty() {
         return Ok(None);
     }
     let mut rest = model.clone();
-    for &(i, _) in &powers {
+    for &i in &powers {
         rest.equations[0].terms[i].coef = 0.0;
     }
     let other = model_force(&rest)?;
@@ -138,12 +139,15 @@ pub fn powers_at_best(model: &Model, truth: &ForceTruth) -> Result<Option<Model>
         .map(|(h, f)| f - other(*h))
         .collect();
     // The restoring force is `−Σ coef·term`, so each column is `−term`.
-    let a = Mat::<f64>::from_fn(truth.h.len(), powers.len(), |r, c| {
-        -truth.h[r].powi(powers[c].1 as i32)
-    });
+    let grid = truth.grid()?;
+    let cols = powers
+        .iter()
+        .map(|&i| tfs::library::evaluate_term(&eq.terms[i].term, &grid))
+        .collect::<std::result::Result<Vec<_>, _>>()?;
+    let a = Mat::<f64>::from_fn(truth.h.len(), cols.len(), |r, c| -cols[c][r]);
     let fit = tfs::regress::lstsq(a.as_ref(), &target).context("the powers' least-squares fit")?;
     let mut best = model.clone();
-    for (c, &(i, _)) in powers.iter().enumerate() {
+    for (c, &i) in powers.iter().enumerate() {
         let t = &mut best.equations[0].terms[i];
         t.coef = fit.coef[c];
         t.interval = None;

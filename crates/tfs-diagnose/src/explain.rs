@@ -650,7 +650,7 @@ fn judge_with(
             && r.p_value < opts.alpha
             && r.delta_heldout > 0.0
             && let (Some(before), Some(after)) = (before, &c.heldout)
-            && crate::judge::predicts_better_by(
+            && let Some(drop) = crate::judge::predicts_better_by(
                 judge,
                 before,
                 after,
@@ -666,7 +666,7 @@ fn judge_with(
                 r.p_value,
                 100.0 * r.share,
                 100.0 * opts.min_share,
-                100.0 * (before.mean.sqrt() - after.mean.sqrt()),
+                100.0 * drop,
                 judge.describe(),
                 after.mean,
                 before.mean

@@ -597,14 +597,15 @@ pub(crate) fn predicts_worse(
     }
 }
 
-/// True when the model scored `after` predicts the held-out data better than the one scored
-/// `before` by at least `min_share` of the motion's RMS (the drop of `√R-MSE`: RMS prediction
-/// error over the displacement's standard deviation), and by more than `judge` can resolve: an
+/// How much better the model scored `after` predicts the held-out data than the one scored
+/// `before`, as a share of the motion's RMS (the drop of `√R-MSE`: RMS prediction error over the
+/// displacement's standard deviation), when that drop is at least `min_share` and more than
+/// `judge` can resolve (`None` otherwise): an
 /// effect's size on the motion, as `min_share` is its size on the force. A stiff stop touched
 /// for a few samples, or a term the start library nearly holds, moves the fitted force little
 /// and the motion much. Free run: `after` shows skill and its mean R-MSE is lower by more than
 /// `resolution`. Short horizon: the paired one-sided tests over the pieces put the drop below
-/// `alpha`. The equation error judges nothing here (false).
+/// `alpha`. The equation error judges nothing here (`None`).
 pub(crate) fn predicts_better_by(
     judge: Judge,
     before: &Heldout,
@@ -612,19 +613,17 @@ pub(crate) fn predicts_better_by(
     resolution: f64,
     alpha: f64,
     min_share: f64,
-) -> bool {
+) -> Option<f64> {
     let drop = before.mean.sqrt() - after.mean.sqrt();
-    if !(drop.is_finite() && drop >= min_share) {
-        return false;
-    }
-    match judge {
+    let resolved = match judge {
         Judge::FreeRun => after.mean < 1.0 && after.mean < before.mean - resolution,
         Judge::ShortHorizon => {
             before.parts.len() == after.parts.len()
                 && paired_drop_p_value(&before.parts, &after.parts) < alpha
         }
         Judge::EquationError => false,
-    }
+    };
+    (resolved && drop.is_finite() && drop >= min_share).then_some(drop)
 }
 
 /// A ranked effect with its analysis and its held-out prediction score.

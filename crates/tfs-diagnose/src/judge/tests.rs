@@ -75,8 +75,9 @@ fn a_small_force_is_large_on_the_motion_only_when_the_prediction_falls_by_min_sh
         mean,
         parts: vec![mean],
     };
-    let better =
-        |j, b: f64, a: f64, res| predicts_better_by(j, &score(b), &score(a), res, 0.01, 0.02);
+    let better = |j, b: f64, a: f64, res| {
+        predicts_better_by(j, &score(b), &score(a), res, 0.01, 0.02).is_some()
+    };
     // √0.0468 − √0.00685 = 0.134: large; √0.0468 − √0.0420 = 0.011: under 2 %.
     assert!(better(Judge::FreeRun, 0.0468, 0.00685, 0.0));
     assert!(!better(Judge::FreeRun, 0.0468, 0.0420, 0.0));
@@ -86,33 +87,24 @@ fn a_small_force_is_large_on_the_motion_only_when_the_prediction_falls_by_min_sh
     // Worse is never better; the equation error judges nothing.
     assert!(!better(Judge::FreeRun, 0.00685, 0.0468, 0.0));
     assert!(!better(Judge::EquationError, 0.0468, 0.00685, 0.0));
+    // The drop itself is returned: √0.0468 − √0.00685.
+    let drop = predicts_better_by(
+        Judge::FreeRun,
+        &score(0.0468),
+        &score(0.00685),
+        0.0,
+        0.01,
+        0.02,
+    );
+    assert!((drop.unwrap() - (0.0468f64.sqrt() - 0.00685f64.sqrt())).abs() < 1e-15);
     // Short horizon: the pieces must bear the drop out, and it must be large enough.
+    let short = |(b, a): &(Heldout, Heldout), min_share| {
+        predicts_better_by(Judge::ShortHorizon, b, a, 0.0, 0.01, min_share).is_some()
+    };
     let (before, after) = pieces(60, 0.3, 0.3, 7);
-    assert!(predicts_better_by(
-        Judge::ShortHorizon,
-        &before,
-        &after,
-        0.0,
-        0.01,
-        0.02
-    ));
-    assert!(!predicts_better_by(
-        Judge::ShortHorizon,
-        &after,
-        &before,
-        0.0,
-        0.01,
-        0.02
-    ));
-    let (before, after) = pieces(60, 1.0, 1.0, 3);
-    assert!(!predicts_better_by(
-        Judge::ShortHorizon,
-        &before,
-        &after,
-        0.0,
-        0.01,
-        0.0
-    ));
+    assert!(short(&(before.clone(), after.clone()), 0.02));
+    assert!(!short(&(after, before), 0.02));
+    assert!(!short(&pieces(60, 1.0, 1.0, 3), 0.0));
 }
 
 #[test]
