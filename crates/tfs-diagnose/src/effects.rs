@@ -355,6 +355,13 @@ pub trait Effect: Send + Sync {
     /// The family offered to one equation; empty when the effect does not apply (e.g. the term
     /// is already in the equation).
     fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant>;
+    /// True when `refit` chooses this effect's scanned parameter by how well the model
+    /// simulates the records, among the variants with the lowest held-out residual, rather
+    /// than by the residual alone (a stop's position); the diagnosis's judge then simulates
+    /// those variants too ([`crate::judged`]).
+    fn parameter_by_simulation(&self) -> bool {
+        false
+    }
 }
 
 fn single(ctx: &EffectContext<'_>, term: Term) -> Vec<Variant> {
@@ -565,6 +572,9 @@ impl Effect for Stop {
     }
     fn description(&self) -> String {
         "one-sided stop (end stop, contact, folded state): k*below(x, c) or k*above(x, c), c scanned over 1 %..20 % of the displacement span in from either extreme".into()
+    }
+    fn parameter_by_simulation(&self) -> bool {
+        true
     }
     fn variants(&self, ctx: &EffectContext<'_>) -> Vec<Variant> {
         let mut out = Vec::new();

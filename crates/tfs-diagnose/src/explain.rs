@@ -37,8 +37,7 @@ use tfs_library::{Model, Term};
 use tfs_regress::Compressed;
 
 use crate::design::{
-    Cv, Design, FoldEquation, compress_blocks, cross_validate, design, full_fit, partner_columns,
-    variant_columns,
+    Cv, Design, FoldEquation, compress_blocks, cross_validate, design, full_fit, variant_columns,
 };
 use crate::effects::{Catalogue, EffectColumn, EffectContext, Variant};
 use crate::judge::{Candidate, Heldout, Judge, JudgeUse, mark_ties, order};
@@ -128,7 +127,7 @@ pub(crate) struct DofSetup {
 impl DofSetup {
     /// What an anchored per-fold model of this equation takes away again (its columns and their
     /// per-fold fit, [`FoldEquation::anchor`]); `None` when `anchored` is false.
-    fn anchor(&self, anchored: bool) -> Option<(&[EffectColumn], &Cv)> {
+    pub(crate) fn anchor(&self, anchored: bool) -> Option<(&[EffectColumn], &Cv)> {
         anchored.then_some((self.base_cols.as_slice(), &self.base_cv))
     }
 }
@@ -253,6 +252,9 @@ pub(crate) struct Raw {
     pub readmitted: Vec<Term>,
     pub dof_idx: usize,
     pub scored: Scored,
+    /// For an effect whose parameter `refit` chooses by simulation, the next variants by
+    /// held-out residual ([`crate::judged`]); empty otherwise.
+    pub alternatives: Vec<Scored>,
     p_raw: f64,
     delta: f64,
     coef: f64,
@@ -267,7 +269,7 @@ fn analyse(
     layout: &Layout,
     d: &DofSetup,
     name: &str,
-    vars: &[Variant],
+    (vars, by_simulation): (&[Variant], bool),
     opts: &DiagnoseOptions,
 ) -> Result<Option<Raw>> {
     let eq = (d.idx, d.base_terms.as_slice());
@@ -321,14 +323,16 @@ fn analyse(
         rows += ac.nrows();
     }
     let share = (diff2 / rows.max(1) as f64).sqrt() / d.acc_rms.max(f64::MIN_POSITIVE);
-    let (coef, interval) = match s.main {
-        Some(m) => (
-            coef_c[m],
-            bootstrap_interval(&s.blocks, m, opts.bootstrap, opts.seed)?,
-        ),
-        None => (f64::NAN, [f64::NAN, f64::NAN]),
+    let (coef, interval) = main_coefficient(&s, &coef_c, opts)?;
+    let alternatives = if by_simulation {
+        let mut terms = d.base_terms.clone();
+        terms.extend(re.terms.iter().cloned());
+        crate::judged::alternatives(states, layout, d.idx, &terms, vars, &s.variant)?
+    } else {
+        Vec::new()
     };
     Ok(Some(Raw {
+        alternatives,
         readmitted: re.terms,
         effect: name.to_string(),
         dof_idx: d.idx,
@@ -339,6 +343,41 @@ fn analyse(
         share,
         scored: s,
     }))
+}
+
+/// The coefficient of the main effect column of `s` in its full-data fit `coef` and its block
+/// bootstrap interval (NaN when the variant has no main column).
+pub(crate) fn main_coefficient(
+    s: &Scored,
+    coef: &[f64],
+    opts: &DiagnoseOptions,
+) -> Result<(f64, [f64; 2])> {
+    Ok(match s.main {
+        Some(m) => (
+            coef[m],
+            bootstrap_interval(&s.blocks, m, opts.bootstrap, opts.seed)?,
+        ),
+        None => (f64::NAN, [f64::NAN, f64::NAN]),
+    })
+}
+
+/// The terms a variant adds or substitutes, then the start-library terms re-admitted beside it,
+/// as the report prints them.
+fn variant_terms(v: &Variant, readmitted: &[Term]) -> Vec<String> {
+    v.add
+        .iter()
+        .map(|c| c.label())
+        .chain(
+            v.replace
+                .iter()
+                .map(|(o, n)| format!("{o} -> {}", n.label())),
+        )
+        .chain(
+            readmitted
+                .iter()
+                .map(|t| format!("{t} (start library, re-admitted)")),
+        )
+        .collect()
 }
 
 /// The ranked entry of one analysed effect: the Bonferroni correction over `tests`, the
@@ -376,21 +415,7 @@ fn entry(model: &Model, raw: &Raw, tests: usize, opts: &DiagnoseOptions) -> Rank
         raw.effect.clone()
     };
     let v = &raw.scored.variant;
-    let terms = v
-        .add
-        .iter()
-        .map(|c| c.label())
-        .chain(
-            v.replace
-                .iter()
-                .map(|(o, n)| format!("{o} -> {}", n.label())),
-        )
-        .chain(
-            raw.readmitted
-                .iter()
-                .map(|t| format!("{t} (start library, re-admitted)")),
-        )
-        .collect();
+    let terms = variant_terms(v, &raw.readmitted);
     RankedEffect {
         name,
         effect: raw.effect.clone(),
@@ -410,29 +435,6 @@ fn entry(model: &Model, raw: &Raw, tests: usize, opts: &DiagnoseOptions) -> Rank
         tied_with_top: false,
         reason,
     }
-}
-
-/// The partner equations of a candidate whose variant acts on a coupling: per partner DOF, the
-/// start equation with the same variant and its cross-validation — a coupling force acts on both
-/// masses, and `refit` puts it into both equations, so the judge simulates both. A partner whose
-/// design cannot be made is left as it is.
-fn partner_equations(
-    model: &Model,
-    raw: &Raw,
-    states: &[RecordStates],
-    layout: &Layout,
-) -> Vec<(usize, Vec<EffectColumn>, Cv)> {
-    let v = &raw.scored.variant;
-    let mut out = Vec::new();
-    for (pi, cols) in partner_columns(model, &model.dofs[raw.dof_idx], v) {
-        let cv = design(states, pi, &cols)
-            .and_then(|d| compress_blocks(&d, layout))
-            .and_then(|b| cross_validate(&b, layout));
-        if let Ok(cv) = cv {
-            out.push((pi, cols, cv));
-        }
-    }
-    out
 }
 
 /// Judges every candidate's refitted per-fold models on held-out data ([`crate::judge`]) and
@@ -469,8 +471,9 @@ fn judge_candidates(
     let judged = judge_with(model, setups, states, layout, opts, ranked, &choice);
     let dominated = ranked.iter().zip(&found).find(|(c, (was, _))| {
         *was && !c.entry.significant && c.heldout.is_some() && {
-            let partners = partner_equations(model, &c.raw, states, layout);
-            let eqs = fold_equations(model, setups, &c.raw, &partners);
+            let at = (c.raw.dof_idx, &c.raw.scored);
+            let partners = crate::judged::partner_equations(model, at, states, layout);
+            let eqs = crate::judged::fold_equations(model, setups, at, &partners);
             folds_noise_dominated(model, &eqs, states, layout, opts)
         }
     });
@@ -535,32 +538,6 @@ fn folds_noise_dominated(
     })
 }
 
-/// The equations the judge simulates for a candidate (`raw`): its own, then its partners'
-/// ([`partner_equations`]); anchored on the model's own coefficients when
-/// [`crate::design::anchored`] says so.
-fn fold_equations<'a>(
-    model: &Model,
-    setups: &'a [DofSetup],
-    raw: &'a Raw,
-    partners: &'a [(usize, Vec<EffectColumn>, Cv)],
-) -> Vec<FoldEquation<'a>> {
-    let anchored = crate::design::anchored(model);
-    let anchor = |idx: usize| setups[idx].anchor(anchored);
-    let mut eqs = vec![FoldEquation {
-        idx: raw.dof_idx,
-        cols: &raw.scored.cols,
-        cv: &raw.scored.cv,
-        anchor: anchor(raw.dof_idx),
-    }];
-    eqs.extend(partners.iter().map(|(idx, cols, cv)| FoldEquation {
-        idx: *idx,
-        cols,
-        cv,
-        anchor: anchor(*idx),
-    }));
-    eqs
-}
-
 /// [`judge_candidates`] under the judge `choice`.
 fn judge_with(
     model: &Model,
@@ -602,10 +579,20 @@ fn judge_with(
         let (r, raw) = (&mut c.entry, &c.raw);
         let d = &setups[raw.dof_idx];
         r.judge = Some(judge);
-        let partners = partner_equations(model, raw, states, layout);
-        let eqs = fold_equations(model, setups, raw, &partners);
-        c.heldout =
-            crate::judge::heldout_error(choice, model, &eqs, states, layout, opts, horizon(d));
+        let at = (choice, horizon(d));
+        let (heldout, judged) = crate::judged::heldout(model, setups, states, layout, opts, at, raw);
+        c.heldout = heldout;
+        let alt = judged.and_then(|s| {
+            let coef = full_fit(&s.blocks).ok()?;
+            Some((s, main_coefficient(s, &coef, opts).ok()?))
+        });
+        let judged_alternative = alt.is_some();
+        let (v, (coef, interval)) = match alt {
+            Some((s, fit)) => (&s.variant, fit),
+            None => (&raw.scored.variant, (raw.coef, raw.interval)),
+        };
+        (r.parameter, r.coef, r.interval) = (v.parameter.clone(), coef, interval);
+        r.terms = variant_terms(v, &raw.readmitted);
         let before = &before[raw.dof_idx];
         r.r_mse_before = before.as_ref().map(|h| h.mean);
         r.r_mse_after = c.heldout.as_ref().map(|h| h.mean);
@@ -672,6 +659,12 @@ fn judge_with(
                 before.mean
             );
         }
+        if judged_alternative && let Some((name, value)) = &r.parameter {
+            r.reason.push_str(&format!(
+                "; judged at {name} = {value}, of the {} values with the lowest held-out residual the one whose model predicts the held-out data best (`refit` chooses it so)",
+                raw.alternatives.len() + 1
+            ));
+        }
     });
     setups
         .iter()
@@ -731,14 +724,16 @@ pub(crate) fn explain_with_runs(
         for e in catalogue.effects() {
             let vars = e.variants(&ctx);
             if !vars.is_empty() {
-                jobs.push((e.name(), d.idx, vars));
+                jobs.push((e.name(), d.idx, vars, e.parameter_by_simulation()));
             }
         }
     }
     let tests: usize = jobs.iter().map(|j| j.2.len()).sum::<usize>().max(1);
     let raws: Vec<Raw> = jobs
         .par_iter()
-        .map(|(name, idx, vars)| analyse(&states, &layout, &setups[*idx], name, vars, opts))
+        .map(|(name, idx, vars, by_sim)| {
+            analyse(&states, &layout, &setups[*idx], name, (vars, *by_sim), opts)
+        })
         .collect::<Result<Vec<_>>>()?
         .into_iter()
         .flatten()

@@ -52,6 +52,7 @@ pub mod effects;
 mod error;
 pub mod explain;
 pub mod judge;
+mod judged;
 pub mod noise;
 mod null;
 mod polish;
