@@ -44,21 +44,7 @@ fn a_stop_is_judged_at_the_position_that_predicts_best_among_the_residuals_best(
         }],
         x0: 0.0,
     };
-    let train: Vec<_> = (0..3)
-        .map(|i| {
-            let amp = 6.0 * (0.8 + 0.2 * i as f64);
-            record(
-                &truth,
-                &format!("train{i}"),
-                0.3,
-                3.0,
-                amp,
-                30.0,
-                0.01,
-                10 + i,
-            )
-        })
-        .collect();
+    let (train, _) = train_and_test(&truth, (0.3, 3.0, 6.0), 10);
     let opts = DiagnoseOptions::default();
     let start = refit(&structure("x, x^3, x', xb_acc"), &train, &opts).unwrap();
     let diagnose = |effect: Box<dyn Effect>| -> RankedEffect {
