@@ -254,7 +254,7 @@ pub(crate) struct Raw {
     pub scored: Scored,
     /// For an effect whose parameter `refit` chooses by simulation, the next variants by
     /// held-out residual ([`crate::judged`]); empty otherwise.
-    pub alternatives: Vec<Scored>,
+    pub alternatives: Vec<crate::judged::Alternative>,
     p_raw: f64,
     delta: f64,
     coef: f64,
@@ -327,7 +327,7 @@ fn analyse(
     let alternatives = if by_simulation {
         let mut terms = d.base_terms.clone();
         terms.extend(re.terms.iter().cloned());
-        crate::judged::alternatives(states, layout, d.idx, &terms, vars, &s.variant)?
+        crate::judged::alternatives(states, layout, d.idx, &terms, (vars, &s.variant), opts)?
     } else {
         Vec::new()
     };
@@ -582,13 +582,9 @@ fn judge_with(
         let at = (choice, horizon(d));
         let (heldout, judged) = crate::judged::heldout(model, setups, states, layout, opts, at, raw);
         c.heldout = heldout;
-        let alt = judged.and_then(|s| {
-            let coef = full_fit(&s.blocks).ok()?;
-            Some((s, main_coefficient(s, &coef, opts).ok()?))
-        });
-        let judged_alternative = alt.is_some();
-        let (v, (coef, interval)) = match alt {
-            Some((s, fit)) => (&s.variant, fit),
+        let judged_alternative = judged.is_some();
+        let (v, (coef, interval)) = match judged {
+            Some(a) => (&a.scored.variant, (a.coef, a.interval)),
             None => (&raw.scored.variant, (raw.coef, raw.interval)),
         };
         (r.parameter, r.coef, r.interval) = (v.parameter.clone(), coef, interval);

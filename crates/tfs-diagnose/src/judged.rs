@@ -16,9 +16,11 @@
 use tfs_library::{Model, Term};
 
 use crate::Result;
-use crate::design::{Cv, FoldEquation, compress_blocks, cross_validate, design, partner_columns};
+use crate::design::{
+    Cv, FoldEquation, compress_blocks, cross_validate, design, full_fit, partner_columns,
+};
 use crate::effects::{EffectColumn, Variant};
-use crate::explain::{DofSetup, Raw, Scored, score_variant};
+use crate::explain::{DofSetup, Raw, Scored, main_coefficient, score_variant};
 use crate::judge::{Choice, Heldout};
 use crate::prepare::{DiagnoseOptions, Layout, RecordStates};
 
@@ -26,17 +28,29 @@ use crate::prepare::{DiagnoseOptions, Layout, RecordStates};
 /// parameter is chosen by simulation.
 pub(crate) const SHORTLIST: usize = 3;
 
+/// A variant beside the best one by equation error, with the coefficient of its main column in
+/// its full-data fit and that coefficient's block-bootstrap interval (what the report shows when
+/// the judge chooses it).
+pub(crate) struct Alternative {
+    /// The variant scored.
+    pub scored: Scored,
+    /// The main column's coefficient.
+    pub coef: f64,
+    /// Its 95 % block-bootstrap interval.
+    pub interval: [f64; 2],
+}
+
 /// The variants of `variants` other than `chosen`, scored on the equation of DOF `idx` with the
 /// terms `terms`, the [`SHORTLIST`]` − 1` with the lowest held-out residual first (ties in the
-/// catalogue's order).
+/// catalogue's order), each with its main coefficient and interval.
 pub(crate) fn alternatives(
     states: &[RecordStates],
     layout: &Layout,
     idx: usize,
     terms: &[Term],
-    variants: &[Variant],
-    chosen: &Variant,
-) -> Result<Vec<Scored>> {
+    (variants, chosen): (&[Variant], &Variant),
+    opts: &DiagnoseOptions,
+) -> Result<Vec<Alternative>> {
     use rayon::prelude::*;
     let mut scored: Vec<Scored> = variants
         .par_iter()
@@ -46,7 +60,18 @@ pub(crate) fn alternatives(
     scored.retain(|s| s.cv_rss.is_finite());
     scored.sort_by(|a, b| a.cv_rss.total_cmp(&b.cv_rss));
     scored.truncate(SHORTLIST.saturating_sub(1));
-    Ok(scored)
+    scored
+        .into_iter()
+        .map(|s| {
+            let fit = full_fit(&s.blocks)?;
+            let (coef, interval) = main_coefficient(&s, &fit, opts)?;
+            Ok(Alternative {
+                scored: s,
+                coef,
+                interval,
+            })
+        })
+        .collect()
 }
 
 /// The partner equations of a candidate (DOF `idx`, variant scored as `s`) whose variant acts
@@ -110,22 +135,22 @@ pub(crate) fn heldout<'a>(
     opts: &DiagnoseOptions,
     (choice, horizon): (&Choice, usize),
     raw: &'a Raw,
-) -> (Option<Heldout>, Option<&'a Scored>) {
+) -> (Option<Heldout>, Option<&'a Alternative>) {
     let judge = |s: &Scored| {
         let partners = partner_equations(model, (raw.dof_idx, s), states, layout);
         let eqs = fold_equations(model, setups, (raw.dof_idx, s), &partners);
         crate::judge::heldout_error(choice, model, &eqs, states, layout, opts, horizon)
     };
     let mut best = (judge(&raw.scored), None);
-    for s in &raw.alternatives {
-        let h = judge(s);
+    for a in &raw.alternatives {
+        let h = judge(&a.scored);
         let lower = match (&h, &best.0) {
             (Some(a), Some(b)) => a.mean < b.mean,
             (Some(_), None) => true,
             (None, _) => false,
         };
         if lower {
-            best = (h, Some(s));
+            best = (h, Some(a));
         }
     }
     best
