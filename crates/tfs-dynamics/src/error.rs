@@ -82,5 +82,26 @@ pub enum DynError {
     Model(String),
 }
 
+impl DynError {
+    /// The same error with its times moved by `t0`: a record simulated on its own clock (from 0
+    /// at its first sample) reports times on the record's time column.
+    pub(crate) fn on_clock(self, t0: f64) -> Self {
+        match self {
+            DynError::BlowUp { t, x, v } => DynError::BlowUp { t: t + t0, x, v },
+            DynError::StepSizeUnderflow { t, h } => DynError::StepSizeUnderflow { t: t + t0, h },
+            DynError::TooManySteps {
+                t,
+                t_target,
+                max_steps,
+            } => DynError::TooManySteps {
+                t: t + t0,
+                t_target: t_target + t0,
+                max_steps,
+            },
+            other => other,
+        }
+    }
+}
+
 /// Result alias for this crate.
 pub type Result<T> = std::result::Result<T, DynError>;

@@ -186,7 +186,13 @@ impl SampledInput {
         if s < -tol {
             return Some(self.t0);
         }
-        let k = floor_nonneg(s + tol) + 1.0;
+        let mut k = floor_nonneg(s + tol) + 1.0;
+        // Far from t0 = 0 (a time column of absolute time stamps), `t − t0` loses more digits
+        // than `tol` covers, and the sample found can be `t` itself: the integrator would then
+        // stop there again and again. The next one is strictly later.
+        while k <= (self.len - 1) as f64 && self.t0 + k * self.dt <= t {
+            k += 1.0;
+        }
         if k > (self.len - 1) as f64 {
             return None;
         }
@@ -366,6 +372,20 @@ mod tests {
         assert_eq!(u.next_sample_after(2.9), Some(3.0));
         assert_eq!(u.next_sample_after(3.0), None);
         assert_eq!(SampledInput::zero(2).next_sample_after(0.0), None);
+        // Absolute time stamps: every sample's successor is strictly later, whatever the
+        // rounding of `t − t0` (the solver stopped at the same sample forever before).
+        let t0 = 1.7e9;
+        let dt = 0.01;
+        let u = SampledInput::new(t0, dt, vec![vec![0.0; 2001]]).unwrap();
+        for k in 0..2000 {
+            let t = t0 + k as f64 * dt;
+            let next = u.next_sample_after(t).unwrap();
+            assert!(next > t, "sample {k}: {next} is not after {t}");
+            assert!(
+                next - t < 1.5 * dt,
+                "sample {k}: {next} skips past the next sample"
+            );
+        }
     }
 
     #[test]

@@ -109,13 +109,20 @@ pub fn simulate_model_on_record(
         });
     }
     let dt = record.dt();
-    let t = record.t();
+    // The model is autonomous but for its input, so the record is simulated on its own clock,
+    // from 0 at its first sample: a time column of absolute time stamps (10⁶ s, or a Unix time)
+    // would otherwise cost the integrator's times their last digits, and the same measurement
+    // would simulate differently with its time column shifted. The trajectory keeps the
+    // record's times. (A record that starts at 0 is simulated exactly as before.)
+    let t_abs = record.t();
+    let t_local: Vec<f64> = t_abs.iter().map(|&v| v - t_abs[0]).collect();
+    let t = &t_local[..];
     let mut channels = Vec::with_capacity(compiled.inputs());
     for name in compiled.input_names() {
         let col = record.column(name).ok_or_else(|| missing(name))?;
         channels.push(col.to_vec());
     }
-    let input = SampledInput::new(t[0], dt, channels)?;
+    let input = SampledInput::new(0.0, dt, channels)?;
     let mut x0 = Vec::with_capacity(compiled.dofs());
     let mut v0 = Vec::with_capacity(compiled.dofs());
     for dof in compiled.dof_names() {
@@ -146,10 +153,15 @@ pub fn simulate_model_on_record(
         t,
         x0,
         v0,
-    )?;
-    let mut tr = opts.integrator.integrate(&compiled, &input, &x0, &v0, t)?;
+    )
+    .map_err(|e| e.on_clock(t_abs[0]))?;
+    let mut tr = opts
+        .integrator
+        .integrate(&compiled, &input, &x0, &v0, t)
+        .map_err(|e| e.on_clock(t_abs[0]))?;
     tr.x.truncate(n);
     tr.v.truncate(n);
+    tr.t = t_abs.to_vec();
     Ok(tr)
 }
 

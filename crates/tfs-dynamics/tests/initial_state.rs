@@ -135,3 +135,39 @@ fn a_model_that_blows_up_still_starts_from_a_fitted_state() {
         v0[0]
     );
 }
+
+/// A record is simulated on its own clock: the same samples with the time column shifted by
+/// 10⁶ s (absolute time stamps) give the same motion (to rounding of the shifted times
+/// themselves), at the record's own times, in about the same number of steps.
+#[test]
+fn a_time_column_shifted_by_a_million_seconds_simulates_the_same() {
+    let (_, rec) = record(40.0, 3);
+    let shifted = Record::new(
+        "shifted",
+        rec.t().iter().map(|t| t + 1e6).collect(),
+        vec![
+            ("x".into(), rec.column("x").unwrap().to_vec()),
+            ("u".into(), rec.column("u").unwrap().to_vec()),
+        ],
+    )
+    .unwrap();
+    let opts = SimulateOptions::default();
+    let a = simulate_model_on_record(&duffing(), &rec, &opts).unwrap();
+    let b = simulate_model_on_record(&duffing(), &shifted, &opts).unwrap();
+    assert_eq!(b.t, shifted.t());
+    let scale = a.x[0].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let worst = a.x[0]
+        .iter()
+        .zip(&b.x[0])
+        .fold(0.0f64, |m, (p, q)| m.max((p - q).abs()));
+    assert!(
+        worst <= 1e-6 * scale,
+        "largest difference {worst:e} of {scale:e}"
+    );
+    assert!(
+        b.stats.steps <= 2 * a.stats.steps + 10,
+        "{} steps shifted against {}",
+        b.stats.steps,
+        a.stats.steps
+    );
+}
