@@ -433,8 +433,17 @@ pub fn identify(
     }
     let spec = &plan.spec;
     check_terms_finite(spec, &records)?;
+    let mut restored = Vec::new();
     let mut identified = match (opts.method, tied(opts, plan)?) {
-        (Method::Tfs, false) => identify_tfs(&records, spec)?,
+        (Method::Tfs, false) => {
+            let mut id = identify_tfs(&records, spec)?;
+            // A DOF left without a restoring force gets the library's displacement terms back
+            // when the records simulate better with them (not with a threshold the user fixed).
+            if opts.threshold.is_none() {
+                restored = crate::restore::restore_displacement(&mut id, &records, spec)?;
+            }
+            id
+        }
         (Method::Tfs, true) => {
             let tie = TieOptions::new(parse_masses(&opts.masses, plan.dofs.len())?);
             identify_tfs_tied(&records, spec, &tie)?
@@ -466,6 +475,7 @@ pub fn identify(
     }
     set_offsets(&mut identified.model, &offsets);
     let mut warnings = identified.trace.warnings();
+    warnings.extend(restored);
     warnings.extend(empty_equation_warnings(&identified.model, opts.method)?);
     Ok(Identification {
         model: identified.model,

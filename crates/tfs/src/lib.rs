@@ -33,6 +33,7 @@ pub mod identify;
 pub mod records;
 pub mod refit;
 pub mod report;
+mod restore;
 pub mod sdof;
 pub mod simulate;
 
