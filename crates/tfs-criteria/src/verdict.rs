@@ -21,10 +21,7 @@ fn own_motion(t: &Term, dof: &str) -> bool {
 /// Is term `t` a displacement (restoring-force) term of DOF `dof` (its own displacement, or a
 /// relative coordinate it leads)?
 fn own_displacement(t: &Term, dof: &str) -> bool {
-    t.vars().iter().any(|v| match v {
-        Var::Disp(n) | Var::RelDisp(n, _) => n == dof,
-        _ => false,
-    })
+    t.involves_displacement_of(dof)
 }
 
 /// Is term `t` a displacement term of DOF `dof` on either side of an element: its own

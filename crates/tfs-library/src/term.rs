@@ -409,6 +409,16 @@ impl Term {
             .sum()
     }
 
+    /// True if some factor involves the displacement of `dof`: its own coordinate `x` or a
+    /// relative coordinate `(x-…)` it leads (velocities and inputs do not count). A model whose
+    /// equation of `dof` holds no such term has no restoring force along it.
+    pub fn involves_displacement_of(&self, dof: &str) -> bool {
+        self.vars().iter().any(|v| match v {
+            Var::Disp(n) | Var::RelDisp(n, _) => n == dof,
+            _ => false,
+        })
+    }
+
     /// True if the term depends on the displacement of `dof` alone (constant `1` included):
     /// a restoring (stiffness) term of a single-DOF model.
     pub fn is_position_only(&self, dof: &str) -> bool {
@@ -596,5 +606,19 @@ mod tests {
                 assert_eq!(pow_u(v, k).to_bits(), want.to_bits(), "{v:e}^{k}");
             }
         }
+    }
+
+    /// Own and relative coordinates of the DOF involve its displacement; velocities, inputs
+    /// and another DOF's coordinate do not.
+    #[test]
+    fn involves_displacement_of_reads_the_dofs_coordinates() {
+        let dofs = ["x1".to_string(), "x2".to_string()];
+        let t = |s: &str| super::Term::parse(s, &dofs).unwrap();
+        assert!(t("x1^3").involves_displacement_of("x1"));
+        assert!(t("(x1-x2)^2").involves_displacement_of("x1"));
+        assert!(t("x1*x1'").involves_displacement_of("x1"));
+        assert!(!t("x1'").involves_displacement_of("x1"));
+        assert!(!t("x2^3").involves_displacement_of("x1"));
+        assert!(!t("xb_acc").involves_displacement_of("x1"));
     }
 }
