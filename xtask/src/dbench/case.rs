@@ -103,6 +103,24 @@ pub struct Ranked {
     pub reason: String,
 }
 
+/// Round 1's answer to a single-effect case, against what the held-out record says of the
+/// hidden effect added by name (`refit --add <hidden>`, the oracle): found first; or missed
+/// where the hidden effect predicts the held-out record better than the answer (a miss the
+/// records tell); or missed where it predicts it no better (the answer, or the start model when
+/// nothing was named, is at least as good a model of the record); or missed where its refit
+/// does not simulate the held-out record.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Answer {
+    /// A hidden effect named first.
+    Found,
+    /// Missed; the hidden effect added by name predicts the held-out record better.
+    HiddenBetter,
+    /// Missed; the hidden effect added by name predicts it no better than the answer.
+    NotBetter,
+    /// Missed; the hidden effect added by name does not simulate the held-out record.
+    HiddenFails,
+}
+
 /// The outcome of one case.
 #[derive(Debug, Clone, Serialize)]
 pub struct CaseResult {
@@ -204,6 +222,23 @@ impl CaseResult {
             };
             (h == effect && dof_ok).then_some(i)
         })
+    }
+
+    /// Round 1's answer against the hidden effect added by name, on the held-out record
+    /// ([`Answer`]). Only for single-effect cases that ran.
+    pub fn answer(&self) -> Answer {
+        if self.top1_correct() {
+            return Answer::Found;
+        }
+        let Some(oracle) = self.oracle_after else {
+            return Answer::HiddenFails;
+        };
+        // `after` is the start model's own error when nothing was named; `None` when the
+        // refit with the named effect failed to simulate, which the hidden effect beats.
+        match self.rounds.first().and_then(|r| r.after) {
+            Some(given) if oracle >= given => Answer::NotBetter,
+            _ => Answer::HiddenBetter,
+        }
     }
 
     /// Held-out error factor of round `r` (before / after).

@@ -10,7 +10,7 @@ use tfs::signal::noise::SnrReference;
 
 use super::Args;
 use super::case::Group;
-use super::summary::{BINS, GROUPS, MIN_SHARE, Measure, Summary, cell, floor};
+use super::summary::{Answers, BINS, GROUPS, MIN_SHARE, Measure, Summary, cell, floor};
 use super::truth::Kind;
 use crate::common::{f4, num, pct};
 
@@ -67,6 +67,12 @@ fn csv_line(out: &mut String, fields: &[String]) {
 fn opt(v: Option<f64>) -> String {
     v.filter(|x| x.is_finite())
         .map_or(String::new(), |x| format!("{x:.6e}"))
+}
+
+fn answers_json(a: Answers) -> Value {
+    json!({"cases": a.n, "found": a.found, "missed_hidden_better": a.hidden_better,
+           "missed_not_better": a.not_better, "missed_hidden_fails": a.hidden_fails,
+           "reachable": a.found + a.hidden_better})
 }
 
 fn table(out: &mut String, header: &[&str], rows: &[Vec<String>]) {
@@ -276,6 +282,44 @@ impl Summary<'_> {
         s
     }
 
+    /// The misses sorted by what the held-out record says of the hidden effect added by name,
+    /// and the top-1 a ranking would reach that missed only where that record gives no reason
+    /// to prefer the hidden effect.
+    fn answers_section(&self, s: &mut String, groups: &[(&str, &[Option<f64>])]) {
+        let _ = writeln!(
+            s,
+            "### What the held-out record says of each miss\n\nEach missed case is refitted with its hidden effect added by name (the oracle) and both models predict the held-out record: the hidden effect predicts it better than the answer given (the model with the effect named first, or the start model when nothing was named; an answer that fails to simulate counts as beaten), or no better, or its refit does not simulate it. Only the first kind is a miss the records tell: \"reachable\" is the top-1 of a ranking that missed only the other two, a bound on what choosing among the catalogue by these records can give (one held-out record decides, so it is itself a noisy reading). \"Detectable\" restricts to cases whose unrepresentable part reaches the detection floor.\n"
+        );
+        let rows: Vec<Vec<String>> = groups
+            .iter()
+            .flat_map(|(name, g)| {
+                [false, true].map(|det| {
+                    let a = self.answers(g, det);
+                    vec![
+                        format!("{name}{}", if det { ", detectable" } else { "" }),
+                        cell(a.found, a.n),
+                        a.hidden_better.to_string(),
+                        a.not_better.to_string(),
+                        a.hidden_fails.to_string(),
+                        cell(a.found + a.hidden_better, a.n),
+                    ]
+                })
+            })
+            .collect();
+        table(
+            s,
+            &[
+                "noise",
+                "top-1",
+                "missed: hidden effect predicts better",
+                "missed: no better",
+                "missed: hidden effect does not simulate",
+                "reachable",
+            ],
+            &rows,
+        );
+    }
+
     /// The report's sections on the unrepresentable part: scores binned by it beside the
     /// realised size, the "nothing detectable" reading, and where detection stops per effect.
     fn missing_sections(&self, s: &mut String) {
@@ -362,6 +406,7 @@ impl Summary<'_> {
             ],
             &rows,
         );
+        self.answers_section(s, &groups);
         let _ = writeln!(
             s,
             "### Where detection stops, effect by effect\n\nPer effect (all baselines of the run together) and noise level, the cases sorted by unrepresentable part are split where the split best separates those missed (below) from those found first (above); equally good splits take the highest. The cell gives the smallest part above the split, how many cases are found first above and below it, and (size) the same split made on realised size. \"Not detected\" when the best split leaves every case below: in no range of sizes from some size up are more cases found than missed.\n"
@@ -480,6 +525,14 @@ impl Summary<'_> {
                 pct(floor(g.last().copied().flatten())),
                 cell(d.correct, d.n),
                 cell(d.quiet, d.n_quiet)
+            );
+            let a = self.answers(g, false);
+            let _ = writeln!(
+                s,
+                "  misses the records tell        {} of {} (top-1 reachable {})",
+                a.hidden_better,
+                a.n - a.found,
+                cell(a.found + a.hidden_better, a.n)
             );
             let (pb, pn, pd) = self.pairs(g);
             if pn > 0 {
@@ -665,6 +718,8 @@ impl Summary<'_> {
                                    "undetectable_quiet": det.quiet, "undetectable": det.n_quiet},
                     "top1_correct": c, "top1_cases": n, "top1": num(c as f64 / n.max(1) as f64),
                     "top1_or_tied": self.top1_or_tied(g).0,
+                    "answers": answers_json(self.answers(g, false)),
+                    "answers_detectable": answers_json(self.answers(g, true)),
                     "false_alarms": fa, "controls": nc,
                     "median_drop": num(d), "drop_failed": failed,
                     "pairs_both_found": pb, "pairs": pn, "pairs_median_drop": num(pd),

@@ -166,6 +166,7 @@ mod tests {
         assert_eq!(s0.top1_or_tied(g), s1.top1_or_tied(g));
         assert_eq!(s0.drop(g, None).0, s1.drop(g, None).0);
         assert_eq!(s0.oracle_drop(g, "maxwell"), s1.oracle_drop(g, "maxwell"));
+        assert_eq!(s0.answers(g, false), s1.answers(g, false));
         let (l0, l1) = (
             s0.limit(g, "maxwell", Measure::Unrepresentable),
             s1.limit(g, "maxwell", Measure::Unrepresentable),
