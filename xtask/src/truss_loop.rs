@@ -90,6 +90,23 @@ impl ForceTruth {
         rms(&e) / self.rms
     }
 
+    /// [`error_of`] over the grid's points where `keep` holds, over the RMS of the truth there
+    /// (`None` when it holds nowhere).
+    ///
+    /// [`error_of`]: ForceTruth::error_of
+    pub fn error_where(
+        &self,
+        model: impl Fn(f64) -> f64,
+        keep: impl Fn(f64) -> bool,
+    ) -> Option<f64> {
+        let (mut e, mut t) = (Vec::new(), Vec::new());
+        for (h, f) in self.h.iter().zip(&self.f).filter(|(h, _)| keep(**h)) {
+            e.push(model(*h) - f);
+            t.push(*f);
+        }
+        (!e.is_empty()).then(|| rms(&e) / rms(&t))
+    }
+
     /// The grid as a record with the one column `x` (the heights), for evaluating terms on it.
     fn grid(&self) -> Result<Record> {
         Ok(Record::new(
@@ -173,10 +190,28 @@ pub fn model_force(model: &Model) -> Result<impl Fn(f64) -> f64> {
     Ok(move |h| r.force(h))
 }
 
+/// Whether height `h` lies where none of the model's stops acts (`below(x, c)` acts for
+/// `h < c`, `above(x, c)` for `h > c`).
+fn outside_stops(model: &Model, h: f64) -> bool {
+    model
+        .equations
+        .iter()
+        .flat_map(|e| &e.terms)
+        .flat_map(|t| t.term.factors())
+        .all(|f| match f {
+            Factor::Below(_, c) => h >= *c,
+            Factor::Above(_, c) => h <= *c,
+            _ => true,
+        })
+}
+
 /// One model's scores.
 #[derive(Debug, Clone)]
 struct Score {
     force_error: f64,
+    /// The force error over the heights where none of the model's stops acts (`None` when
+    /// they act everywhere): how much of [`Score::force_error`] is the contact's.
+    force_error_free: Option<f64>,
     /// The basin error, or why `tfs basin` gave none.
     basin_error: std::result::Result<f64, String>,
     /// The model itself (its force is drawn in the figure).
@@ -392,10 +427,17 @@ fn one_run(tfs: &Path, dir: &Path, snr: f64, seed: u64, truth: &ForceTruth) -> R
 /// score keeps what `tfs basin` said.
 fn score(tfs: &Path, dir: &Path, file: &str, truth: &ForceTruth) -> Result<Score> {
     let model = read_model(&dir.join(file))?;
-    let force_error = truth.error_of(model_force(&model)?);
+    let (force_error, force_error_free) = {
+        let force = model_force(&model)?;
+        (
+            truth.error_of(&force),
+            truth.error_where(&force, |h| outside_stops(&model, h)),
+        )
+    };
     let basin_error = basin_error(tfs, dir, file);
     Ok(Score {
         force_error,
+        force_error_free,
         basin_error,
         terms: model.equation_string(),
         stops: stop_terms(&model),
@@ -463,7 +505,9 @@ fn stop_terms(model: &Model) -> Vec<String> {
 
 fn run_json(r: &Run) -> Value {
     let s = |s: &Score| {
-        json!({"force_error": num(s.force_error), "basin_error": s.basin_error.as_ref().map_or(Value::Null, |b| num(*b)),
+        json!({"force_error": num(s.force_error),
+            "force_error_outside_stops": s.force_error_free.map_or(Value::Null, num),
+            "basin_error": s.basin_error.as_ref().map_or(Value::Null, |b| num(*b)),
             "basin_note": s.basin_error.as_ref().err(), "stops": s.stops,
             "model": s.terms})
     };
@@ -493,8 +537,8 @@ fn report(args: &Args, runs: &[Run], floor: f64) -> String {
         pct(bound),
         pct(BASIN_BAR)
     ));
-    s.push_str("At its powers' best: the final model with the coefficients of its displacement powers replaced by their least-squares best against the truss force on the same grid (the stop's force taken out first), its dashpot, input and stop as identified — what the model's own terms could reach, so a miss there is the support's (which powers the records let `identify` keep), not the coefficients'.\n\n");
-    s.push_str("| SNR | seed | start: force, basin | the loop added | end: force | end: basin | within both | at its powers' best: force, basin | time |\n|---|---|---|---|---|---|---|---|---|\n");
+    s.push_str("At its powers' best: the final model with the coefficients of its displacement powers replaced by their least-squares best against the truss force on the same grid (the stop's force taken out first), its dashpot, input and stop as identified — what the model's own terms could reach, so a miss there is the support's (which powers the records let `identify` keep), not the coefficients'. Where no stop acts: the end model's force error over the heights above its `below` stops and under its `above` stops, over the truss force's RMS there — the rest of the miss is the contact's (a stop placed inside the range instead of at its edge).\n\n");
+    s.push_str("| SNR | seed | start: force, basin | the loop added | end: force | end: force where no stop acts | end: basin | within both | at its powers' best: force, basin | time |\n|---|---|---|---|---|---|---|---|---|---|\n");
     for r in runs {
         let ok =
             r.end.force_error <= bound && r.end.basin_error.as_ref().is_ok_and(|b| *b < BASIN_BAR);
@@ -502,7 +546,7 @@ fn report(args: &Args, runs: &[Run], floor: f64) -> String {
             format!("{}, {}", pct(b.force_error), basin(&b.basin_error))
         });
         s.push_str(&format!(
-            "| {} dB | {} | {}, {} | {} | {} | {} | {} | {at_best} | {} s |\n",
+            "| {} dB | {} | {}, {} | {} | {} | {} | {} | {} | {at_best} | {} s |\n",
             r.snr,
             r.seed,
             pct(r.start.force_error),
@@ -515,6 +559,7 @@ fn report(args: &Args, runs: &[Run], floor: f64) -> String {
                 format!("{}: {}", r.added.join(", "), r.end.stops.join("; "))
             },
             pct(r.end.force_error),
+            r.end.force_error_free.map_or("—".to_string(), pct),
             basin(&r.end.basin_error),
             if ok { "yes" } else { "no" },
             f4(r.seconds)
@@ -660,6 +705,20 @@ mod tests {
 
     /// A model's force is `−x''` at rest: the dashpot and the input do not enter it, a stop
     /// does where it engages.
+    #[test]
+    fn the_error_where_no_stop_acts_leaves_the_contact_out() {
+        // The model's polynomial is the truth; its stop below(x, 0.1) adds force only under
+        // h = 0.1, where the truth has none: the whole-grid error is the contact's alone.
+        let truth = ForceTruth::new(curve(0.0, 1.8, 901, |h| 2.0 * h - h.powi(3)));
+        let m = cell_model(-2.0, 1.0);
+        let f = model_force(&m).unwrap();
+        assert!(truth.error_of(&f) > 0.05, "{}", truth.error_of(&f));
+        let free = truth.error_where(&f, |h| outside_stops(&m, h)).unwrap();
+        assert!(free < 1e-12, "{free}");
+        assert!(outside_stops(&m, 0.1) && !outside_stops(&m, 0.0999));
+        assert_eq!(truth.error_where(&f, |_| false), None);
+    }
+
     #[test]
     fn model_force_is_the_restoring_part() {
         let m = cell_model(-2.0, 1.0);
