@@ -81,13 +81,7 @@ impl ForceTruth {
 
     /// RMS of `model − truth` over the grid, over the RMS of the truth.
     pub fn error_of(&self, model: impl Fn(f64) -> f64) -> f64 {
-        let e: Vec<f64> = self
-            .h
-            .iter()
-            .zip(&self.f)
-            .map(|(h, f)| model(*h) - f)
-            .collect();
-        rms(&e) / self.rms
+        self.error_where(model, |_| true).unwrap_or(f64::NAN)
     }
 
     /// [`error_of`] over the grid's points where `keep` holds, over the RMS of the truth there

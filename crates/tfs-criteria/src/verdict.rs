@@ -18,12 +18,6 @@ fn own_motion(t: &Term, dof: &str) -> bool {
     })
 }
 
-/// Is term `t` a displacement (restoring-force) term of DOF `dof` (its own displacement, or a
-/// relative coordinate it leads)?
-fn own_displacement(t: &Term, dof: &str) -> bool {
-    t.involves_displacement_of(dof)
-}
-
 /// Is term `t` a displacement term of DOF `dof` on either side of an element: its own
 /// displacement, or a relative coordinate it takes part in (the tied fit's reading, where an
 /// element's law is shared by the two DOFs it connects).
@@ -70,8 +64,9 @@ pub(crate) fn support_verdict(v: &SupportInput<'_>, c1: &mut Criterion1) {
     let term = |col: usize| &lib.terms()[col];
     let own_supported =
         (0..keep.len()).any(|j| support[j] && own_motion(term(keep[j]), dof) && significant(j));
-    let offers_disp = keep.iter().any(|&c| own_displacement(term(c), dof));
-    let keeps_disp = (0..keep.len()).any(|j| support[j] && own_displacement(term(keep[j]), dof));
+    let offers_disp = keep.iter().any(|&c| term(c).involves_displacement_of(dof));
+    let keeps_disp =
+        (0..keep.len()).any(|j| support[j] && term(keep[j]).involves_displacement_of(dof));
     let problem = if !support.iter().any(|&s| s) {
         Some(Problem::NoTermSurvives)
     } else if offers_disp && !keeps_disp {
