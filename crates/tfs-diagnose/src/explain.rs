@@ -18,14 +18,15 @@
 //! combined p-value is Bonferroni-corrected over every variant of every effect tested. An effect is significant when the corrected p-value is below
 //! `alpha`, the held-out error falls, and its size (RMS change of the fitted force over the RMS of
 //! `x''`) is at least `min_share` — or, below it, the judge finds that the refitted model predicts
-//! the held-out data better by at least `min_share` of the motion's RMS (its size on the motion:
-//! `judge::predicts_better_by`) — and the judge of held-out predictions does not
-//! find that it predicts worse by more than the judge resolves, and its held-out drop lies beyond
-//! what the same scan finds on the start model's own simulated records (`null.rs`: the
-//! equation error's bias with nothing missing). Significant effects are ordered
-//! by the free-run R-MSE where the free run judges and shows skill (below 1), otherwise by the
-//! held-out equation error; the rest by held-out simulation R-MSE, then equation error. A
-//! significant effect that the ordering's own evidence does not tell from the top one (paired
+//! the held-out data better by at least `min_share` of the motion's RMS (its size on the motion),
+//! or with at most half the RMS prediction error of the model without it (most of what a model
+//! already that close misses: `judge::predicts_better_by`) — and the judge of held-out
+//! predictions does not find that it predicts worse by more than the judge resolves, and its
+//! held-out drop lies beyond what the same scan finds on the start model's own simulated
+//! records (`null.rs`: the equation error's bias with nothing missing). Significant effects are
+//! ordered by the free-run R-MSE where the free run judges and shows skill (below 1), otherwise
+//! by the held-out equation error; the rest by held-out simulation R-MSE, then equation error.
+//! A significant effect that the ordering's own evidence does not tell from the top one (paired
 //! block test of their held-out equation errors, and no free run with skill between them) is
 //! reported as tied with it: the records cannot say which of the two is missing.
 
@@ -628,7 +629,7 @@ fn judge_with(
         }
         // Too small on the force, large on the motion: it passes the block tests, and the
         // refitted model predicts the held-out data better by at least `min_share` of the
-        // motion's RMS.
+        // motion's RMS, or with at most half the RMS prediction error of the model without it.
         if !r.significant
             && r.p_value < opts.alpha
             && r.delta_heldout > 0.0
@@ -643,13 +644,20 @@ fn judge_with(
             )
         {
             r.significant = true;
+            let how = if drop >= opts.min_share {
+                format!("by {:.1} % of the motion's RMS", 100.0 * drop)
+            } else {
+                format!(
+                    "with {:.1} % of the RMS prediction error of the model without it, most of what that model misses",
+                    100.0 * (after.mean / before.mean).sqrt()
+                )
+            };
             r.reason = format!(
-                "held-out equation error falls {:.1} %, p = {:.2e}; size {:.2} % of the force RMS, under {:.1} %, but the refitted model predicts the held-out data better by {:.1} % of the motion's RMS ({} R-MSE {:.3e} vs {:.3e})",
+                "held-out equation error falls {:.1} %, p = {:.2e}; size {:.2} % of the force RMS, under {:.1} %, but the refitted model predicts the held-out data better {how} ({} R-MSE {:.3e} vs {:.3e})",
                 100.0 * r.delta_heldout,
                 r.p_value,
                 100.0 * r.share,
                 100.0 * opts.min_share,
-                100.0 * drop,
                 judge.describe(),
                 after.mean,
                 before.mean

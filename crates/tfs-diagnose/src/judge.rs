@@ -597,15 +597,21 @@ pub(crate) fn predicts_worse(
     }
 }
 
+/// The share of the model's RMS prediction error a candidate must take away to count as most of
+/// what the model misses ([`predicts_better_by`]): its refitted model's error at most half the
+/// model's own.
+pub(crate) const MOST_OF_THE_ERROR: f64 = 0.5;
+
 /// How much better the model scored `after` predicts the held-out data than the one scored
 /// `before`, as a share of the motion's RMS (the drop of `√R-MSE`: RMS prediction error over the
-/// displacement's standard deviation), when that drop is at least `min_share` and more than
-/// `judge` can resolve (`None` otherwise): an
-/// effect's size on the motion, as `min_share` is its size on the force. A stiff stop touched
-/// for a few samples, or a term the start library nearly holds, moves the fitted force little
-/// and the motion much. Free run: `after` shows skill and its mean R-MSE is lower by more than
-/// `resolution`. Short horizon: the paired one-sided tests over the pieces put the drop below
-/// `alpha`. The equation error judges nothing here (`None`).
+/// displacement's standard deviation), when the drop is more than `judge` can resolve and either
+/// at least `min_share` — an effect's size on the motion, as `min_share` is its size on the
+/// force — or at least [`MOST_OF_THE_ERROR`] of `before`'s own RMS prediction error: most of
+/// what a model already within `min_share` of the motion misses (`None` otherwise). A stiff
+/// stop touched for a few samples, or a term the start library nearly holds, moves the fitted
+/// force little and the motion much. Free run: `after` shows skill and its mean R-MSE is lower
+/// by more than `resolution`. Short horizon: the paired one-sided tests over the pieces put the
+/// drop below `alpha`. The equation error judges nothing here (`None`).
 pub(crate) fn predicts_better_by(
     judge: Judge,
     before: &Heldout,
@@ -623,7 +629,8 @@ pub(crate) fn predicts_better_by(
         }
         Judge::EquationError => false,
     };
-    (resolved && drop.is_finite() && drop >= min_share).then_some(drop)
+    let most = drop >= MOST_OF_THE_ERROR * before.mean.sqrt();
+    (resolved && drop.is_finite() && (drop >= min_share || most)).then_some(drop)
 }
 
 /// A ranked effect with its analysis and its held-out prediction score.

@@ -68,9 +68,10 @@ fn short_horizon_vetoes_only_a_worsening_the_pieces_bear_out() {
 }
 
 /// An effect is large on the motion when its model's RMS prediction error is lower by at least
-/// `min_share` of the motion's RMS, beyond what the judge resolves.
+/// `min_share` of the motion's RMS, or by at least half of the error itself, beyond what the
+/// judge resolves.
 #[test]
-fn a_small_force_is_large_on_the_motion_only_when_the_prediction_falls_by_min_share() {
+fn a_small_force_counts_when_the_prediction_falls_by_min_share_or_by_half() {
     let score = |mean: f64| Heldout {
         mean,
         parts: vec![mean],
@@ -97,6 +98,11 @@ fn a_small_force_is_large_on_the_motion_only_when_the_prediction_falls_by_min_sh
         0.02,
     );
     assert!((drop.unwrap() - (0.0468f64.sqrt() - 0.00685f64.sqrt())).abs() < 1e-15);
+    // Under `min_share`, a drop to at most half the RMS prediction error is most of what a
+    // close model misses: √1e-4 − √1e-6 = 0.009 counts, √1e-4 − √0.5e-4 = 0.0029 does not.
+    assert!(better(Judge::FreeRun, 1e-4, 1e-6, 0.0));
+    assert!(!better(Judge::FreeRun, 1e-4, 0.5e-4, 0.0));
+    assert!(!better(Judge::FreeRun, 1e-4, 1e-6, 2e-4));
     // Short horizon: the pieces must bear the drop out, and it must be large enough.
     let short = |(b, a): &(Heldout, Heldout), min_share| {
         predicts_better_by(Judge::ShortHorizon, b, a, 0.0, 0.01, min_share).is_some()
