@@ -4,7 +4,7 @@
 mod common;
 
 use common::*;
-use tfs_diagnose::{Catalogue, DiagnoseOptions, add_effect, explain, r_mse, refit};
+use tfs_diagnose::{Catalogue, DiagnoseOptions, Explanation, add_effect, explain, r_mse, refit};
 
 /// Runs the loop; returns the improvement factor on the held-out record.
 fn run_case(
@@ -255,6 +255,32 @@ fn duffing_end_stop() {
     );
 }
 
+/// The diagnosis of `x, x^3, x', xb_acc` fitted to a Duffing oscillator whose restoring force
+/// also has a quintic spring `quintic` times the linear one, on three base-excitation sweeps
+/// (40 dB noise when `noisy`, else noise-free).
+fn diagnose_quintic(quintic: f64, noisy: bool) -> Explanation {
+    let k = 4.0 * std::f64::consts::PI.powi(2);
+    let opts = DiagnoseOptions::default();
+    let truth = Truth {
+        restoring: vec![(1, -k), (3, -k), (5, -quintic * k)],
+        damping: 0.63,
+        hidden: vec![],
+        x0: 0.0,
+    };
+    let train: Vec<_> = (0..3)
+        .map(|i| {
+            let (name, amp) = (format!("train{i}"), 4.0 * (0.8 + 0.2 * i as f64));
+            if noisy {
+                record(&truth, &name, 0.3, 3.0, amp, 30.0, 0.01, 10 + i)
+            } else {
+                clean_named(&truth, &name, 0.3, 3.0, amp, 30.0, 0.01).0
+            }
+        })
+        .collect();
+    let start = refit(&structure("x, x^3, x', xb_acc"), &train, &opts).unwrap();
+    explain(&start, &train, &Catalogue::standard(7), &opts).unwrap()
+}
+
 /// A term the start library nearly holds: a quintic spring half the linear one on a Duffing
 /// oscillator that moves to |x| ≈ 0.5, so the force the refit cannot hold with `x` and `x^3` is
 /// under 1 % of the force RMS, under the diagnosis's minimum size, while the motion it changes
@@ -262,33 +288,8 @@ fn duffing_end_stop() {
 /// by its size on the motion; the same oscillator without it gets no effect.
 #[test]
 fn a_term_small_on_the_force_and_large_on_the_motion_is_reported() {
-    let k = 4.0 * std::f64::consts::PI.powi(2);
     let opts = DiagnoseOptions::default();
-    let diagnose = |quintic: f64| {
-        let truth = Truth {
-            restoring: vec![(1, -k), (3, -k), (5, -quintic * k)],
-            damping: 0.63,
-            hidden: vec![],
-            x0: 0.0,
-        };
-        let train: Vec<_> = (0..3)
-            .map(|i| {
-                let amp = 4.0 * (0.8 + 0.2 * i as f64);
-                record(
-                    &truth,
-                    &format!("train{i}"),
-                    0.3,
-                    3.0,
-                    amp,
-                    30.0,
-                    0.01,
-                    10 + i,
-                )
-            })
-            .collect();
-        let start = refit(&structure("x, x^3, x', xb_acc"), &train, &opts).unwrap();
-        explain(&start, &train, &Catalogue::standard(7), &opts).unwrap()
-    };
+    let diagnose = |quintic: f64| diagnose_quintic(quintic, true);
     let ex = diagnose(0.5);
     let top = &ex.ranked[0];
     assert_eq!(top.name, "stiffness-x^5", "{}", ex.verdict);
@@ -319,24 +320,8 @@ fn a_term_small_on_the_force_and_large_on_the_motion_is_reported() {
 /// misses, so it is reported. The same oscillator without it gets no effect.
 #[test]
 fn most_of_a_close_models_error_is_reported() {
-    let k = 4.0 * std::f64::consts::PI.powi(2);
     let opts = DiagnoseOptions::default();
-    let diagnose = |quintic: f64| {
-        let truth = Truth {
-            restoring: vec![(1, -k), (3, -k), (5, -quintic * k)],
-            damping: 0.63,
-            hidden: vec![],
-            x0: 0.0,
-        };
-        let train: Vec<_> = (0..3)
-            .map(|i| {
-                let amp = 4.0 * (0.8 + 0.2 * i as f64);
-                clean_named(&truth, &format!("train{i}"), 0.3, 3.0, amp, 30.0, 0.01).0
-            })
-            .collect();
-        let start = refit(&structure("x, x^3, x', xb_acc"), &train, &opts).unwrap();
-        explain(&start, &train, &Catalogue::standard(7), &opts).unwrap()
-    };
+    let diagnose = |quintic: f64| diagnose_quintic(quintic, false);
     let ex = diagnose(0.1);
     let top = &ex.ranked[0];
     assert_eq!(top.name, "stiffness-x^5", "{}", ex.verdict);
