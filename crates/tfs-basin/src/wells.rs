@@ -1,9 +1,12 @@
 //! Equilibria, wells and barriers of a one-degree-of-freedom restoring force.
 //!
 //! Convention: the unforced dynamics are `m x'' = −f(x) − (damping)`, with the restoring force
-//! `f = V'`. A root of `f` where `f` changes sign from − to + is stable, from + to − unstable.
-//! Roots where `f` touches zero without changing sign are found only on scan points and are
-//! then treated as unstable (a conservative, lower wall).
+//! `f = V'`. A root of `f` where `f` changes sign from − to + is stable (a minimum of `V`), from
+//! + to − unstable (a maximum of `V`: a wall between wells). A root where `f` touches zero
+//! without changing sign (found only on scan points, such as `x = 0` of a polynomial whose lowest
+//! power is even) is an inflection of `V`: neither a well's bottom nor a wall. It lies inside a
+//! well, whose walls are the maxima on either side; a start that creeps towards it from above
+//! can never leave that well and is labelled with its state.
 //!
 //! The roots come from `tfs_dynamics::equilibria` (sign scan on 20 000 intervals, then Brent).
 
@@ -108,7 +111,11 @@ impl WellInfo {
         check_antiderivative(&*force, &*potential, search)?;
         let eq = tfs_dynamics::equilibria(&*force, lo, hi, SCAN_SAMPLES)?;
         let stable: Vec<f64> = eq.iter().filter(|e| e.stable).map(|e| e.x).collect();
-        let unstable: Vec<f64> = eq.iter().filter(|e| !e.stable).map(|e| e.x).collect();
+        let unstable: Vec<f64> = eq
+            .iter()
+            .filter(|e| !e.stable && is_wall(&*force, e.x, (hi - lo) / SCAN_SAMPLES as f64))
+            .map(|e| e.x)
+            .collect();
         if stable.is_empty() {
             return Err(BasinError::NoStableEquilibrium { lo, hi });
         }
@@ -135,7 +142,8 @@ impl WellInfo {
     pub fn stable(&self) -> &[f64] {
         &self.stable
     }
-    /// Unstable equilibria, ascending.
+    /// Unstable equilibria that are maxima of the potential (the walls between wells),
+    /// ascending. A root where the force touches zero without changing sign is in neither list.
     pub fn unstable(&self) -> &[f64] {
         &self.unstable
     }
@@ -304,6 +312,15 @@ fn check_antiderivative(
         }
     }
     Ok(())
+}
+
+/// True when the root `x` of `force` is a maximum of the potential: the force is positive just
+/// left of it and negative just right (at a thousandth of the scan `step`, as the scan itself
+/// classifies roots on its points). A root where the force keeps its sign is an inflection of
+/// the potential, which no trajectory is held back by.
+fn is_wall(force: &dyn Fn(f64) -> f64, x: f64, step: f64) -> bool {
+    let delta = 1e-3 * step;
+    force(x - delta) > 0.0 && force(x + delta) < 0.0
 }
 
 fn build_wells(

@@ -79,6 +79,34 @@ fn a_wall_moved_out_stops_at_an_equilibrium_beyond_the_range() {
     assert_eq!(w.trapped(-1.05, 0.0), None);
 }
 
+/// A root where the force touches zero without changing sign is an inflection of the potential,
+/// not a wall. `f = x²(x + 0.5)(x − 1)(x − 2)` on [−1, 3]: wells at −0.5 and 2, a maximum at 1,
+/// and at 0 (a scan point) `f ≈ x²` keeps its sign. A start at (0.5, 0) slides down and creeps
+/// towards 0; its energy is below V(1), so it can never leave the −0.5 well. With 0 taken as a
+/// wall it sat in no well and stayed "unsettled" (as a stop just below the fold of a Kresling
+/// cell model whose lowest power is x^4 did, which put 68 % of a correct map in error).
+#[test]
+fn a_touching_root_is_inside_a_well_not_a_wall() {
+    let m = Polynomial1Dof::new(1.0, vec![0.0, 0.0, 1.0, 0.5, -2.5, 1.0]).unwrap();
+    let eq = tfs_dynamics::equilibria(|x| m.force(x), -1.0, 3.0, 20_000).unwrap();
+    assert!(
+        eq.iter().any(|e| e.x == 0.0 && !e.stable),
+        "the scan finds the touching root: {eq:?}"
+    );
+    let w = WellInfo::from_polynomial(&m, (-1.0, 3.0)).unwrap();
+    assert_eq!(w.stable().len(), 2);
+    assert!((w.stable()[0] + 0.5).abs() < 1e-12 && (w.stable()[1] - 2.0).abs() < 1e-12);
+    assert_eq!(w.unstable().len(), 1, "{:?}", w.unstable());
+    assert!((w.unstable()[0] - 1.0).abs() < 1e-12);
+    assert_eq!(w.wells()[0].hi, w.unstable()[0]);
+    assert_eq!(w.well_of(0.5), Some(0));
+    // 20 points each way: no start sits on the maximum at (1, 0), which stays there.
+    let cfg = BasinConfig::new(20, 20, (-1.0, 1.5), (-1.0, 1.0));
+    assert_eq!(classify_sdof(&m, &w, 0.5, 0.0, &cfg), Label::State(0));
+    let map = basin_sdof(&m, &w, &cfg, None).unwrap();
+    assert_eq!(map.unsettled_count, 0);
+}
+
 /// Independent reference: a plain scalar RK4 loop (written here, not the library's), run to a
 /// long horizon; label by the side of the saddle, and require energy below the barrier.
 fn reference_label(x0: f64, v0: f64, dt: f64, t: f64, u: f64, barrier: f64) -> Label {
