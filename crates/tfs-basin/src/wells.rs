@@ -1,8 +1,8 @@
 //! Equilibria, wells and barriers of a one-degree-of-freedom restoring force.
 //!
 //! Convention: the unforced dynamics are `m x'' = −f(x) − (damping)`, with the restoring force
-//! `f = V'`. A root of `f` where `f` changes sign from − to + is stable (a minimum of `V`), from
-//! + to − unstable (a maximum of `V`: a wall between wells). A root where `f` touches zero
+//! `f = V'`. A root of `f` where `f` changes sign from negative to positive is stable (a minimum
+//! of `V`), from positive to negative unstable (a maximum of `V`: a wall between wells). A root where `f` touches zero
 //! without changing sign (found only on scan points, such as `x = 0` of a polynomial whose lowest
 //! power is even) is an inflection of `V`: neither a well's bottom nor a wall. It lies inside a
 //! well, whose walls are the maxima on either side; a start that creeps towards it from above
