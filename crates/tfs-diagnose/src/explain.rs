@@ -23,7 +23,9 @@
 //! already that close misses: `judge::predicts_better_by`) — and the judge of held-out
 //! predictions does not find that it predicts worse by more than the judge resolves, and its
 //! held-out drop lies beyond what the same scan finds on the start model's own simulated
-//! records (`null.rs`: the equation error's bias with nothing missing). Significant effects are
+//! records (`null.rs`: the equation error's bias with nothing missing) — unless the judge
+//! resolves that its refitted model removes most of the held-out prediction error, which that
+//! bias cannot give. Significant effects are
 //! ordered by the free-run R-MSE where the free run judges and shows skill (below 1), otherwise
 //! by the held-out equation error; the rest by held-out simulation R-MSE, then equation error.
 //! A significant effect that the ordering's own evidence does not tell from the top one (paired
@@ -593,6 +595,18 @@ fn judge_with(
         let before = &before[raw.dof_idx];
         r.r_mse_before = before.as_ref().map(|h| h.mean);
         r.r_mse_after = c.heldout.as_ref().map(|h| h.mean);
+        c.removes_most = match (before, &c.heldout) {
+            (Some(b), Some(a)) => crate::judge::predicts_better_by(
+                judge,
+                b,
+                a,
+                choice.resolution,
+                opts.alpha,
+                f64::INFINITY,
+            )
+            .is_some(),
+            _ => false,
+        };
         // An effect whose refitted model predicts the held-out data worse than the model
         // without it is not a discovered effect, however well it fits the equation error
         // (a flexible term can soak up the residual of a slightly mis-sized true effect).
@@ -748,6 +762,7 @@ pub(crate) fn explain_with_runs(
             entry: entry(model, &raw, tests, opts),
             raw,
             heldout: None,
+            removes_most: false,
         })
         .collect();
     let judges = if opts.simulate {

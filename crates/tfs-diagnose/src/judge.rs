@@ -641,6 +641,10 @@ pub(crate) struct Candidate {
     pub raw: Raw,
     /// The held-out prediction score by the judge.
     pub heldout: Option<Heldout>,
+    /// The judge resolves that the refitted model removes most of the model's own held-out
+    /// prediction error ([`predicts_better_by`] at [`MOST_OF_THE_ERROR`]): evidence the
+    /// equation error's bias cannot give, so the calibrated null does not re-judge it.
+    pub removes_most: bool,
 }
 
 /// Orders the candidates: significant first. Among the significant, with the free run as judge,
