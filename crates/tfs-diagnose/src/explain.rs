@@ -595,18 +595,11 @@ fn judge_with(
         let before = &before[raw.dof_idx];
         r.r_mse_before = before.as_ref().map(|h| h.mean);
         r.r_mse_after = c.heldout.as_ref().map(|h| h.mean);
-        c.removes_most = match (before, &c.heldout) {
-            (Some(b), Some(a)) => crate::judge::predicts_better_by(
-                judge,
-                b,
-                a,
-                choice.resolution,
-                opts.alpha,
-                f64::INFINITY,
-            )
-            .is_some(),
-            _ => false,
-        };
+        // Most of the error, whatever the drop's share of the motion (`min_share` never met).
+        c.removes_most = before.as_ref().zip(c.heldout.as_ref()).is_some_and(|(b, a)| {
+            crate::judge::predicts_better_by(judge, b, a, choice.resolution, opts.alpha, f64::INFINITY)
+                .is_some()
+        });
         // An effect whose refitted model predicts the held-out data worse than the model
         // without it is not a discovered effect, however well it fits the equation error
         // (a flexible term can soak up the residual of a slightly mis-sized true effect).
