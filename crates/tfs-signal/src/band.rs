@@ -3,8 +3,9 @@
 //! the noise such a reconstruction carries.
 
 use crate::Complex;
+use crate::ends::{EndTrend, end_slopes};
 use crate::fft::{Work, fast_even_len, inverse_with, plan_forward, plan_inverse, with_work};
-use crate::floor::{NoiseFloor, choose_cutoff};
+use crate::floor::{NoiseFloor, choose_cutoff, cutoff_cost};
 
 /// The band chosen for one signal's reconstruction.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -230,39 +231,69 @@ pub fn reconstruct_guarded(
     guard_octaves: f64,
 ) -> Smoothed {
     let n = x.len();
-    let (spec, nn) = mirror_spectrum(x);
-    let df = 1.0 / (nn as f64 * dt);
-    let power: Vec<f64> = spec.iter().map(|c| c.norm_sqr()).collect();
-    let floor_model = NoiseFloor::fit(&power);
-    // The fitted floor at bin k; the noise let in by bins is its sum over them (for a coloured
-    // floor the level at one bin times the bin count would misstate it).
-    let floor_at = |k: usize| floor_model.at(k);
+    let plain = Spectrum::of(x, cutoff_hz, dt);
+    let total: f64 = plain
+        .power
+        .iter()
+        .skip(1)
+        .sum::<f64>()
+        .max(f64::MIN_POSITIVE);
+    // The record's end slopes carried by a smooth trend (see `crate::ends`), each from a
+    // quadratic through the samples at that end. The end window trades the slope's noise (short
+    // windows) against its curvature bias (long ones): windows from a quarter of the shortest
+    // period the record's own band keeps, doubling, are tried while the estimated reconstruction
+    // error keeps falling, and the trend is used only when its remainder reconstructs with a
+    // lower estimated error than the record itself.
+    let mut chosen: Option<(EndTrend, Spectrum)> = None;
+    let mut best_cost = plain.cost;
+    let mut m = (plain.nn / (4 * plain.kc.max(1))).max(4);
+    let mut worse = 0;
+    while m <= (n / 4).max(4) && worse < 2 {
+        let (s0, s1) = end_slopes(x, dt, m);
+        let trend = EndTrend::new(s0, s1, n, dt);
+        let spec = Spectrum::of(&trend.remove(x, dt), cutoff_hz, dt);
+        if spec.cost < best_cost {
+            best_cost = spec.cost;
+            chosen = Some((trend, spec));
+            worse = 0;
+        } else {
+            worse += 1;
+        }
+        m *= 2;
+    }
+    let (trend, sp) = match chosen {
+        Some((t, s)) => (Some(t), s),
+        None => (None, plain),
+    };
+    let df = 1.0 / (sp.nn as f64 * dt);
+    let floor_at = |k: usize| sp.floor_model.at(k);
     let floor_sum = |ks: std::ops::RangeInclusive<usize>| {
         let s: f64 = ks.map(floor_at).sum();
         if s.is_finite() { s } else { 0.0 }
     };
-    let (kc, floor, noise_sum) = match cutoff_hz {
-        Some(f) => {
-            let (_, floor, _) = choose_cutoff(&power, 0);
-            let kc = ((f / df).round() as usize).min(spec.len() - 1);
-            (kc, floor, floor_sum(1..=kc))
-        }
-        None => choose_cutoff(&power, 1),
-    };
+    let (kc, floor, noise_sum) = (sp.kc, sp.floor, sp.noise_sum);
     let mse_cutoff_hz = kc as f64 * df;
+    let last = sp.spec.len() - 1;
     let (kc, floor, noise_sum) = if cutoff_hz.is_none() && guard_octaves > 0.0 {
-        let k2 = ((kc as f64 * guard_octaves.exp2()).round() as usize).clamp(kc, spec.len() - 1);
+        let k2 = ((kc as f64 * guard_octaves.exp2()).round() as usize).clamp(kc, last);
         let at_k2 = floor_at(k2);
         let floor = if at_k2.is_finite() { at_k2 } else { floor };
         (k2, floor, noise_sum + floor_sum(kc + 1..=k2))
     } else {
         (kc, floor, noise_sum)
     };
-    let total: f64 = power.iter().skip(1).sum::<f64>().max(f64::MIN_POSITIVE);
     let share = (noise_sum / total).min(1.0);
     // Parseval on the 2N-point extension: variance = 2·Σ_{1≤k≤kc} N̂_k / (2N)².
-    let noise_var = 2.0 * noise_sum / (nn as f64 * nn as f64);
-    let [xs, v, a] = inverse_at(&spec[..=kc], df, nn, (n, 1), true);
+    let noise_var = 2.0 * noise_sum / (sp.nn as f64 * sp.nn as f64);
+    let [mut xs, mut v, mut a] = inverse_at(&sp.spec[..=kc], df, sp.nn, (n, 1), true);
+    if let Some(tr) = trend {
+        for i in 0..n {
+            let (h, h1, h2) = tr.at(i as f64 * dt);
+            xs[i] += h;
+            v[i] += h1;
+            a[i] += h2;
+        }
+    }
     Smoothed {
         x: xs,
         v,
@@ -273,12 +304,62 @@ pub fn reconstruct_guarded(
             noise_floor: floor,
             in_band_noise_share: share,
             noise_var,
-            floor_log_a: floor_model.log_a,
-            floor_beta: floor_model.beta,
+            floor_log_a: sp.floor_model.log_a,
+            floor_beta: sp.floor_model.beta,
             bin_hz: df,
-            mirror_len: nn,
-            floor_is_signal_tail: floor_model.is_signal_tail(),
+            mirror_len: sp.nn,
+            floor_is_signal_tail: sp.floor_model.is_signal_tail(),
         },
+    }
+}
+
+/// One signal's mirror spectrum with its noise floor and the cut-off chosen on it (or given).
+struct Spectrum {
+    /// Bins 0..=M/2 of the mirror extension.
+    spec: Vec<Complex<f64>>,
+    /// Their power.
+    power: Vec<f64>,
+    /// The extension's length M.
+    nn: usize,
+    /// The fitted noise floor.
+    floor_model: NoiseFloor,
+    /// The cut-off bin (before any guard band).
+    kc: usize,
+    /// The floor at the cut-off.
+    floor: f64,
+    /// The floor summed over bins 1..=kc.
+    noise_sum: f64,
+    /// The estimated reconstruction error at that cut-off ([`cutoff_cost`]).
+    cost: f64,
+}
+
+impl Spectrum {
+    /// The spectrum of `x` (sampled at `dt`) cut by [`choose_cutoff`], or at `cutoff_hz`.
+    fn of(x: &[f64], cutoff_hz: Option<f64>, dt: f64) -> Self {
+        let (spec, nn) = mirror_spectrum(x);
+        let df = 1.0 / (nn as f64 * dt);
+        let power: Vec<f64> = spec.iter().map(|c| c.norm_sqr()).collect();
+        let floor_model = NoiseFloor::fit(&power);
+        let (kc, floor, noise_sum) = match cutoff_hz {
+            Some(f) => {
+                let (_, floor, _) = choose_cutoff(&power, 0);
+                let kc = ((f / df).round() as usize).min(spec.len() - 1);
+                let s: f64 = (1..=kc).map(|k| floor_model.at(k)).sum();
+                (kc, floor, if s.is_finite() { s } else { 0.0 })
+            }
+            None => choose_cutoff(&power, 1),
+        };
+        let cost = cutoff_cost(&power, &floor_model, kc);
+        Self {
+            spec,
+            power,
+            nn,
+            floor_model,
+            kc,
+            floor,
+            noise_sum,
+            cost,
+        }
     }
 }
 

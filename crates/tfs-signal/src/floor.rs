@@ -209,6 +209,21 @@ impl NoiseFloor {
     }
 }
 
+/// The estimated reconstruction error of cutting the power spectrum `p` (bins 0..=K) at bin
+/// `kc` under the floor `floor`: the noise let in below the cut plus the signal thrown away
+/// above it, `Σ_{1≤k≤kc} N̂_k + Σ_{k>kc} (P_k − N̂_k)_+` — the quantity [`choose_cutoff`]
+/// minimises, so that two spectra of the same record (say, with and without a trend removed)
+/// can be compared at their own best cut-offs.
+pub fn cutoff_cost(p: &[f64], floor: &NoiseFloor, kc: usize) -> f64 {
+    let kc = kc.min(p.len().saturating_sub(1));
+    let head: f64 = (1..=kc).map(|k| floor.at(k)).sum();
+    let tail: f64 = (kc + 1..p.len())
+        .map(|k| (p[k] - floor.at(k)).max(0.0))
+        .sum();
+    let c = head + tail;
+    if c.is_finite() { c } else { f64::INFINITY }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

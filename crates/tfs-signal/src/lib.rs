@@ -52,6 +52,7 @@
 
 pub mod band;
 pub mod diff;
+pub mod ends;
 pub mod excitation;
 pub mod fft;
 pub mod floor;
