@@ -182,9 +182,9 @@ pub fn resolve_offsets(requested: Offsets, inputs: &[String]) -> (Offsets, Strin
         )
     } else {
         (
-            Offsets::Remove,
+            Offsets::ConstantTerm,
             format!(
-                "auto: force-like input(s) [{}] (a rig in raw units): each record's mean removed from every DOF and input channel",
+                "auto: force-like input(s) [{}]: records used as they are, with a constant term in the library that takes up a constant force or sensor offset (selected only when the records need it; the mean of a short or transient record is motion, not offset)",
                 inputs.join(", ")
             ),
         )
@@ -424,6 +424,13 @@ pub fn identify(
     opts: &IdentifyOptions,
     plan: &Plan,
 ) -> Result<Identification> {
+    let decided;
+    let plan = if opts.offsets == Offsets::Auto && plan.mode == Offsets::ConstantTerm {
+        decided = choose_force_offsets(&records, opts, plan)?;
+        &decided
+    } else {
+        plan
+    };
     let data_mode = plan.data_mode();
     let mut offsets = apply_offsets(&mut records, &plan.channels, data_mode, &plan.why)?;
     offsets.requested = Some(opts.offsets);
@@ -484,6 +491,43 @@ pub fn identify(
         refine,
         warnings,
     })
+}
+
+/// `--offsets auto` with force-like inputs: the treatment of the channel offsets whose full-library
+/// least squares explains the records' accelerations better (see [`crate::offsets_choice`]):
+/// `plan` (the constant term) or the plan with each record's means removed. The plan returned
+/// says why.
+fn choose_force_offsets(records: &[Record], opts: &IdentifyOptions, plan: &Plan) -> Result<Plan> {
+    let Some(first) = records.first() else {
+        return Ok(plan.clone());
+    };
+    let remove_opts = IdentifyOptions {
+        offsets: Offsets::Remove,
+        ..opts.clone()
+    };
+    let mut remove_plan = self::plan(&remove_opts, first.names(), first.source())?;
+    let mut removed = records.to_vec();
+    apply_offsets(&mut removed, &remove_plan.channels, Offsets::Remove, "")?;
+    let score = crate::offsets_choice::score_treatment;
+    let s_remove = score(&removed, &plan.dofs, &spec_libraries(&remove_plan.spec)?)?;
+    let s_const = score(records, &plan.dofs, &spec_libraries(&plan.spec)?)?;
+    let pct = |v: f64| format!("{:.4} %", 100.0 * v);
+    if s_remove.bic < s_const.bic {
+        remove_plan.why = format!(
+            "auto: force-like input(s): each record's means removed from every DOF and input channel — the full library leaves {} of the accelerations unexplained that way, against {} with the records kept and a constant term (sensor offsets inside the nonlinear terms)",
+            pct(s_remove.residual_share),
+            pct(s_const.residual_share)
+        );
+        Ok(remove_plan)
+    } else {
+        let mut kept = plan.clone();
+        kept.why = format!(
+            "auto: force-like input(s): records used as they are with a constant term in the library (kept only if the records need it) — the full library leaves {} of the accelerations unexplained that way, against {} with each record's means removed (the means are motion, not offsets)",
+            pct(s_const.residual_share),
+            pct(s_remove.residual_share)
+        );
+        Ok(kept)
+    }
 }
 
 /// Whether the fit ties the chain's element laws: [`Tie::Auto`] ties when the method is T-F-S

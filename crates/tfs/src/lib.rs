@@ -30,6 +30,7 @@ pub mod contact;
 mod error;
 pub mod gate;
 pub mod identify;
+pub mod offsets_choice;
 pub mod records;
 pub mod refit;
 pub mod report;

@@ -183,11 +183,12 @@ pub fn check_records(
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Offsets {
-    /// `identify`: `remove` when every input column is a force-like channel (`u`, `force`,
-    /// `voltage`, … — a rig recorded in raw units, where DC is a sensor or amplifier offset),
-    /// `keep` when there is no input or a base-motion input (`xb_*`: the displacements are then
-    /// geometric coordinates whose origin matters). Other commands: follow what the model's
-    /// trace says `identify` did, else `keep`.
+    /// `identify`: `constant-term` when the inputs are force-like channels (`u`, `force`,
+    /// `voltage`, …: a constant force or sensor offset is estimated with the model as the
+    /// constant term, which the selection drops when the records do not need it), `keep` when
+    /// there is no input or a base-motion input (`xb_*`: the displacements are then geometric
+    /// coordinates whose origin matters). Other commands: follow what the model's trace says
+    /// `identify` did, else `keep`.
     Auto,
     /// Use the records as they are.
     Keep,

@@ -65,9 +65,9 @@ pub struct Args {
     pub json: bool,
     /// DC offsets of the DOF and input channels: `remove` subtracts each record's mean from
     /// them, `keep` uses the records as they are, `constant-term` keeps them and adds the term
-    /// `1` to the library; `auto` (default) removes them when every input is force-like (`u`,
-    /// `force`, `voltage`: a rig in raw units) and keeps them otherwise (base excitation `xb_*`,
-    /// or no input). The choice and the offsets are in the trace and the model file.
+    /// `1` to the library; `auto` (default) is `constant-term` when the inputs are force-like
+    /// (`u`, `force`, `voltage`) and `keep` otherwise (base excitation `xb_*`, or no input).
+    /// The choice and the offsets are in the trace and the model file.
     #[arg(long, value_enum, default_value_t = Offsets::Auto)]
     pub offsets: Offsets,
     #[command(flatten)]
