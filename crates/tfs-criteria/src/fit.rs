@@ -193,6 +193,7 @@ pub(crate) fn reselect_for_support(
     ctx: &DofContext<'_>,
     reg: &crate::pipeline::Regression,
     compressed: &[Vec<Vec<BlockRows>>],
+    eligible: &[bool],
     chosen: &[f64],
 ) -> Result<Option<Reselected>> {
     let opt = &ctx.spec.tfs;
@@ -208,11 +209,19 @@ pub(crate) fn reselect_for_support(
         reg.const_j,
         &|train, _| Ok(lstsq_support(train, &sup)?.coef),
     )?;
-    let (k, e) =
-        scores.iter().enumerate().fold(
-            (0, f64::INFINITY),
-            |b, (k, &e)| if e < b.1 { (k, e) } else { b },
-        );
+    // The lowest error among the settings whose coefficients can be resampled (all of them
+    // when none can), as for the selection's setting.
+    let any = eligible.iter().any(|&e| e);
+    let (k, e) = scores
+        .iter()
+        .enumerate()
+        .fold((0, f64::INFINITY), |b, (k, &e)| {
+            if (!any || eligible.get(k).copied().unwrap_or(true)) && e < b.1 {
+                (k, e)
+            } else {
+                b
+            }
+        });
     Ok(Some(Reselected {
         setting: ctx.grid[k],
         error: e,

@@ -20,6 +20,7 @@ use crate::criterion1::{Criterion1Out, criterion1_stage};
 use crate::criterion2::criterion2_stage;
 use crate::criterion3::settings::{
     BlockRows, choose_setting, close_calls, compress_settings, grid, held_out_scores, merged,
+    resamplable,
 };
 use crate::criterion3::{Transforms, transforms_for};
 use crate::criterion4::{StepResult, StopRule, assemble, residual_stats};
@@ -263,6 +264,8 @@ struct Search {
     compressed: Vec<Vec<Vec<BlockRows>>>,
     /// Held-out error of every setting (window count, δ), in grid order.
     scores: Vec<f64>,
+    /// Whether each setting's coefficients can be resampled (intervals, term test).
+    eligible: Vec<bool>,
     /// Milliseconds spent on the transforms and on the compression and scores.
     ms: (f64, f64),
 }
@@ -284,11 +287,13 @@ fn search(ctx: &DofContext<'_>, reg: &Regression) -> Result<Search> {
         reg.const_j,
         &|train, held| Ok(fit_select(train, held, opt.fit.threshold, opt.fit.n_thresholds)?.0),
     )?;
+    let eligible = resamplable(&ctx.grid, &transforms, opt, &reg.keep);
     Ok(Search {
         qs,
         transforms,
         compressed,
         scores,
+        eligible,
         ms: (tr_ms, ms(t0)),
     })
 }
@@ -376,7 +381,8 @@ fn fit_dof(
     };
     timing.push((format!("{dof}: criterion 3 transforms"), found.ms.0));
     let t0 = Instant::now();
-    let (candidates, best_err, first_setting) = choose_setting(&ctx.grid, &found.scores, opt);
+    let (candidates, best_err, first_setting) =
+        choose_setting(&ctx.grid, &found.scores, &found.eligible, opt);
     timing.push((format!("{dof}: settings selection"), found.ms.1 + ms(t0)));
     let fitted = fit_structure(&ctx, &reg, &found, first_setting, timing)?;
     let (equation, trace, inputs) = report(
@@ -428,7 +434,8 @@ fn fit_structure(
     let dof = &ctx.spec.dofs[ctx.d];
     let t0 = Instant::now();
     let accepted = criterion4_stage(ctx, reg, &found.compressed[first.0][first.1])?;
-    let reselected = reselect_for_support(ctx, reg, &found.compressed, &accepted.coef)?;
+    let reselected =
+        reselect_for_support(ctx, reg, &found.compressed, &found.eligible, &accepted.coef)?;
     let (wi, di) = reselected.as_ref().map_or(first, |r| r.setting);
     let at = Setting {
         rows: &found.compressed[wi][di],

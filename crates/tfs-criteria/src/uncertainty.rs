@@ -410,7 +410,7 @@ pub(crate) fn uncertainty_stage(
         let clusters_all: Vec<ClusterRows> =
             bin_clusters(&rows, delta, keep).into_values().collect();
         let n_parts = clusters_all.len();
-        if n_parts >= 3 {
+        if n_parts >= crate::criterion3::settings::MIN_CLUSTERS {
             // The constant is estimated in the time domain, not from the bins: no interval.
             let sel: Vec<usize> = (0..keep.len())
                 .filter(|&j| support[j] && Some(j) != const_j)

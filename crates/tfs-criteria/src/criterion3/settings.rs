@@ -164,28 +164,66 @@ pub(crate) fn held_out_scores(
     loo_errors(grid.len(), nb, &rows, fit, &score)
 }
 
-/// The candidate settings with their held-out scores (grid order), and the best: its error and
-/// `(window count index, δ index)` (the first of equal scores).
+/// The candidate settings with their held-out scores (grid order), and the best among the
+/// `eligible` ones (all when none is): its error and `(window count index, δ index)` (the first
+/// of equal scores).
 pub(crate) fn choose_setting(
     grid: &[(usize, usize)],
     scores: &[f64],
+    eligible: &[bool],
     opt: &TfsOptions,
 ) -> (Vec<SettingScore>, f64, (usize, usize)) {
     let mut candidates = Vec::new();
     let mut best: Option<(f64, usize, usize)> = None;
-    for (&(wi, di), &err) in grid.iter().zip(scores) {
+    for (g, (&(wi, di), &err)) in grid.iter().zip(scores).enumerate() {
         candidates.push(SettingScore {
             delta: opt.criterion3.deltas[di],
             windows: opt.criterion3.window_counts[wi],
             held_out_error: err,
         });
-        if best.is_none_or(|b| err < b.0) {
+        if eligible.get(g).copied().unwrap_or(true) && best.is_none_or(|b| err < b.0) {
             best = Some((err, wi, di));
+        }
+    }
+    if best.is_none() {
+        // No setting can be resampled: the lowest error among all of them.
+        for (&(wi, di), &err) in grid.iter().zip(scores) {
+            if best.is_none_or(|b| err < b.0) {
+                best = Some((err, wi, di));
+            }
         }
     }
     let (err, wi, di) = best.expect("at least one setting");
     (candidates, err, (wi, di))
 }
+
+/// Which settings (grid order) give coefficients that can be resampled: at least
+/// [`MIN_CLUSTERS`] independent clusters of bins over the records' windows at that window count
+/// and δ (the clusters of the intervals and the term test). A setting with fewer — one window per
+/// record and a handful of strong bins, on a short record — fits and scores, but its terms
+/// cannot be tested, so a spurious one stays; it is chosen only when no setting can be
+/// resampled (`docs/DECISIONS.md`).
+pub(crate) fn resamplable(
+    grid: &[(usize, usize)],
+    transforms: &Transforms,
+    opt: &TfsOptions,
+    keep: &[usize],
+) -> Vec<bool> {
+    grid.iter()
+        .map(|&(wi, di)| {
+            let rows: Vec<(usize, usize, &WindowTransform)> = transforms[wi]
+                .iter()
+                .enumerate()
+                .flat_map(|(r, wins)| wins.iter().enumerate().map(move |(w, t)| (r, w, t)))
+                .collect();
+            crate::uncertainty::bin_clusters(&rows, opt.criterion3.deltas[di], keep).len()
+                >= MIN_CLUSTERS
+        })
+        .collect()
+}
+
+/// The fewest clusters of bins that intervals and the term test are computed from.
+pub(crate) const MIN_CLUSTERS: usize = 3;
 
 /// Held-out errors within this relative distance of the lowest are closer than the held-out
 /// records can tell apart: the trace says when the chosen setting won by less.

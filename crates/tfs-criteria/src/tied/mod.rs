@@ -104,7 +104,7 @@ pub fn identify_tfs_tied(
     let t0 = Instant::now();
     let settings = grid(opt);
     let scores = tied_scores(&joint, &td, &ratios_of(&masses), &settings, opt)?;
-    let (candidates, best_err, (wi, di)) = choose_setting(&settings, &scores, opt);
+    let (candidates, best_err, (wi, di)) = choose_setting(&settings, &scores, &[], opt);
     let (delta, windows) = (opt.criterion3.deltas[di], opt.criterion3.window_counts[wi]);
     let rows = joint.rows(wi, delta);
     timing.push(("settings selection".to_string(), ms(t0)));
