@@ -1,5 +1,6 @@
 //! What a new user meets first, on the README's fixture: the same run writes the same model file
-//! to the byte.
+//! to the byte, and the default output of each command fits on one screen with the full trace
+//! under `-v`.
 
 use std::path::Path;
 use std::process::{Command, Output};
@@ -66,4 +67,97 @@ fn two_identical_identify_runs_write_byte_identical_model_files() {
         "--json lost the stage timings: {}",
         v["trace"]
     );
+}
+
+/// The lines a run printed on stdout (warnings are repeated there when stdout is not a
+/// terminal, so they count).
+fn lines(text: &str) -> usize {
+    text.lines().count()
+}
+
+/// `identify` prints the equation, its fit, the verdict and what to do next on one screen; the
+/// criteria trace is under `-v`.
+#[test]
+fn identify_fits_on_one_screen_and_verbose_keeps_the_trace() {
+    let dir = tempfile::tempdir().unwrap();
+    let short = identify_into(&dir.path().join("m.json"), &[]);
+    assert!(lines(&short) <= 10, "{} lines:\n{short}", lines(&short));
+    assert!(
+        short.starts_with("x'' = ") || short.contains("\nx'' = "),
+        "{short}"
+    );
+    assert!(short.contains("±"), "no intervals:\n{short}");
+    for needle in ["fit x: ", "verdict x: ", "next: ", "tfs compare --model"] {
+        assert!(short.contains(needle), "'{needle}' missing:\n{short}");
+    }
+    assert!(
+        !short.contains("criterion 1") && !short.contains("time (ms)"),
+        "{short}"
+    );
+    let long = identify_into(&dir.path().join("m.json"), &["-v"]);
+    for needle in [
+        "criterion 1: κ = ",
+        "criterion 3",
+        "why:",
+        "time (ms):",
+        "offsets:",
+    ] {
+        assert!(
+            long.contains(needle),
+            "'{needle}' missing under -v:\n{long}"
+        );
+    }
+    assert!(lines(&long) > 20, "{long}");
+}
+
+/// `compare`, `diagnose` and `refit` print their table and verdict by default, the per-record
+/// lines and reasons under `-v`.
+#[test]
+fn compare_diagnose_and_refit_are_short_by_default() {
+    let dir = tempfile::tempdir().unwrap();
+    // Without the damping term: the diagnosis has an effect to name.
+    let model = dir.path().join("m.json");
+    let (a, b) = (
+        fixture("kresling-30db-train-1.csv"),
+        fixture("kresling-30db-train-2.csv"),
+    );
+    let test = fixture("kresling-30db-test.csv");
+    let m = model.display().to_string();
+    ok(&[
+        "identify",
+        &a,
+        &b,
+        "--library",
+        "x^1..7, xb_acc",
+        "--out",
+        &m,
+    ]);
+
+    let c = ok(&["compare", "--model", &m, &test]);
+    assert!(lines(&c) <= 4, "{c}");
+    assert!(ok(&["compare", "--model", &m, &test, "-v"]).contains("offsets:"));
+
+    let d = ok(&["diagnose", "--model", &m, &a, &b]);
+    assert!(lines(&d) <= 16, "{} lines:\n{d}", lines(&d));
+    assert!(d.contains("effect") && d.contains("R-MSE after"), "{d}");
+    assert!(d.contains("the model's R-MSE on these records"), "{d}");
+    assert!(!d.contains("residual: "), "{d}");
+    let dv = ok(&["diagnose", "--model", &m, &a, &b, "--verbose"]);
+    assert!(dv.contains("residual: ") && dv.contains("R-MSE"), "{dv}");
+    assert!(lines(&dv) > lines(&d), "{dv}");
+
+    let out = dir.path().join("r.json").display().to_string();
+    let r = ok(&[
+        "refit",
+        "--model",
+        &m,
+        "--add",
+        "linear-damping",
+        "--out",
+        &out,
+        &a,
+        &b,
+    ]);
+    assert!(lines(&r) <= 8, "{} lines:\n{r}", lines(&r));
+    assert!(r.contains("lowered the mean R-MSE"), "{r}");
 }
