@@ -3,7 +3,7 @@
 barrier and basin-of-attraction map of every geometry, gathered into one table and one figure.
 
 One task per geometry; the same code runs on a laptop (a LocalCluster) and on a Slurm cluster
-(dask-jobqueue's SLURMCluster, see README). Each worker runs one task at a time on one core:
+(dask-jobqueue's SLURMCluster, see docs/python.md). Each worker runs one task at a time on one core:
 tfs's own thread pool is pinned to one thread per worker process (RAYON_NUM_THREADS=1), so
 the workers, not the threads inside a task, share the cores.
 

@@ -1,8 +1,10 @@
 """What a Python user meets first: warnings at their own line, results with a headline number,
 a refit that says whether it helped, simulate by input name, models from coefficients, errors
-in Python's words."""
+in Python's words, and the README's Python block run as written."""
 
 import ast
+import re
+import subprocess
 import sys
 import warnings
 
@@ -152,3 +154,25 @@ def test_stubs_list_the_closed_sets():
     assert kw["method"] == "Method" and kw["offsets"] == "IdentifyOffsets"
     # help() lists the values too.
     assert "'sindy'" in tfs.identify.__doc__ and "'constant-term'" in tfs.identify.__doc__
+
+
+def readme_python_block():
+    """The README's first Python block (the one under "From Python")."""
+    text = (ROOT / "README.md").read_text()
+    section = text[text.index("## From Python") :]
+    return re.search(r"```python\n(.*?)```", section, re.S).group(1)
+
+
+def test_the_readme_python_block_runs_and_the_error_falls(tmp_path):
+    code = readme_python_block()
+    assert "tempfile" in code or "tmp" in code, "the README example must not write into the checkout"
+    proc = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=900
+    )
+    assert proc.returncode == 0, proc.stderr
+    out = proc.stdout
+    nums = re.findall(r"held-out R-MSE: ([0-9.eE+-]+) -> ([0-9.eE+-]+)", out)
+    assert nums, out
+    before, after = map(float, nums[0])
+    assert after < before, out
+    assert not (ROOT / "model.json").exists()
