@@ -218,9 +218,17 @@ impl Identified {
 }
 
 impl Trace {
-    /// The trace as JSON (the model file's `trace` entry).
+    /// The trace as JSON (the model file's `trace` entry): everything but the stage timings,
+    /// which differ from run to run, so that the same records and options give the same model
+    /// file to the byte (the timings stay in [`Trace::timing_ms`], printed by the CLI under
+    /// `--verbose` and given by its `--json`).
     pub fn to_json(&self) -> serde_json::Value {
-        serde_json::to_value(self).expect("a trace is plain data and always serialises")
+        let mut v =
+            serde_json::to_value(self).expect("a trace is plain data and always serialises");
+        if let Some(obj) = v.as_object_mut() {
+            obj.remove("timing_ms");
+        }
+        v
     }
 }
 

@@ -3,7 +3,7 @@
 barrier and basin-of-attraction map of every geometry, gathered into one table and one figure.
 
 One task per geometry; the same code runs on a laptop (a LocalCluster) and on a Slurm cluster
-(dask-jobqueue's SLURMCluster, see README). Each worker runs one task at a time on one core:
+(dask-jobqueue's SLURMCluster, see docs/python.md). Each worker runs one task at a time on one core:
 tfs's own thread pool is pinned to one thread per worker process (RAYON_NUM_THREADS=1), so
 the workers, not the threads inside a task, share the cores.
 
@@ -17,6 +17,7 @@ import csv
 import json
 import os
 import pathlib
+import tempfile
 import time
 
 import numpy as np
@@ -128,13 +129,13 @@ def main():
     ap.add_argument("--a0", default="1.4:1.8:5", help="A:B:N or a comma list")
     ap.add_argument("--grid", type=int, default=60, help="basin grid N (N x N starts)")
     ap.add_argument("--workers", default="2", help="worker counts to time, e.g. 1,2")
-    ap.add_argument("--out", default="sweep", help="folder for sweep.csv, sweep.png, sweep.json")
+    ap.add_argument("--out", help="folder for sweep.csv, sweep.png, sweep.json (default: a new temporary folder)")
     ap.add_argument("--scheduler", help="address of a running scheduler (e.g. a SLURMCluster's); default: a LocalCluster")
     a = ap.parse_args()
     from dask.distributed import Client, LocalCluster
 
     gammas, a0s = grid_of(a.gamma0), grid_of(a.a0)
-    out = pathlib.Path(a.out)
+    out = pathlib.Path(a.out or tempfile.mkdtemp(prefix="tfs-sweep-"))
     out.mkdir(parents=True, exist_ok=True)
     timings = {}
     rows = None

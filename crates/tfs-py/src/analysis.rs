@@ -17,8 +17,14 @@ use crate::options::{basin_config, clipped_policy, diagnose_options, offsets_mod
 use crate::record::PyRecord;
 
 /// Diagnoses a model against records (as `tfs diagnose`): where it fails and which physical
-/// effect is missing. Returns a dict: `verdict`, `ranked` (effects, best first: name,
-/// significance, held-out drop, p-value, share, coefficient, R-MSE after), `residual_summary`,
+/// effect is missing. Returns a dict: `verdict`, `named` (the effect the verdict names
+/// first, for `model.refit(records, add=[d["named"]])`; `None` when none is missing), `r_mse`
+/// (the model's mean R-MSE over the
+/// records and DOFs, as `model.compare(records).r_mse` gives it; `None` when a record fails to
+/// simulate), `ranked` (effects, best first: name, significance, held-out drop, p-value, share,
+/// coefficient, and `r_mse_before`/`r_mse_after`: the prediction error of the model's structure
+/// refitted on part of the records and judged on the rest, without and with the effect — a
+/// ranking score, not the error of the model given), `residual_summary`,
 /// `records`, `localisation`, `tests`, `cutoff_hz`, `offsets`; when the model fails to simulate
 /// some records, the candidates are added and simulated as `tfs diagnose` does: `simulation`
 /// says what that chose (`verdict` then names it) and `equation_error_verdict` keeps the
@@ -45,9 +51,21 @@ pub fn diagnose<'py>(
                 .map_err(|e| tfs::Error::from(e).context("diagnosing the model"))?;
             let gate = tfs::gate::on_diagnosis(m, &d, &recs, &opts)
                 .map_err(|e| e.context("simulating the candidates"))?;
+            // The model's own error on the records, as `compare` scores it.
+            let scores: Option<Vec<f64>> = d
+                .records
+                .iter()
+                .map(|r| r.r_mse.clone())
+                .collect::<Option<Vec<_>>>()
+                .map(|v| v.concat());
+            let r_mse = scores
+                .filter(|v| !v.is_empty())
+                .map(|v| v.iter().sum::<f64>() / v.len() as f64);
             Ok((
                 json!({
                     "verdict": tfs::gate::verdict(&d, gate.as_ref()),
+                    "r_mse": r_mse,
+                    "named": tfs::gate::named(&d.ranked, gate.as_ref()),
                     "equation_error_verdict": d.verdict,
                     "simulation": gate.as_ref().map(|g| &g.0),
                     "ranked": d.ranked,

@@ -106,21 +106,18 @@ fn is_path(obj: &Bound<'_, PyAny>) -> bool {
             .unwrap_or(false)
 }
 
-/// Issues each warning as a Python `UserWarning`.
+/// Issues each warning as a Python `UserWarning` attributed to the caller's line (the first
+/// frame outside the `tfs` package, see `tfs/_warn.py`), so that a script's warning names the
+/// script's file and the call that warned.
 pub fn warn_all(py: Python<'_>, warnings: &[String]) -> PyResult<()> {
     if warnings.is_empty() {
         return Ok(());
     }
-    let w = py.import("warnings")?;
-    for msg in warnings {
-        w.call_method1(
-            "warn",
-            (
-                msg.as_str(),
-                py.get_type::<pyo3::exceptions::PyUserWarning>(),
-                2,
-            ),
-        )?;
-    }
+    let messages: Vec<String> = warnings
+        .iter()
+        .map(|w| crate::errors::pythonize(w))
+        .collect();
+    py.import("tfs._warn")?
+        .call_method1("warn_all", (messages,))?;
     Ok(())
 }

@@ -25,6 +25,9 @@ pub struct PyModel {
     pub inner: Model,
     /// What the call that made it reported beyond the model (refinement, ladder), as JSON.
     pub report: Value,
+    /// `refit` only: what the error ladder says about the effects added, in one sentence,
+    /// and whether the mean R-MSE fell (`None`: a step failed to simulate some record).
+    pub verdict: Option<tfs::report::LadderVerdict>,
 }
 
 impl PyModel {
@@ -32,8 +35,24 @@ impl PyModel {
         Self {
             inner,
             report: Value::Null,
+            verdict: None,
         }
     }
+}
+
+/// The inputs a model was identified with, in the order `simulate` and `predict` take them:
+/// the model's own (those its terms use) in their order, then those the identification was
+/// given whose terms sparsity dropped (the `offsets` channels its trace keeps), which are
+/// accepted and ignored.
+pub fn identified_inputs(m: &Model) -> Vec<String> {
+    let mut out = m.inputs.clone();
+    let channels = m.trace["offsets"]["channels"].as_array();
+    for c in channels.into_iter().flatten().filter_map(Value::as_str) {
+        if !m.dofs.iter().any(|d| d == c) && !out.iter().any(|i| i == c) {
+            out.push(c.to_string());
+        }
+    }
+    out
 }
 
 /// Validates records for `model` (its measured columns, the clipped policy) and applies the
@@ -54,6 +73,16 @@ pub fn prepare_for_model(
 
 /// Identifies a sparse second-order model from records (a `Record`, a CSV path or a list of
 /// them, stacked), with the options and defaults of `tfs identify`.
+///
+/// `library`: the candidate terms, e.g. `"x^1..7, x', xb_acc"` (default: degree-7 restoring
+/// terms, linear damping and every input column). `method`: `'tfs'` (T-F-S SINDy, default) or
+/// `'sindy'` (classical). `threshold`: a fixed sparsity threshold (default: chosen on held-out
+/// data). `refine=True` re-estimates the coefficients by simulation error, keeping with
+/// `validate` records whichever fit predicts them better. Chains: `tie` (`None`: tie when the
+/// libraries allow it), `masses` (`'equal'`, `'estimate'` or one number per DOF). `offsets`:
+/// `'auto'`, `'keep'`, `'remove'` or `'constant-term'`. `clipped`: `'error'`, `'warn'` or
+/// `'allow'`. Warnings (a DOF the data do not support, no intervals and why) are raised at the
+/// calling line.
 #[pyfunction]
 #[pyo3(signature = (records, library=None, *, method="tfs", dofs=None, threshold=None,
     refine=false, validate=None, tie=None, masses="equal", offsets="auto", clipped="error"))]
@@ -100,13 +129,15 @@ pub fn identify(
     // The library's own time (GIL released): what the Python layer adds is the rest of the call.
     let library_seconds = started.elapsed().as_secs_f64();
     warnings.extend(w);
-    warnings.extend(id.trace.warnings());
+    warnings.extend(id.warnings.iter().cloned());
+    warnings.extend(tfs::report::interval_notes(&id.trace, &id.model));
     warn_all(py, &warnings)?;
     Ok(PyModel {
         inner: id.model,
         report: serde_json::json!({"refine": id.refine.as_ref().map(RefineReport::to_json),
             "offsets": id.offsets.to_json(),
             "library_seconds": library_seconds}),
+        verdict: None,
     })
 }
 
@@ -133,10 +164,35 @@ impl PyModel {
         self.inner.dofs.clone()
     }
 
-    /// Input names, in the order `simulate` and `predict` take them.
+    /// The inputs the model was identified with, in the order `simulate` and `predict` take
+    /// them positionally (or give them by name in a dict). Inputs whose terms sparsity dropped
+    /// stay in this list: they are accepted and ignored (`used_inputs` lists those the
+    /// equations use).
     #[getter]
     fn inputs(&self) -> Vec<String> {
+        identified_inputs(&self.inner)
+    }
+
+    /// The inputs the equations use (the model file's `inputs`).
+    #[getter]
+    fn used_inputs(&self) -> Vec<String> {
         self.inner.inputs.clone()
+    }
+
+    /// `refit` only: what the error ladder says about the effects added, in one sentence (the
+    /// mean R-MSE over the records before and after, or the records whose simulation failed);
+    /// `None` for a model that `refit` did not make.
+    #[getter]
+    fn verdict(&self) -> Option<String> {
+        self.verdict.as_ref().map(|v| v.sentence.clone())
+    }
+
+    /// `refit` only: `True` when the mean R-MSE over the records fell from the start model to
+    /// the refitted one, `False` when it rose, `None` when a step failed to simulate a record
+    /// (or the model was not made by `refit`).
+    #[getter]
+    fn improved(&self) -> Option<bool> {
+        self.verdict.as_ref().and_then(|v| v.improved)
     }
 
     /// How the model was obtained (`tfs`, `sindy`, …).
@@ -249,9 +305,10 @@ impl PyModel {
     }
 
     /// Simulates the model from `x0`, `v0` (default 0) at the uniformly spaced times `t` under
-    /// the inputs `u` (samples × inputs in the order of `inputs`, a 1-D array for one input, or
-    /// a dict by name). Returns `(x, v)`, each samples × DOFs. A run that blows up raises
-    /// `SimulationError` with the time and the state.
+    /// the inputs `u`: a dict by name, or samples × inputs in the order of `inputs` (a 1-D
+    /// array for one input). `inputs` are those the model was identified with; one whose terms
+    /// sparsity dropped is accepted and ignored. Returns `(x, v)`, each samples × DOFs. A run
+    /// that blows up raises `SimulationError` with the time and the state.
     #[pyo3(signature = (t, u=None, x0=None, v0=None))]
     fn simulate<'py>(
         &self,
@@ -316,9 +373,12 @@ impl PyModel {
         Ok(to_array2(py, &cols, rows))
     }
 
-    /// Simulates the model under each record's measured input and scores it (as `tfs compare`):
-    /// one dict per record with `path`, `r_mse`, per-DOF `dofs` (R-MSE, RMS error, input-noise
-    /// spread) and `error_is_input_noise`.
+    /// Simulates the model under each record's measured input and scores it (as `tfs compare`).
+    /// Returns a `tfs.Comparison`: `r_mse` (the mean R-MSE over records and DOFs, the number
+    /// `tfs compare` prints and `diagnose(...)["r_mse"]` gives), `per_dof`, `per_record`,
+    /// `records` (one dict per record as `tfs compare --json` gives them); it prints as a
+    /// short table. `offsets`: `"auto"`, `"keep"` or `"remove"`; `clipped`: `"error"`,
+    /// `"warn"` or `"allow"`.
     #[pyo3(signature = (records, *, offsets="auto", clipped="error"))]
     fn compare<'py>(
         &self,
@@ -341,7 +401,10 @@ impl PyModel {
             .or_raise()?;
         warnings.extend(w);
         warn_all(py, &warnings)?;
-        json_to_py(py, &scores)
+        let files = json_to_py(py, &scores)?;
+        py.import("tfs._results")?
+            .getattr("Comparison")?
+            .call1((files,))
     }
 
     /// Adds named physical effects (`dry-friction`, `quadratic-damping`, `stop`, `name@dof`, …;
@@ -349,7 +412,8 @@ impl PyModel {
     /// `until_clean=N`, then runs the diagnosis loop (`refit --until-clean N`): each round adds
     /// what `tfs.diagnose` finds missing, until nothing significant remains. The new model's
     /// `report` holds the error `ladder`, its `warnings`, the loop's `rounds` and the `stops`
-    /// re-scanned.
+    /// re-scanned; its `verdict` says in one sentence whether the mean R-MSE over the records
+    /// fell (`improved`), and a rise is also warned at the calling line.
     #[pyo3(signature = (records, add=Vec::new(), *, until_clean=None, refine=false, validate=None, offsets="auto", clipped="error"))]
     #[allow(clippy::too_many_arguments)]
     fn refit(
@@ -394,14 +458,56 @@ impl PyModel {
         warnings.extend(w);
         warnings.extend(r.warnings.iter().cloned());
         warn_all(py, &warnings)?;
+        let verdict = tfs::report::ladder_verdict(&r.ladder);
         Ok(PyModel {
             inner: r.model,
             report: serde_json::json!({
                 "ladder": r.ladder, "warnings": r.warnings, "stops": r.stops, "rounds": r.rounds,
                 "refine": r.refine.as_ref().map(RefineReport::to_json),
-                "offsets": offsets_report.to_json(),
+                "offsets": offsets_report.to_json(), "verdict": verdict.sentence,
             }),
+            verdict: Some(verdict),
         })
+    }
+
+    /// A model from its coefficients, `{dof: {term: coefficient}}` (what `model.coefficients`
+    /// gives, so `Model.from_terms(m.coefficients)` has `m`'s equations), e.g. a model fitted
+    /// elsewhere: `tfs.Model.from_terms({"x": {"x": -1.0, "x^3": -0.5, "x'": -0.1, "u": 1.0}})`.
+    /// Terms are written in the library grammar (`x^3`, `x'`, `x^2*x'`, `(x2-x1)^3`, …); a name
+    /// that is not a DOF is an input (its order of first use is the order of `inputs`). DOFs
+    /// are the dict's keys in order, or `dofs` when given (every DOF needs an entry).
+    #[staticmethod]
+    #[pyo3(signature = (coefficients, *, dofs=None, method="from_terms"))]
+    fn from_terms(
+        coefficients: &Bound<'_, PyDict>,
+        dofs: Option<Vec<String>>,
+        method: &str,
+    ) -> PyResult<Self> {
+        let mut given: Vec<(String, Vec<(String, f64)>)> = Vec::new();
+        for (k, v) in coefficients.iter() {
+            let dof: String = k
+                .extract()
+                .map_err(|_| input_error("coefficients: keys must be DOF names (str)"))?;
+            let terms = v.cast::<PyDict>().map_err(|_| {
+                input_error(format!(
+                    "coefficients['{dof}']: expected a dict {{term: coefficient}}"
+                ))
+            })?;
+            let mut list = Vec::new();
+            for (t, c) in terms.iter() {
+                let t: String = t.extract().map_err(|_| {
+                    input_error(format!("coefficients['{dof}']: term names must be str"))
+                })?;
+                let c: f64 = c.extract().map_err(|_| {
+                    input_error(format!("coefficients['{dof}']['{t}']: expected a number"))
+                })?;
+                list.push((t, c));
+            }
+            given.push((dof, list));
+        }
+        let dofs = dofs.unwrap_or_else(|| given.iter().map(|(d, _)| d.clone()).collect());
+        let model = model_from_terms(&dofs, &given, method).or_raise()?;
+        Ok(Self::new(model))
     }
 
     /// The model as `tfs-model/1` JSON, the same text the CLI writes.
@@ -443,30 +549,41 @@ impl PyModel {
 }
 
 impl PyModel {
-    /// The inputs argument of `simulate`/`predict` as one column per name of `inputs`.
+    /// The inputs argument of `simulate`/`predict` as one column per input the equations use
+    /// (the model file's `inputs`): `u` gives the inputs the model was identified with, by name
+    /// (a dict) or positionally in that order; those the equations do not use are ignored.
     fn inputs_arg(&self, u: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<Vec<f64>>> {
-        let names = &self.inner.inputs;
+        let names = identified_inputs(&self.inner);
+        let used = &self.inner.inputs;
         match u {
-            None if names.is_empty() => Ok(Vec::new()),
+            None if used.is_empty() => Ok(Vec::new()),
             None => Err(input_error(format!(
-                "u: the model takes the input(s) [{}]; give them (samples × inputs, or a dict by name)",
+                "u: the model takes the input(s) [{}]; give them (a dict by name, or samples × inputs in that order)",
                 names.join(", ")
             ))),
             Some(u) => {
                 if let Ok(d) = u.cast::<PyDict>() {
-                    names
-                        .iter()
+                    for k in d.keys() {
+                        let k: String = k.extract()?;
+                        if !names.contains(&k) {
+                            return Err(input_error(format!(
+                                "u: no input '{k}'; the model takes [{}]",
+                                names.join(", ")
+                            )));
+                        }
+                    }
+                    used.iter()
                         .map(|n| match d.get_item(n)? {
                             Some(col) => crate::convert::vec1(&col, &format!("u['{n}']")),
                             None => Err(input_error(format!(
-                                "u: no input '{n}'; the model takes [{}]",
+                                "u: input '{n}' is missing; the model takes [{}]",
                                 names.join(", ")
                             ))),
                         })
                         .collect()
                 } else {
                     let cols = columns(u, "u")?;
-                    if cols.len() != names.len() {
+                    if cols.len() != names.len() && cols.len() != used.len() {
                         return Err(input_error(format!(
                             "u has {} column(s) but the model takes {} input(s) [{}]",
                             cols.len(),
@@ -474,11 +591,56 @@ impl PyModel {
                             names.join(", ")
                         )));
                     }
-                    Ok(cols)
+                    // All identified inputs in their order, or just the used ones.
+                    let order: &[String] = if cols.len() == names.len() {
+                        &names
+                    } else {
+                        used
+                    };
+                    Ok(used
+                        .iter()
+                        .map(|n| {
+                            let k = order.iter().position(|o| o == n).unwrap_or(0);
+                            cols[k].clone()
+                        })
+                        .collect())
                 }
             }
         }
     }
+}
+
+/// A model from `(dof, [(term, coefficient)])` lists (see `Model.from_terms`).
+fn model_from_terms(
+    dofs: &[String],
+    given: &[(String, Vec<(String, f64)>)],
+    method: &str,
+) -> tfs::Result<Model> {
+    use tfs::library::{Equation, Library, ModelTerm};
+    let mut equations = Vec::new();
+    for (dof, terms) in given {
+        let mut eq = Equation {
+            dof: dof.clone(),
+            terms: Vec::new(),
+        };
+        for (name, coef) in terms {
+            let lib = Library::parse(name, dofs).map_err(|e| {
+                tfs::Error::Invalid(format!(
+                    "coefficients['{dof}']: term '{name}': {}",
+                    tfs::one_line(&e)
+                ))
+            })?;
+            let [term] = lib.terms() else {
+                return Err(tfs::Error::Invalid(format!(
+                    "coefficients['{dof}']: '{name}' names {} terms; give one term per key",
+                    lib.terms().len()
+                )));
+            };
+            eq.terms.push(ModelTerm::new(term.clone(), *coef));
+        }
+        equations.push(eq);
+    }
+    Ok(Model::new(dofs.to_vec(), equations, method)?)
 }
 
 /// Reads a model file (`tfs-model/1`), as `Model.load`.

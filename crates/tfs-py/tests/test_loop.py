@@ -69,6 +69,6 @@ def test_add_or_until_clean_is_required():
     try:
         m.refit(TRAIN)
     except tfs.InputError as e:
-        assert "--until-clean" in str(e)
+        assert "until_clean" in str(e) and "--" not in str(e), str(e)
     else:
         raise AssertionError("refit with nothing to add and no loop did not raise")

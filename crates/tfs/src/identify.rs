@@ -481,7 +481,7 @@ pub fn identify(
         invalid!("--validate needs --refine (the held-out records choose the refined fit or not)");
     }
     set_offsets(&mut identified.model, &offsets);
-    let mut warnings = identified.trace.warnings();
+    let mut warnings = crate::report::support_warnings(&identified.trace, &identified.model);
     warnings.extend(restored);
     warnings.extend(empty_equation_warnings(&identified.model, opts.method)?);
     Ok(Identification {

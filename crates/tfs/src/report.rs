@@ -7,6 +7,10 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
+use tfs_criteria::{Problem, Support, Trace};
+use tfs_diagnose::LadderStep;
+use tfs_library::Model;
+
 use crate::records::Offsets;
 
 /// What was done with one record's channel offsets.
@@ -206,6 +210,180 @@ impl RefineReport {
     }
 }
 
+/// The support verdict of every DOF whose data do not support its library, one warning each,
+/// worded so that it agrees with the model printed under it: when the full library failed and
+/// the model was reduced one significance test at a time, the terms of the first fit that
+/// failed are split into those removed and those the reduced model keeps (they pass in it).
+pub fn support_warnings(trace: &Trace, model: &Model) -> Vec<String> {
+    trace
+        .dofs
+        .iter()
+        .filter_map(|d| {
+            let c1 = d.criterion1.as_ref()?;
+            if c1.support.is_supported() {
+                return None;
+            }
+            if let Support::NotSupported {
+                problem: problem @ Problem::Reduced { snr_db, first },
+                ..
+            } = &c1.support
+                && let Problem::FailsTermTest { terms, .. } = first.as_ref()
+            {
+                let kept: Vec<String> = model
+                    .equations
+                    .iter()
+                    .filter(|e| e.dof == d.dof)
+                    .flat_map(|e| e.terms.iter().map(|t| t.term.to_string()))
+                    .collect();
+                // The verdict's own sentence (its cause and advice), with the reduction said
+                // so that it agrees with the model.
+                let said = c1.support.to_string().replacen(
+                    &problem.to_string(),
+                    &reduced_problem(*snr_db, terms, &kept),
+                    1,
+                );
+                return Some(format!("{}: {said}", d.dof));
+            }
+            Some(format!("{}: {}", d.dof, c1.support))
+        })
+        .collect()
+}
+
+/// Why a DOF's full library was not supported and its model reduced, said so that it agrees
+/// with the reduced model: the first fit's failing `terms` split into those removed and those
+/// the reduced model keeps (`kept`, its terms), so that no term of the printed model is called
+/// failing.
+fn reduced_problem(
+    snr_db: Option<tfs_criteria::SnrEstimate>,
+    terms: &[String],
+    kept: &[String],
+) -> String {
+    let (stayed, removed): (Vec<&str>, Vec<&str>) = terms
+        .iter()
+        .map(String::as_str)
+        .partition(|t| kept.iter().any(|k| k == t));
+    let snr = snr_db.map_or(String::new(), |v| {
+        format!(" (estimated displacement SNR {v})")
+    });
+    let mut w = format!(
+        "the full library was not supported{snr}: in the first fit {} failed the term test; ",
+        terms.join(", ")
+    );
+    if !removed.is_empty() {
+        w.push_str(&format!(
+            "{} removed one significance test at a time",
+            removed.join(", ")
+        ));
+    }
+    if !stayed.is_empty() {
+        w.push_str(&format!(
+            "{}{} kept (significant once the others were removed)",
+            if removed.is_empty() { "" } else { ", " },
+            stayed.join(", ")
+        ));
+    }
+    w.push_str(", so check the reduced model against held-out records (`tfs compare`) before relying on it");
+    w
+}
+
+/// Why a DOF's kept terms have no coefficient intervals, one line per such DOF (the trace's
+/// reason, e.g. too few independent windows to resample, and what to do), so that missing
+/// intervals are never dropped silently.
+pub fn interval_notes(trace: &Trace, model: &Model) -> Vec<String> {
+    let mut out = Vec::new();
+    for e in &model.equations {
+        if e.terms.is_empty() || e.terms.iter().any(|t| t.interval.is_some()) {
+            continue;
+        }
+        let why = trace
+            .dofs
+            .iter()
+            .find(|d| d.dof == e.dof)
+            .and_then(|d| {
+                d.settings
+                    .why
+                    .iter()
+                    .find(|w| w.starts_with("no coefficient intervals"))
+            })
+            .map(|w| w.split(';').next().unwrap_or(w).to_string());
+        let Some(why) = why else { continue };
+        out.push(format!(
+            "{}: {why}; give two or more records, or longer ones, for intervals",
+            e.dof
+        ));
+    }
+    out
+}
+
+/// What the error ladder of a refit says about the effects added, in one sentence.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LadderVerdict {
+    /// The sentence: the mean R-MSE over the records before and after, or which step failed.
+    pub sentence: String,
+    /// True when the mean R-MSE fell from the first step to the last, false when it rose;
+    /// `None` when a step could not simulate every record (the means are not comparable).
+    pub improved: Option<bool>,
+}
+
+/// The verdict of an error ladder: the first step (the model refit started from) against the
+/// last (the model returned).
+pub fn ladder_verdict(ladder: &[LadderStep]) -> LadderVerdict {
+    let (Some(first), Some(last)) = (ladder.first(), ladder.last()) else {
+        return LadderVerdict {
+            sentence: "nothing was added".into(),
+            improved: None,
+        };
+    };
+    // The steps' own labels (`add linear-damping`), not the terms each step added.
+    let added: Vec<&str> = ladder[1..]
+        .iter()
+        .map(|s| s.step.strip_prefix("add ").unwrap_or(&s.step))
+        .collect();
+    let added = if added.is_empty() {
+        "nothing".to_string()
+    } else {
+        added.join(", ")
+    };
+    if last.incomplete() {
+        return LadderVerdict {
+            sentence: format!(
+                "after adding {added}, the simulation fails on {} of {} record(s) ({}): the model is not usable on them",
+                last.failed.len(),
+                last.failed.len() + last.r_mse.len(),
+                last.failed[0]
+            ),
+            improved: None,
+        };
+    }
+    if first.incomplete() || !first.mean_r_mse.is_finite() {
+        return LadderVerdict {
+            sentence: format!(
+                "after adding {added}, every record simulates (mean R-MSE {:.4e}; the start model failed on {} record(s))",
+                last.mean_r_mse,
+                first.failed.len()
+            ),
+            improved: Some(true),
+        };
+    }
+    let (a, b) = (first.mean_r_mse, last.mean_r_mse);
+    if b < a {
+        LadderVerdict {
+            sentence: format!(
+                "adding {added} lowered the mean R-MSE over the records from {a:.4e} to {b:.4e} ({}x)",
+                tfs_library::sig4(a / b)
+            ),
+            improved: Some(true),
+        }
+    } else {
+        LadderVerdict {
+            sentence: format!(
+                "adding {added} raised the mean R-MSE over the records from {a:.4e} to {b:.4e}: the records do not support it (`diagnose` names the effects they do)"
+            ),
+            improved: Some(false),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -223,6 +401,47 @@ mod tests {
                 .collect(),
             validation,
         }
+    }
+
+    /// A term the first fit failed and the reduced model keeps is not called failing.
+    #[test]
+    fn a_reduced_model_s_warning_agrees_with_its_terms() {
+        let terms: Vec<String> = ["x^3", "x'", "force"].map(String::from).to_vec();
+        let kept: Vec<String> = ["x", "x^3", "force"].map(String::from).to_vec();
+        let w = reduced_problem(None, &terms, &kept);
+        assert!(w.contains("x' removed"), "{w}");
+        assert!(w.contains("x^3, force kept"), "{w}");
+        assert!(
+            !w.contains("x^3, x' removed") && !w.contains("force removed"),
+            "{w}"
+        );
+    }
+
+    #[test]
+    fn ladder_verdicts_say_whether_the_error_fell() {
+        let step = |name: &str, mean: f64| LadderStep {
+            step: name.into(),
+            added: vec!["x'".into()],
+            mean_r_mse: mean,
+            r_mse: Vec::new(),
+            failed: Vec::new(),
+        };
+        let v = ladder_verdict(&[step("start", 1.0), step("add linear-damping", 0.25)]);
+        assert_eq!(v.improved, Some(true));
+        assert!(
+            v.sentence.contains("adding linear-damping lowered"),
+            "{}",
+            v.sentence
+        );
+        assert!(v.sentence.contains("(4.000x)"), "{}", v.sentence);
+        let v = ladder_verdict(&[step("start", 1.0), step("add offset", 2.0)]);
+        assert_eq!(v.improved, Some(false));
+        assert!(v.sentence.contains("raised"), "{}", v.sentence);
+        let mut failed = step("add stop", f64::NAN);
+        failed.failed = vec!["a.csv: blew up at t = 3 s".into()];
+        let v = ladder_verdict(&[step("start", 1.0), failed]);
+        assert_eq!(v.improved, None);
+        assert!(v.sentence.contains("fails on 1 of 1"), "{}", v.sentence);
     }
 
     #[test]

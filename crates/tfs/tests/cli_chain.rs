@@ -136,7 +136,7 @@ fn identify_and_judge(
     let mut args = vec!["identify"];
     args.extend(files.iter().map(String::as_str));
     args.extend_from_slice(flags);
-    args.extend_from_slice(&["--out", &m]);
+    args.extend_from_slice(&["--out", &m, "-v"]);
     let o = tfs(&args);
     let (stdout, stderr) = (
         String::from_utf8_lossy(&o.stdout),

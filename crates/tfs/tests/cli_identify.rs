@@ -176,7 +176,7 @@ fn the_trace_is_printed_stage_by_stage_without_raw_json() {
     ];
     let model_path = dir.path().join("p.json");
     let out = Command::new(env!("CARGO_BIN_EXE_tfs"))
-        .args(["identify", "--library", "x^1..5, x', xb_acc", "--out"])
+        .args(["identify", "-v", "--library", "x^1..5, x', xb_acc", "--out"])
         .arg(&model_path)
         .args(&train)
         .output()

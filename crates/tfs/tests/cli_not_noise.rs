@@ -26,6 +26,7 @@ fn clean_chain_against_its_stop_is_not_called_noisy() {
         .arg("identify")
         .arg(&csv)
         .arg("--no-tie")
+        .arg("--verbose")
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);

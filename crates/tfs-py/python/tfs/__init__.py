@@ -23,11 +23,13 @@ from ._tfs import (
     simulate_chain,
     simulate_kresling,
 )
+from ._results import Comparison
 from .errors import InputError, SimulationError, TfsError
 
 __all__ = [
     "Model",
     "Record",
+    "Comparison",
     "identify",
     "load",
     "diagnose",

@@ -1,14 +1,24 @@
 """Type stubs of the native module ``tfs._tfs`` (re-exported by ``tfs``)."""
 
 import os
-from typing import Any, Mapping, Sequence, Union
+from typing import Any, Literal, Mapping, Sequence, Union
 
 import numpy as np
 import numpy.typing as npt
 
+from ._results import Comparison
+
 ArrayLike = npt.ArrayLike
 PathLike = Union[str, os.PathLike]
 Records = Union["Record", PathLike, Sequence[Union["Record", PathLike]]]
+
+# The closed sets of values some keywords take (editors and type checkers list them).
+Method = Literal["tfs", "sindy"]
+IdentifyOffsets = Literal["auto", "keep", "remove", "constant-term"]
+ModelOffsets = Literal["auto", "keep", "remove"]
+Clipped = Literal["error", "warn", "allow"]
+TruthLaw = Literal["surrogate", "truss"]
+TruthSpec = Literal["kresling", "kresling:surrogate", "kresling:truss"]
 
 __version__: str
 
@@ -47,7 +57,18 @@ class Model:
     @property
     def dofs(self) -> list[str]: ...
     @property
-    def inputs(self) -> list[str]: ...
+    def inputs(self) -> list[str]:
+        """The inputs the model was identified with (``simulate``/``predict`` take them by name
+        or in this order; those whose terms were dropped are ignored)."""
+    @property
+    def used_inputs(self) -> list[str]:
+        """The inputs the equations use."""
+    @property
+    def verdict(self) -> str | None:
+        """``refit`` only: whether the mean R-MSE over the records fell, in one sentence."""
+    @property
+    def improved(self) -> bool | None:
+        """``refit`` only: True when the mean R-MSE fell, False when it rose."""
     @property
     def method(self) -> str: ...
     @property
@@ -78,8 +99,8 @@ class Model:
         u: ArrayLike | Mapping[str, ArrayLike] | None = None,
     ) -> npt.NDArray[np.float64]: ...
     def compare(
-        self, records: Records, *, offsets: str = "auto", clipped: str = "error"
-    ) -> list[dict[str, Any]]: ...
+        self, records: Records, *, offsets: ModelOffsets = "auto", clipped: Clipped = "error"
+    ) -> Comparison: ...
     def refit(
         self,
         records: Records,
@@ -88,9 +109,17 @@ class Model:
         until_clean: int | None = None,
         refine: bool = False,
         validate: Records | None = None,
-        offsets: str = "auto",
-        clipped: str = "error",
+        offsets: ModelOffsets = "auto",
+        clipped: Clipped = "error",
     ) -> Model: ...
+    @staticmethod
+    def from_terms(
+        coefficients: Mapping[str, Mapping[str, float]],
+        *,
+        dofs: Sequence[str] | None = None,
+        method: str = "from_terms",
+    ) -> Model:
+        """A model from ``{dof: {term: coefficient}}`` (what ``model.coefficients`` gives)."""
     def to_json(self) -> str: ...
     @staticmethod
     def from_json(text: str) -> Model: ...
@@ -102,15 +131,15 @@ def identify(
     records: Records,
     library: str | None = None,
     *,
-    method: str = "tfs",
+    method: Method = "tfs",
     dofs: Sequence[str] | None = None,
     threshold: float | None = None,
     refine: bool = False,
     validate: Records | None = None,
     tie: bool | None = None,
     masses: str = "equal",
-    offsets: str = "auto",
-    clipped: str = "error",
+    offsets: IdentifyOffsets = "auto",
+    clipped: Clipped = "error",
 ) -> Model: ...
 def load(path: PathLike) -> Model: ...
 def diagnose(
@@ -119,8 +148,8 @@ def diagnose(
     *,
     alpha: float = 0.01,
     min_share: float = 0.02,
-    offsets: str = "auto",
-    clipped: str = "error",
+    offsets: ModelOffsets = "auto",
+    clipped: Clipped = "error",
 ) -> dict[str, Any]: ...
 def basin(
     model: Model | None = None,
@@ -128,7 +157,7 @@ def basin(
     grid: tuple[int, int] = (200, 200),
     x: tuple[float, float] = (0.0, 2.0),
     v: tuple[float, float] = (-3.0, 3.0),
-    truth: str | None = None,
+    truth: TruthSpec | None = None,
     cell: Mapping[str, float] | None = None,
     dt: float = 0.01,
     t_max: float = 100.0,
@@ -137,7 +166,7 @@ def basin(
 def med(
     model: Model | None = None,
     *,
-    truth: str | None = None,
+    truth: TruthSpec | None = None,
     cell: Mapping[str, float] | None = None,
     grid: tuple[int, int] = (200, 200),
     x: tuple[float, float] = (0.0, 2.0),
@@ -165,7 +194,7 @@ def simulate_kresling(
     snr_db: float | None = None,
     pink: bool = False,
     seed: int = 1,
-    truth: str | None = None,
+    truth: TruthLaw | None = None,
 ) -> list[Record]: ...
 def simulate_chain(
     *,
@@ -177,5 +206,5 @@ def simulate_chain(
     snr_db: float | None = None,
     pink: bool = False,
     seed: int = 1,
-    truth: str | None = None,
+    truth: TruthLaw | None = None,
 ) -> list[Record]: ...

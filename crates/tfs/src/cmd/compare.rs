@@ -26,6 +26,9 @@ pub struct Args {
     /// Print the scores as JSON on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Print more: the offsets and the definitions of the scores (the default is the table).
+    #[arg(short, long)]
+    pub verbose: bool,
     /// DC offsets of the DOF and input channels: `auto` (default) does what `tfs identify` did
     /// for this model (its trace says so), `remove` subtracts each record's mean, `keep` uses
     /// the records as they are.
@@ -67,11 +70,13 @@ pub fn run(args: Args) -> Result<()> {
             "r_mse_mean_square_definition": tfs::compare::R_MSE_MEAN_SQUARE_DEFINITION,
         }))?;
     } else {
-        println!(
-            "offsets: {} ({})",
-            offsets_report.mode.name(),
-            offsets_report.why
-        );
+        if args.verbose {
+            println!(
+                "offsets: {} ({})",
+                offsets_report.mode.name(),
+                offsets_report.why
+            );
+        }
         if let Some(note) = super::state_offsets_note(&model, &offsets_report, &records) {
             println!("note: {note}");
         }
@@ -100,14 +105,20 @@ pub fn run(args: Args) -> Result<()> {
                 );
             }
         }
-        println!(
-            "(R-MSE: {}; App. B: {})",
-            tfs::compare::R_MSE_DEFINITION,
-            tfs::compare::R_MSE_MEAN_SQUARE_DEFINITION
-        );
-        println!(
-            "(RMS error and spread in the record's units; the spread is how far a fresh draw of the input's estimated noise moves the simulation)"
-        );
+        if args.verbose {
+            println!(
+                "(R-MSE: {}; App. B: {})",
+                tfs::compare::R_MSE_DEFINITION,
+                tfs::compare::R_MSE_MEAN_SQUARE_DEFINITION
+            );
+            println!(
+                "(RMS error and spread in the record's units; the spread is how far a fresh draw of the input's estimated noise moves the simulation)"
+            );
+        } else {
+            println!(
+                "(R-MSE: mean squared error over the measured variance; -v for every definition)"
+            );
+        }
     }
     Ok(())
 }

@@ -28,6 +28,11 @@ pub struct Args {
     /// Print the diagnosis as JSON on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Print more: the simulations' reasons, the offsets, the residual summary, every record's
+    /// R-MSE and every effect with its reason (the default is the verdict without its reasons,
+    /// the model's R-MSE and the top of the effect table).
+    #[arg(short, long)]
+    pub verbose: bool,
     /// Family-wise significance level of the effect tests.
     #[arg(long, default_value_t = 0.01)]
     pub alpha: f64,
@@ -138,8 +143,41 @@ pub fn run(args: Args) -> Result<()> {
             "offsets": offsets_report.to_json(),
         }))?;
     } else {
+        print_human(
+            &args,
+            &model,
+            &d,
+            gate.as_ref(),
+            &verdict,
+            &offsets_report,
+            &records,
+        );
+    }
+    Ok(())
+}
+
+/// How many effects the default table lists (`-v` lists them all).
+const TABLE_ROWS: usize = 8;
+
+/// The diagnosis for people: the verdict, the model's own R-MSE on the records (as `compare`
+/// scores it) and the effect table; with `-v` also the simulations' reasons, the offsets, the
+/// residual summary, every record's R-MSE and each effect's reason.
+fn print_human(
+    args: &Args,
+    model: &tfs::library::Model,
+    d: &tfs::diagnose::Diagnosis,
+    gate: Option<&tfs::gate::Simulated>,
+    verdict: &str,
+    offsets_report: &tfs::report::OffsetsReport,
+    records: &[tfs::data::Record],
+) {
+    if args.verbose {
         println!("{verdict}");
-        if let Some((report, _)) = &gate {
+    } else {
+        println!("{}", short_verdict(verdict));
+    }
+    if args.verbose {
+        if let Some((report, _)) = gate {
             // The verdict gives the simulations' reasons when it follows them.
             if report.decides() {
                 println!("equation-error ranking: {}", d.verdict);
@@ -152,69 +190,128 @@ pub fn run(args: Args) -> Result<()> {
             offsets_report.mode.name(),
             offsets_report.why
         );
-        if let Some(note) = memory_note(&model, &d, &offsets_report, &records) {
-            println!("note: {note}");
-        }
+    }
+    if let Some(note) = memory_note(model, d, offsets_report, records) {
+        println!("note: {note}");
+    }
+    if args.verbose {
         for s in &d.residual_summary {
             println!("residual: {s}");
         }
-        for r in &d.records {
-            match (&r.r_mse, &r.error) {
-                (Some(v), _) => println!(
-                    "{}: R-MSE {} (on the variance; Appendix B, over the mean square: {})",
-                    r.record,
-                    sci4(v, &model.dofs),
-                    sci4(r.r_mse_mean_square.as_deref().unwrap_or(&[]), &model.dofs)
-                ),
-                (_, Some(e)) => println!("{}: simulation failed: {e}", r.record),
-                _ => {}
+    }
+    let mut scored = Vec::new();
+    for r in &d.records {
+        match (&r.r_mse, &r.error) {
+            (Some(v), _) => {
+                scored.extend(v.iter().copied());
+                if args.verbose {
+                    println!(
+                        "{}: R-MSE {} (on the variance; Appendix B, over the mean square: {})",
+                        r.record,
+                        sci4(v, &model.dofs),
+                        sci4(r.r_mse_mean_square.as_deref().unwrap_or(&[]), &model.dofs)
+                    );
+                }
             }
+            (_, Some(e)) => println!("{}: simulation failed: {e}", r.record),
+            _ => {}
+        }
+        if args.verbose {
             for m in &r.missing_harmonics {
                 println!("  missing drive harmonics (order) {m}");
             }
         }
-        // An effect whose terms the model already has cannot be added again: not offered.
-        let has = |r: &tfs::diagnose::RankedEffect| {
-            let own: Vec<String> = model
-                .equations
-                .iter()
-                .filter(|e| e.dof == r.dof)
-                .flat_map(|e| e.terms.iter().map(|t| t.term.to_string()))
-                .collect();
-            !r.terms.is_empty() && r.terms.iter().all(|t| own.contains(t))
-        };
-        let (already, offered): (Vec<_>, Vec<_>) = d.ranked.iter().partition(|r| has(r));
-        println!(
-            "\n{:<22} {:>5} {:>10} {:>10} {:>8} {:>12} {:>12}  why",
-            "effect", "sig", "delta", "p", "share", "coef", "R-MSE after"
-        );
-        for r in &offered {
-            println!(
-                "{:<22} {:>5} {:>10.4} {:>10.2e} {:>8.4} {:>12.4e} {:>12}  {}",
-                r.name,
-                if r.significant { "yes" } else { "no" },
-                r.delta_heldout,
-                r.p_value,
-                r.share,
-                r.coef,
-                r.r_mse_after
-                    .map(|v| format!("{v:.4e}"))
-                    .unwrap_or_else(|| "sim. failed".into()),
-                r.reason
-            );
-        }
-        if !already.is_empty() {
-            println!(
-                "not offered (the model already has their terms): {}",
-                already
-                    .iter()
-                    .map(|r| r.name.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            );
-        }
     }
-    Ok(())
+    if !scored.is_empty() && !args.verbose {
+        println!(
+            "the model's R-MSE on these records: {:.4e} (mean over {} record(s) and DOFs, as `tfs compare` scores it)",
+            scored.iter().sum::<f64>() / scored.len() as f64,
+            d.records.iter().filter(|r| r.r_mse.is_some()).count()
+        );
+    }
+    // An effect whose terms the model already has cannot be added again: not offered.
+    let has = |r: &tfs::diagnose::RankedEffect| {
+        let own: Vec<String> = model
+            .equations
+            .iter()
+            .filter(|e| e.dof == r.dof)
+            .flat_map(|e| e.terms.iter().map(|t| t.term.to_string()))
+            .collect();
+        !r.terms.is_empty() && r.terms.iter().all(|t| own.contains(t))
+    };
+    let (already, offered): (Vec<_>, Vec<_>) = d.ranked.iter().partition(|r| has(r));
+    println!(
+        "\n{:<22} {:>5} {:>10} {:>10} {:>8} {:>12} {:>12}{}",
+        "effect",
+        "sig",
+        "delta",
+        "p",
+        "share",
+        "coef",
+        "R-MSE after",
+        if args.verbose { "  why" } else { "" }
+    );
+    let shown = if args.verbose {
+        offered.len()
+    } else {
+        offered.len().min(TABLE_ROWS)
+    };
+    for r in &offered[..shown] {
+        let why = if args.verbose {
+            format!("  {}", r.reason)
+        } else {
+            String::new()
+        };
+        println!(
+            "{:<22} {:>5} {:>10.4} {:>10.2e} {:>8.4} {:>12.4e} {:>12}{why}",
+            r.name,
+            if r.significant { "yes" } else { "no" },
+            r.delta_heldout,
+            r.p_value,
+            r.share,
+            r.coef,
+            r.r_mse_after
+                .map(|v| format!("{v:.4e}"))
+                .unwrap_or_else(|| "sim. failed".into()),
+        );
+    }
+    if shown < offered.len() {
+        let rest = &offered[shown..];
+        let significant = rest.iter().filter(|r| r.significant).count();
+        println!(
+            "… {} more effect(s), {} (-v lists them all, with each one's reason)",
+            rest.len(),
+            match significant {
+                0 => "none significant".to_string(),
+                n => format!("{n} significant"),
+            }
+        );
+    }
+    if args.verbose && !already.is_empty() {
+        println!(
+            "not offered (the model already has their terms): {}",
+            already
+                .iter()
+                .map(|r| r.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    println!(
+        "(delta: drop of the held-out equation error; R-MSE after: prediction error of the model's terms refitted with the effect, on parts of the records held out of that fit)"
+    );
+}
+
+/// The verdict without its reasons (the parenthesis after the effect, which `-v` prints): what
+/// is missing and the `--add` flags that add it.
+fn short_verdict(verdict: &str) -> String {
+    let Some(open) = verdict.find(" (") else {
+        return verdict.to_string();
+    };
+    match verdict.rfind("; add ").filter(|&k| k > open) {
+        Some(k) => format!("{}{}", &verdict[..open], &verdict[k..]),
+        None => format!("{} (-v says why)", &verdict[..open]),
+    }
 }
 
 /// One number per DOF with 5 significant digits, each followed by its DOF's name.
@@ -309,4 +406,22 @@ fn write_plots(dir: &std::path::Path, d: &tfs::diagnose::Diagnosis) -> Result<()
         Figure::from(chart).save(&dir.join(format!("residual-map-{}", l.dof)))?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::short_verdict;
+
+    #[test]
+    fn the_short_verdict_keeps_the_effect_and_the_flags() {
+        assert_eq!(
+            short_verdict("missing effect: stop (falls 90 % (p = 1e-3)); add it with --add stop"),
+            "missing effect: stop; add it with --add stop"
+        );
+        assert_eq!(
+            short_verdict("no missing effect (nothing is significant)"),
+            "no missing effect (-v says why)"
+        );
+        assert_eq!(short_verdict("no missing effect"), "no missing effect");
+    }
 }

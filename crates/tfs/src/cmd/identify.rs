@@ -7,7 +7,7 @@ pub use tfs::identify::Method;
 use tfs::identify::{IdentifyOptions, Tie, identify, plan};
 use tfs::report::{OffsetsReport, RecordOffsets, RefineReport};
 
-use super::trace_view::print_trace;
+use super::trace_view::{print_summary, print_trace};
 use super::{
     DataArgs, Offsets, prepare_output, print_json, read_records, records_from, with_spinner,
     write_model,
@@ -63,6 +63,10 @@ pub struct Args {
     /// Print the model and trace as JSON on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Print the whole criteria trace (κ, kept bands, every setting tried and why, the
+    /// assembly steps, offsets per record, time per stage) instead of the summary.
+    #[arg(short, long)]
+    pub verbose: bool,
     /// DC offsets of the DOF and input channels: `remove` subtracts each record's mean from
     /// them, `keep` uses the records as they are, `constant-term` keeps them and adds the term
     /// `1` to the library; `auto` (default) is `constant-term` when the inputs are force-like
@@ -178,6 +182,28 @@ pub fn run(args: Args) -> Result<()> {
             "warnings": identified.warnings,
             "cells": if is_chain { chain_cells_json(&identified.model) } else { serde_json::Value::Null },
         }))?;
+    } else if !args.verbose {
+        // One screen: the equation, its fit, the verdict and what to do next.
+        super::print_warnings(&identified.warnings);
+        println!("{}", identified.model.equation_string());
+        if is_chain {
+            print_chain_cells(&identified.model)?;
+        }
+        print_summary(&identified.trace, &identified.model);
+        if offsets_report.mode != tfs::records::Offsets::Keep {
+            println!(
+                "offsets: {} ({})",
+                offsets_report.mode.name(),
+                offsets_report.why
+            );
+        }
+        for line in refine_report.iter().flat_map(RefineReport::lines) {
+            println!("{line}");
+        }
+        println!("{}", next_steps(args.out.as_deref()));
+        if let Some(out) = &args.out {
+            println!("model written to {}", out.display());
+        }
     } else {
         // The data cannot support the library: say so before anything else.
         super::print_warnings(&identified.warnings);
@@ -217,6 +243,17 @@ pub fn run(args: Args) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// What to run next on the model just identified (and how to see the whole trace).
+fn next_steps(out: Option<&std::path::Path>) -> String {
+    match out {
+        Some(p) => format!(
+            "next: `tfs compare --model {0} HELD-OUT.csv` scores it on a record it was not fitted on; `tfs diagnose --model {0} RECORDS.csv` names a missing effect; -v prints the whole trace",
+            p.display()
+        ),
+        None => "next: add `--out model.json` to keep the model, then `tfs compare --model model.json HELD-OUT.csv` scores it on a record it was not fitted on; -v prints the whole trace".into(),
+    }
 }
 
 /// A chain model's cells as `tfs basin` reads them (each cell's law from its own equation, on

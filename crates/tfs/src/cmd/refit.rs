@@ -41,6 +41,10 @@ pub struct Args {
     /// Print the ladder and the model as JSON on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Print more: the loop's notes per round and why each stop was re-scanned (the default
+    /// is the rounds, the model, the error ladder and its verdict).
+    #[arg(short, long)]
+    pub verbose: bool,
     /// DC offsets of the DOF and input channels: `auto` (default) does what `tfs identify` did
     /// for this model (its trace says so), `remove` subtracts each record's mean, `keep` uses
     /// the records as they are.
@@ -132,7 +136,7 @@ pub fn run(args: Args) -> Result<()> {
                 Some(name) => println!("round {}: added {name} ({})", r.round, r.verdict),
                 None => println!("round {}: {}; the loop stops", r.round, r.verdict),
             }
-            if let Some(note) = &r.note {
+            if let Some(note) = r.note.as_ref().filter(|_| args.verbose) {
                 println!("  {note}");
             }
         }
@@ -143,10 +147,18 @@ pub fn run(args: Args) -> Result<()> {
             );
         }
         for s in &stops {
-            println!("stop {} -> {}: {}", s.from, s.to, s.why);
+            if args.verbose {
+                println!("stop {} -> {}: {}", s.from, s.to, s.why);
+            } else {
+                println!(
+                    "stop {} -> {} (re-scanned by T-F-S; -v says why)",
+                    s.from, s.to
+                );
+            }
         }
         println!("{}", model.equation_string());
         print!("{}", ladder_table(&ladder));
+        println!("{}", tfs::report::ladder_verdict(&ladder).sentence);
         for line in refine_report.iter().flat_map(RefineReport::lines) {
             println!("{line}");
         }

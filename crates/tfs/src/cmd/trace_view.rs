@@ -1,7 +1,7 @@
 //! The criteria trace for people: what each stage of the identification measured and decided,
 //! as sentences and small tables with 4–5 significant digits (the raw trace is `--json`).
 
-use tfs::criteria::{Criterion1, Criterion2, DofTrace, Trace};
+use tfs::criteria::{Criterion1, Criterion2, DofTrace, Support, Trace};
 
 /// `v` with 4 significant digits (fixed notation between 1e-3 and 1e5, else scientific).
 pub fn sig(v: f64) -> String {
@@ -23,6 +23,47 @@ pub fn sig(v: f64) -> String {
 /// A record's name as printed: its file name without the folder.
 fn short(record: &str) -> &str {
     record.rsplit(['/', '\\']).next().unwrap_or(record)
+}
+
+/// Prints the summary `identify` shows by default, per DOF: one line of fit quality (the part
+/// of `x''`'s spread the equation leaves on the held-out record, criterion 4's σ), one line of
+/// verdict (a DOF the data do not support points to its warning, printed above the equation),
+/// and why a DOF has no coefficient intervals when it has none.
+pub fn print_summary(trace: &Trace, model: &tfs::library::Model) {
+    for d in &trace.dofs {
+        if let Some(line) = fit_line(d) {
+            println!("{line}");
+        }
+        if let Some(c1) = &d.criterion1 {
+            let verdict = match &c1.support {
+                Support::NotSupported { .. } => {
+                    "not supported by these data (the warning above says why and what to do)"
+                        .to_string()
+                }
+                s => s.to_string(),
+            };
+            println!("verdict {}: {verdict}", d.dof);
+        }
+    }
+    for note in tfs::report::interval_notes(trace, model) {
+        println!("note: {note}");
+    }
+}
+
+/// One DOF's fit quality in one line, from its last data-assembly step (criterion 4): the
+/// spread of the equation's residual on the held-out record against the spread of the
+/// acceleration (measurement noise included) and the residual's mean (its bias).
+fn fit_line(d: &DofTrace) -> Option<String> {
+    let last = d.assembly.last()?;
+    Some(format!(
+        "fit {0}: held-out residual {1} % of the spread of {0}'' (noise included), bias {2} % (on {3}; {4} term(s) from {5} record(s))",
+        d.dof,
+        sig(100.0 * last.sigma),
+        sig(100.0 * last.mu),
+        short(&d.held_out_record),
+        last.n_terms,
+        last.records.len(),
+    ))
 }
 
 /// Prints the criteria trace: per DOF every stage in order, then the time per stage.
