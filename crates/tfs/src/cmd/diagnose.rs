@@ -75,6 +75,9 @@ fn memory_note(
 
 /// Runs `tfs diagnose`.
 pub fn run(args: Args) -> Result<()> {
+    if let Some(dir) = &args.plots {
+        super::paths::check_plots_for(dir, &args.model, &args.data, None)?;
+    }
     let model = read_model(&args.model)?;
     let required = measured_columns(&model);
     let mut records = read_records(&args.data, &required, &args.data_args)?;

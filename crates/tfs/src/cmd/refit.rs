@@ -66,6 +66,9 @@ pub fn run(args: Args) -> Result<()> {
         .map(PathBuf::as_path)
         .collect();
     super::prepare_output(&args.out, &inputs, "--out")?;
+    if let Some(dir) = &args.plots {
+        super::paths::check_plots_for(dir, &args.model, &args.data, Some(&args.out))?;
+    }
     tfs::records::refuse_repeated(&inputs[1..])?;
     let model = read_model(&args.model)?;
     let required = measured_columns(&model);
