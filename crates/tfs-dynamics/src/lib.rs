@@ -45,7 +45,7 @@ mod model;
 mod rk4;
 mod system;
 
-pub use dopri5::{Dopri5, Dopri5Solver};
+pub use dopri5::{BUDGET_BASE, Dopri5, Dopri5Solver, STEPS_PER_STOP};
 pub use equilibria::{Barrier, Equilibrium, barriers, equilibria, potential_from_force};
 pub use error::{DynError, Result};
 pub use initial::{InitialFit, InitialState, choose_initial_state, fit_horizon, fit_initial_state};

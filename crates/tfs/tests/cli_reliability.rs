@@ -629,3 +629,50 @@ fn derived_outputs_are_checked_and_distinct() {
         &["--plots", "a-rec-x.svg"],
     );
 }
+
+/// A 2,000-sample record `t,x,xb_acc` written directly (a forced, damped oscillation).
+fn plain_record(dir: &Path, name: &str, amplitude: f64) -> PathBuf {
+    let mut text = String::from("t,x,xb_acc\n");
+    for k in 0..2000 {
+        let t = k as f64 * 0.01;
+        let x = amplitude * ((1.3 * t).sin() + 0.3 * (2.9 * t).cos());
+        text.push_str(&format!("{t},{x:e},{:e}\n", (1.1 * t).cos()));
+    }
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// Runs `tfs args`; a run still going after `limit` is killed and the test fails (a hang).
+fn run_or_hang(args: &[&str], limit: Duration) -> Output {
+    let mut child = bin()
+        .args(args)
+        .stderr(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if t.elapsed() > limit {
+            child.kill().ok();
+            panic!("tfs {args:?} ran past {limit:?}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
+}
+
+/// A discontinuous model (`sign(x')`) and a stiff one (damping 1e12) on a 2,000-sample record:
+/// the simulation's step budget, sized from the record, stops them with what is wrong (they
+/// used to run for minutes, or ~1e8 s, printing nothing).
+#[test]
+fn stiff_or_discontinuous_models_stop_with_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = plain_record(dir.path(), "r.csv", 1.0);
+    let limit = Duration::from_secs(300);
+    for (name, damping, extra) in [("sign.json", -0.05, "sign(x')"), ("stiff.json", -1e12, "")] {
+        let m = hand_model(dir.path(), name, damping, extra);
+        let o = run_or_hang(&["compare", "--model", s(&m), s(&data)], limit);
+        assert_fails(&o, &["r.csv", "too stiff or discontinuous"]);
+    }
+}
