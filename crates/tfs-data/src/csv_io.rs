@@ -45,6 +45,7 @@ pub fn check_record(record: Record, opts: &CsvOptions) -> Result<(Record, Vec<Da
     let header: Vec<String> = std::iter::once(opts.time_column.clone())
         .chain(names.iter().cloned())
         .collect();
+    crate::validate::time_not_required(&file, opts)?;
     for req in &opts.required {
         if *req != opts.time_column && !names.contains(req) {
             return Err(missing_column(

@@ -455,6 +455,7 @@ impl CsvTable {
                 &crate::validate::time_hint(tcol, &self.names),
             )
         })?;
+        crate::validate::time_not_required(file, opts)?;
         for req in &opts.required {
             if !self.names.contains(req) {
                 return Err(missing_column(

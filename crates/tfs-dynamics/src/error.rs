@@ -47,6 +47,20 @@ pub enum DynError {
         /// The step size the integrator was proposing when the budget ran out (s).
         h: f64,
     },
+    /// A record's displacement is too small for the simulation to follow.
+    #[error(
+        "{record}: column '{column}' spans only {span:.4e} (peak to peak), too little for a simulation with an absolute tolerance of {atol:e} to follow; give the record in smaller units (e.g. µm instead of m)"
+    )]
+    Unresolved {
+        /// The record's source.
+        record: String,
+        /// The displacement column.
+        column: String,
+        /// Its peak-to-peak span.
+        span: f64,
+        /// The integrator's absolute tolerance.
+        atol: f64,
+    },
     /// A parameter has an invalid value.
     #[error("invalid parameter `{name}`: {reason}")]
     InvalidParameter {

@@ -52,6 +52,6 @@ pub use initial::{InitialFit, InitialState, choose_initial_state, fit_horizon, f
 pub use input::{Interpolation, SampledInput};
 pub use integrate::{Integrator, Stats, Trajectory};
 pub use metrics::{rms_error, rmse_ratio, rmse_variance};
-pub use model::{SimulateOptions, initial_velocity, simulate_model_on_record};
+pub use model::{RESOLVED_SPAN_ATOL, SimulateOptions, initial_velocity, simulate_model_on_record};
 pub use rk4::{Rk4, Rk4Scratch, rk4_step};
 pub use system::{FnSystem, SecondOrderSystem};

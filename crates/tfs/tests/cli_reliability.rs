@@ -676,3 +676,26 @@ fn stiff_or_discontinuous_models_stop_with_a_clear_error() {
         assert_fails(&o, &["r.csv", "too stiff or discontinuous"]);
     }
 }
+
+/// A model whose DOF is the time column, and a record too small for the simulation to
+/// resolve, are errors that say so (they were scored: R-MSE against time, or NaN).
+#[test]
+fn time_as_a_dof_and_unresolved_records_are_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = plain_record(dir.path(), "r.csv", 1.0);
+    let m = dir.path().join("t.json");
+    std::fs::write(
+        &m,
+        r#"{"format":"tfs-model/1","dofs":["t"],"inputs":["xb_acc"],"equations":[{"dof":"t","terms":[
+        {"term":"t","coef":-4.0},{"term":"xb_acc","coef":-1.0}]}]}"#,
+    )
+    .unwrap();
+    assert_fails(
+        &tfs(&["compare", "--model", s(&m), s(&data)]),
+        &["'t' is the time column"],
+    );
+    let tiny = plain_record(dir.path(), "tiny.csv", 1e-160);
+    let m = hand_model(dir.path(), "lin.json", -0.2, "");
+    let o = tfs(&["compare", "--model", s(&m), s(&tiny), "--json"]);
+    assert_fails(&o, &["tiny.csv", "'x'", "smaller units"]);
+}

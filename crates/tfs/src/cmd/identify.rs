@@ -151,6 +151,15 @@ pub fn run(args: Args) -> Result<()> {
         }
     }
     let records = records_from(tables, &plan.required, &args.data_args)?;
+    if let Some(note) = super::columns::unused_columns_note(
+        &file,
+        &columns,
+        &plan.dofs,
+        &plan.required,
+        args.library.is_some(),
+    ) {
+        eprintln!("note: {note}");
+    }
     let held_out = if args.validate.is_empty() {
         Vec::new()
     } else {

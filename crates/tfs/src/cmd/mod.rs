@@ -2,6 +2,7 @@
 
 pub mod basin;
 pub mod chain_basin;
+pub mod columns;
 pub mod compare;
 pub mod diagnose;
 pub mod identify;
