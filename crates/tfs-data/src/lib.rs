@@ -234,7 +234,7 @@ pub enum DataError {
     },
     /// Too few data rows.
     #[error(
-        "{file}: row {last_row}: only {rows} data rows, at least {min} are needed; record longer or lower the minimum"
+        "{file}: row {last_row}: only {rows} data rows, at least {min} are needed; record a longer stretch"
     )]
     TooFewRows {
         /// The file.

@@ -9,7 +9,7 @@ use tfs::compare::score;
 use tfs::plot::{Figure, LineChart, Series};
 use tfs::records::{measured_columns, read_model};
 
-use super::{DataArgs, ModelOffsets, offsets_for_model, print_json, read_records};
+use super::{DataArgs, ModelOffsets, offsets_for_model, print_json};
 
 /// Arguments of `tfs compare`.
 #[derive(Debug, clap::Args)]
@@ -41,7 +41,13 @@ pub fn run(args: Args) -> Result<()> {
     // Columns that `tfs diagnose`/`refit` added as effects (delayed or filtered inputs) are
     // computed from the record, not read from it.
     let required = measured_columns(&model);
-    let mut records = read_records(&args.data, &required, &args.data_args)?;
+    let mut records = super::columns::read_model_records(
+        &args.data,
+        &args.model,
+        &model,
+        &required,
+        &args.data_args,
+    )?;
     let offsets_report = offsets_for_model(&mut records, &model, &required, args.offsets.into())?;
     let figure_names = match &args.plots {
         Some(dir) => super::paths::record_figures(dir, &args.model, &args.data, &model.dofs)?,
