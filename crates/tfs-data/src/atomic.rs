@@ -29,15 +29,11 @@ impl AtomicFile {
     /// Starts an atomic write of `target`: creates an empty temporary file beside it with the
     /// same extension (writers that choose a format by extension, like image encoders, work on
     /// it). A symbolic link as target is followed: the file it points to is replaced. The
-    /// target's directory must exist.
+    /// target's directory must exist; an existing target must pass [`check_target`] (a regular
+    /// file that is not read-only).
     pub fn create(target: impl AsRef<Path>) -> std::io::Result<Self> {
+        check_target(target.as_ref())?;
         let target = resolve_link(target.as_ref());
-        if target.is_dir() {
-            return Err(std::io::Error::new(
-                std::io::ErrorKind::IsADirectory,
-                "the path is a directory; give a file name",
-            ));
-        }
         let dir = match target.parent() {
             Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
             _ => PathBuf::from("."),
@@ -131,6 +127,115 @@ impl Drop for AtomicFile {
             drop(self.file.take());
             std::fs::remove_file(&self.temp).ok();
         }
+    }
+}
+
+/// Checks that `target` may be replaced by an atomic write: it does not exist yet, or it is a
+/// regular file (or a symbolic link to one) that is writable. A directory, a device node (like
+/// `/dev/null` or `/dev/full`), a FIFO or a socket is refused — the rename would put a regular
+/// file in its place — and so is a read-only file, which tfs keeps read-only as `cp` and editors
+/// do (for every user, root included: the permission bits decide). The error says what to do.
+pub fn check_target(target: &Path) -> std::io::Result<()> {
+    use std::io::{Error, ErrorKind};
+    let meta = match std::fs::metadata(target) {
+        Ok(m) => m,
+        Err(e) if e.kind() == ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(e),
+    };
+    let ft = meta.file_type();
+    if ft.is_dir() {
+        return Err(Error::new(
+            ErrorKind::IsADirectory,
+            "the path is a directory; give a file name",
+        ));
+    }
+    if !ft.is_file() {
+        return Err(Error::new(
+            ErrorKind::InvalidInput,
+            format!(
+                "the path is {}, not a regular file; tfs writes its results only into regular files (it would replace the {} with one): give a file name",
+                special_kind(&ft),
+                special_kind(&ft).trim_start_matches("a ")
+            ),
+        ));
+    }
+    let read_only = meta.permissions().readonly()
+        || matches!(
+            std::fs::OpenOptions::new().write(true).open(target),
+            Err(e) if e.kind() == ErrorKind::PermissionDenied
+        );
+    if read_only {
+        return Err(Error::new(
+            ErrorKind::PermissionDenied,
+            "the file is read-only and tfs does not replace a read-only file; make it writable (chmod u+w) or choose another file name",
+        ));
+    }
+    Ok(())
+}
+
+/// What kind of file a non-regular, non-directory file type is, for messages.
+fn special_kind(ft: &std::fs::FileType) -> &'static str {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if ft.is_char_device() {
+            return "a character device";
+        }
+        if ft.is_block_device() {
+            return "a block device";
+        }
+        if ft.is_fifo() {
+            return "a FIFO (named pipe)";
+        }
+        if ft.is_socket() {
+            return "a socket";
+        }
+    }
+    let _ = ft;
+    "a special file"
+}
+
+/// A set of files written atomically as a set: each is written completely to its temporary
+/// file first, and only when every one is complete are they renamed over their targets. A
+/// failure while any of them is produced or flushed leaves every previous file as it was
+/// (the renames at the end are separate operations, each atomic).
+#[derive(Debug, Default)]
+pub struct AtomicSet {
+    files: Vec<AtomicFile>,
+}
+
+impl AtomicSet {
+    /// An empty set.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Writes `target`'s content to a temporary file with `write` (through a buffered writer);
+    /// the target is replaced only by [`AtomicSet::commit`].
+    pub fn add_with<F>(&mut self, target: impl AsRef<Path>, write: F) -> std::io::Result<()>
+    where
+        F: FnOnce(&mut dyn Write) -> std::io::Result<()>,
+    {
+        let mut af = AtomicFile::create(target)?;
+        {
+            let mut w = std::io::BufWriter::new(af.file()?);
+            write(&mut w)?;
+            w.flush()?;
+        }
+        af.file()?.sync_all()?;
+        self.files.push(af);
+        Ok(())
+    }
+
+    /// Renames every file of the set over its target (see [`AtomicFile::commit`]); returns the
+    /// targets in the order they were added.
+    pub fn commit(self) -> std::io::Result<Vec<PathBuf>> {
+        let mut done = Vec::with_capacity(self.files.len());
+        for af in self.files {
+            done.push(af.target().to_path_buf());
+            af.commit()?;
+        }
+        Ok(done)
     }
 }
 
@@ -286,5 +391,76 @@ mod tests {
         let t = af.temp_path().to_path_buf();
         drop(af);
         assert!(!t.exists());
+    }
+
+    /// A device node, a FIFO or a read-only file is refused and left as it was; nothing is
+    /// created beside it.
+    #[cfg(unix)]
+    #[test]
+    fn special_and_read_only_targets_are_refused() {
+        use std::os::unix::fs::{FileTypeExt, PermissionsExt};
+        let dir = tempfile::tempdir().unwrap();
+        // A device node of our own (only root may make one): a regression replaces nothing
+        // outside the test's folder.
+        let dev = dir.path().join("null");
+        let made = std::process::Command::new("mknod")
+            .arg(&dev)
+            .args(["c", "1", "3"])
+            .status();
+        if made.is_ok_and(|s| s.success()) {
+            let e = write_atomic(&dev, b"model").unwrap_err();
+            assert!(e.to_string().contains("character device"), "{e}");
+            assert!(
+                std::fs::metadata(&dev)
+                    .unwrap()
+                    .file_type()
+                    .is_char_device()
+            );
+        }
+        let fifo = dir.path().join("pipe.json");
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+        if made.map(|s| s.success()).unwrap_or(false) {
+            let e = write_atomic(&fifo, b"model").unwrap_err();
+            assert!(e.to_string().contains("FIFO"), "{e}");
+            assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo());
+        }
+        let ro = dir.path().join("ro.json");
+        write_atomic(&ro, b"keep me").unwrap();
+        std::fs::set_permissions(&ro, std::fs::Permissions::from_mode(0o444)).unwrap();
+        let e = write_atomic(&ro, b"new").unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::PermissionDenied);
+        assert!(e.to_string().contains("read-only"), "{e}");
+        assert_eq!(std::fs::read(&ro).unwrap(), b"keep me");
+        // Through a symbolic link too.
+        let link = dir.path().join("link.json");
+        std::os::unix::fs::symlink(&ro, &link).unwrap();
+        assert!(write_atomic(&link, b"new").is_err());
+        assert_eq!(std::fs::read(&ro).unwrap(), b"keep me");
+        assert!(temps(dir.path()).is_empty(), "{:?}", temps(dir.path()));
+    }
+
+    /// A set whose last file fails leaves every previous file of the set unchanged.
+    #[test]
+    fn a_set_is_written_all_or_none() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("a.csv"), dir.path().join("b.csv"));
+        write_atomic(&a, b"old a").unwrap();
+        write_atomic(&b, b"old b").unwrap();
+        let mut set = AtomicSet::new();
+        set.add_with(&a, |w| w.write_all(b"new a")).unwrap();
+        let failed = set.add_with(&b, |w| {
+            w.write_all(b"half")?;
+            Err(std::io::Error::other("producer failed"))
+        });
+        assert!(failed.is_err());
+        drop(set);
+        assert_eq!(std::fs::read(&a).unwrap(), b"old a");
+        assert_eq!(std::fs::read(&b).unwrap(), b"old b");
+        assert!(temps(dir.path()).is_empty());
+        let mut set = AtomicSet::new();
+        set.add_with(&a, |w| w.write_all(b"new a")).unwrap();
+        set.add_with(&b, |w| w.write_all(b"new b")).unwrap();
+        assert_eq!(set.commit().unwrap(), vec![a.clone(), b.clone()]);
+        assert_eq!(std::fs::read(&b).unwrap(), b"new b");
     }
 }

@@ -45,6 +45,7 @@ pub fn check_record(record: Record, opts: &CsvOptions) -> Result<(Record, Vec<Da
     let header: Vec<String> = std::iter::once(opts.time_column.clone())
         .chain(names.iter().cloned())
         .collect();
+    crate::validate::time_not_required(&file, opts)?;
     for req in &opts.required {
         if *req != opts.time_column && !names.contains(req) {
             return Err(missing_column(
@@ -102,12 +103,36 @@ fn fmt_f64(v: f64) -> String {
 /// named). The file is written atomically: on any error the previous file is left as it was.
 pub fn write_csv(path: impl AsRef<Path>, record: &Record) -> Result<()> {
     let path = path.as_ref();
-    let name = path.display().to_string();
-    let io_err = |source: std::io::Error| DataError::Io {
-        file: name.clone(),
+    let cols = csv_columns(path, record)?;
+    crate::write_atomic_with(path, |out| render_csv(out, &cols, record.len()))
+        .map_err(write_err(path))
+}
+
+/// [`write_csv`] into a set of files written together ([`crate::AtomicSet`]): the CSV goes to
+/// its temporary file now and replaces `path` only when the whole set is committed.
+pub fn write_csv_into(
+    set: &mut crate::AtomicSet,
+    path: impl AsRef<Path>,
+    record: &Record,
+) -> Result<()> {
+    let path = path.as_ref();
+    let cols = csv_columns(path, record)?;
+    set.add_with(path, |out| render_csv(out, &cols, record.len()))
+        .map_err(write_err(path))
+}
+
+/// The error of a failed write of `path`.
+fn write_err(path: &Path) -> impl FnOnce(std::io::Error) -> DataError {
+    let file = path.display().to_string();
+    move |source| DataError::Io {
+        file,
         action: "write",
         source,
-    };
+    }
+}
+
+/// The columns of a record as written (time first), after checking every value is finite.
+fn csv_columns<'a>(path: &Path, record: &'a Record) -> Result<Vec<(&'a str, &'a [f64])>> {
     let mut cols: Vec<(&str, &[f64])> = vec![("t", record.t())];
     for n in record.names() {
         cols.push((n.as_str(), record.column(n).unwrap_or(&[])));
@@ -115,30 +140,36 @@ pub fn write_csv(path: impl AsRef<Path>, record: &Record) -> Result<()> {
     for (c, x) in &cols {
         if let Some(i) = x.iter().position(|v| !v.is_finite()) {
             return Err(DataError::NonFinite {
-                file: name,
+                file: path.display().to_string(),
                 row: i as u64 + 2,
                 column: c.to_string(),
                 cell: x[i].to_string(),
             });
         }
     }
-    crate::write_atomic_with(path, |out| {
-        let mut w = csv::Writer::from_writer(out);
-        let to_io = |e: csv::Error| match e.into_kind() {
-            csv::ErrorKind::Io(source) => source,
-            other => std::io::Error::other(format!("{other:?}")),
-        };
-        w.write_record(cols.iter().map(|(c, _)| *c))
-            .map_err(to_io)?;
-        let mut row: Vec<String> = Vec::with_capacity(cols.len());
-        for i in 0..record.len() {
-            row.clear();
-            row.extend(cols.iter().map(|(_, x)| fmt_f64(x[i])));
-            w.write_record(&row).map_err(to_io)?;
-        }
-        w.flush()
-    })
-    .map_err(io_err)
+    Ok(cols)
+}
+
+/// Writes the header and `rows` rows of `cols` as CSV text.
+fn render_csv(
+    out: &mut dyn std::io::Write,
+    cols: &[(&str, &[f64])],
+    rows: usize,
+) -> std::io::Result<()> {
+    let mut w = csv::Writer::from_writer(out);
+    let to_io = |e: csv::Error| match e.into_kind() {
+        csv::ErrorKind::Io(source) => source,
+        other => std::io::Error::other(format!("{other:?}")),
+    };
+    w.write_record(cols.iter().map(|(c, _)| *c))
+        .map_err(to_io)?;
+    let mut row: Vec<String> = Vec::with_capacity(cols.len());
+    for i in 0..rows {
+        row.clear();
+        row.extend(cols.iter().map(|(_, x)| fmt_f64(x[i])));
+        w.write_record(&row).map_err(to_io)?;
+    }
+    w.flush()
 }
 
 /// Checks that records can be used together: the same set of column names and sampling

@@ -37,10 +37,10 @@ mod read;
 mod record;
 mod validate;
 
-pub use atomic::{AtomicFile, write_atomic, write_atomic_with};
+pub use atomic::{AtomicFile, AtomicSet, check_target, write_atomic, write_atomic_with};
 pub use csv_io::{
     check_consistent, check_record, from_reader, read_csv, read_csv_checked, read_csv_with,
-    write_csv,
+    write_csv, write_csv_into,
 };
 pub use read::{CsvTable, STDIN_NAME, read_table};
 pub use record::{Columns, Record};
@@ -234,7 +234,7 @@ pub enum DataError {
     },
     /// Too few data rows.
     #[error(
-        "{file}: row {last_row}: only {rows} data rows, at least {min} are needed; record longer or lower the minimum"
+        "{file}: row {last_row}: only {rows} data rows, at least {min} are needed; record a longer stretch"
     )]
     TooFewRows {
         /// The file.

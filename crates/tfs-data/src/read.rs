@@ -54,6 +54,9 @@ pub struct CsvTable {
     /// The first problem in the data rows; parsing stopped there. Reported after the
     /// header-level checks of [`CsvTable::into_record`] (a missing column is the clearer news).
     deferred: Option<DataError>,
+    /// Per column, whether its values have strictly increased so far (only such a column can
+    /// be the time axis).
+    increasing: Vec<bool>,
 }
 
 /// Reads a CSV file (or standard input for `-`) once, without validating it against options.
@@ -324,6 +327,7 @@ impl CsvTable {
             lines: Vec::new(),
             resolution: vec![Some(i32::MIN); ncol],
             deferred: None,
+            increasing: vec![true; ncol],
         };
         let max_rows = MAX_VALUES / ncol.max(1);
         loop {
@@ -351,6 +355,12 @@ impl CsvTable {
             }
             if let Err(e) = table.push_row(&buf, line_no, &mut cells) {
                 table.deferred = Some(e);
+                break;
+            }
+            if !table.increasing.contains(&true) {
+                // No column can be the time axis any more: whichever is, the file fails the
+                // time check at a row already read (the first check after the header's), so
+                // the rest — an endless pipe, a huge file — need not be read.
                 break;
             }
         }
@@ -399,6 +409,11 @@ impl CsvTable {
                     cell: lossy(cell),
                 });
             }
+            if let Some(&prev) = self.cols[j].last()
+                && v <= prev
+            {
+                self.increasing[j] = false;
+            }
             self.cols[j].push(v);
             let res = &mut self.resolution[j];
             if let Some(cur) = *res {
@@ -440,6 +455,7 @@ impl CsvTable {
                 &crate::validate::time_hint(tcol, &self.names),
             )
         })?;
+        crate::validate::time_not_required(file, opts)?;
         for req in &opts.required {
             if !self.names.contains(req) {
                 return Err(missing_column(

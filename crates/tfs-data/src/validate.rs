@@ -229,6 +229,21 @@ fn rounding_allowance(q: f64, dt: f64) -> f64 {
     if (r - r.round()).abs() > 1e-3 { q } else { 0.0 }
 }
 
+/// Refuses options whose required columns include the time column: a model or a DOF list that
+/// names the time axis as a displacement or input would be scored against time itself.
+pub(crate) fn time_not_required(file: &str, opts: &CsvOptions) -> Result<()> {
+    if opts.required.contains(&opts.time_column) {
+        return Err(DataError::Invalid {
+            source_name: file.to_string(),
+            message: format!(
+                "'{0}' is the time column, yet it is asked for as a displacement or input column (a model's DOF or input named '{0}'); a record's DOFs and inputs are its other columns: use a model fitted on them, or name another time column",
+                opts.time_column
+            ),
+        });
+    }
+    Ok(())
+}
+
 /// Checks a parsed table; returns the warnings (errors downgraded by options) or the first error.
 pub(crate) fn check_table(tab: &Table<'_>, opts: &CsvOptions) -> Result<Vec<DataError>> {
     let file = tab.file.to_string();

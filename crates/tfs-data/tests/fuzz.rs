@@ -181,3 +181,47 @@ fn decimal_comma_is_named() {
         "{e}"
     );
 }
+
+/// Rows `0.5,1` without end, counting the bytes read.
+struct EndlessRows<'a>(&'a std::cell::Cell<u64>);
+
+impl Read for EndlessRows<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        // Stop after 64 MiB so a reader that reads on fails the assertion instead of hanging.
+        if self.0.get() > 64 << 20 {
+            return Ok(0);
+        }
+        let row = b"0.5,1\n";
+        let n = buf.len() / row.len() * row.len();
+        for chunk in buf[..n].chunks_mut(row.len()) {
+            chunk.copy_from_slice(row);
+        }
+        self.0.set(self.0.get() + n as u64);
+        Ok(n)
+    }
+}
+
+/// Endless input whose time stops increasing at row 3 fails there at once: the time column is
+/// checked as rows arrive (a stream is not read to its memory limit first).
+#[test]
+fn endless_rows_with_a_bad_time_stop_at_once() {
+    let read = std::cell::Cell::new(0);
+    let head = std::io::Cursor::new(b"t,x\n0,1\n0.01,2\n0.005,3\n".to_vec());
+    let e = CsvTable::from_reader("stream", head.chain(EndlessRows(&read)))
+        .unwrap()
+        .into_record(&CsvOptions::default())
+        .unwrap_err();
+    let m = e.to_string();
+    assert!(
+        m.contains("row 4") && m.contains("does not increase"),
+        "{m}"
+    );
+    assert!(read.get() < 1 << 20, "{} bytes read", read.get());
+    // A column other than `t` as the time axis gets the same.
+    let head = std::io::Cursor::new(b"x,time\n1,0\n2,0.01\n3,0.005\n".to_vec());
+    let e = CsvTable::from_reader("stream", head.chain(EndlessRows(&read)))
+        .unwrap()
+        .into_record(&CsvOptions::default().time_column("time"))
+        .unwrap_err();
+    assert!(e.to_string().contains("column 'time'"), "{e}");
+}

@@ -47,6 +47,13 @@ const E: [f64; 7] = [
     -1.0 / 40.0,
 ];
 
+/// Default [`Dopri5::steps_per_stop`]: attempted steps allowed per forced stop of a run.
+pub const STEPS_PER_STOP: usize = 1000;
+
+/// Attempted steps every run may take besides [`Dopri5::steps_per_stop`] per stop (a free run
+/// with few output times still gets this many).
+pub const BUDGET_BASE: usize = 100_000;
+
 /// Adaptive Dormand–Prince 5(4) settings.
 ///
 /// The local error of each step is kept below `atol + rtol·|y|` in the RMS norm over all `x` and
@@ -70,8 +77,14 @@ pub struct Dopri5 {
     pub h_init: Option<f64>,
     /// Largest step size (s); `f64::INFINITY` for no limit.
     pub h_max: f64,
-    /// Largest number of attempted steps per run.
+    /// Largest number of attempted steps per run, whatever its length.
     pub max_steps: usize,
+    /// The step budget of [`Integrator::integrate`], sized from the run: at most this many
+    /// attempted steps per forced stop (each output time and each input sample time inside the
+    /// run) plus [`BUDGET_BASE`]. A smooth model takes one to a few steps per stop; a model that
+    /// needs thousands is too stiff or discontinuous for an explicit method at this tolerance
+    /// and would otherwise run for hours (see [`DynError::TooManySteps`]).
+    pub steps_per_stop: usize,
     /// Largest allowed |x| or |v| before the run is declared blown up; `None` = automatic
     /// (`1e6 · max(1, |x0|, |v0|)`).
     pub blowup_limit: Option<f64>,
@@ -85,6 +98,7 @@ impl Default for Dopri5 {
             h_init: None,
             h_max: f64::INFINITY,
             max_steps: 10_000_000,
+            steps_per_stop: STEPS_PER_STOP,
             blowup_limit: None,
         }
     }
@@ -125,13 +139,37 @@ impl Dopri5 {
                 ),
             });
         }
-        if self.max_steps == 0 {
+        if self.max_steps == 0 || self.steps_per_stop == 0 {
             return Err(DynError::InvalidParameter {
-                name: "max_steps",
+                name: if self.max_steps == 0 {
+                    "max_steps"
+                } else {
+                    "steps_per_stop"
+                },
                 reason: "must be at least 1".into(),
             });
         }
         check_limit(self.blowup_limit)
+    }
+
+    /// The attempted steps [`Integrator::integrate`] allows a run to `t_out` under `input`:
+    /// [`BUDGET_BASE`] plus [`Dopri5::steps_per_stop`] per forced stop (the output times or the
+    /// input sample times inside the run, whichever are more), at most [`Dopri5::max_steps`].
+    pub fn budget(&self, input: &SampledInput, t_out: &[f64]) -> usize {
+        let (a, b) = (t_out[0], t_out[t_out.len() - 1]);
+        let samples = if input.is_time_varying() && input.dt() > 0.0 {
+            let lo = ((a - input.t0()) / input.dt()).max(0.0);
+            let hi = ((b - input.t0()) / input.dt()).clamp(0.0, input.len() as f64);
+            (hi - lo).max(0.0).ceil() as usize
+        } else {
+            0
+        };
+        // Input samples and output times mostly coincide (a record's own grid): the larger count.
+        let stops = t_out.len().max(samples);
+        stops
+            .saturating_mul(self.steps_per_stop)
+            .saturating_add(BUDGET_BASE)
+            .min(self.max_steps)
     }
 
     /// A stepping solver started at time `t0` from `(x0, v0)`; call
@@ -161,7 +199,9 @@ impl Integrator for Dopri5 {
     ) -> Result<Trajectory> {
         self.validate()?;
         check_args(sys, input, x0, v0, t_out)?;
-        let mut s = Dopri5Solver::new(*self, sys, input, t_out[0], x0, v0);
+        let mut opts = *self;
+        opts.max_steps = self.budget(input, t_out);
+        let mut s = Dopri5Solver::new(opts, sys, input, t_out[0], x0, v0);
         let mut traj = Trajectory::with_capacity(sys.dofs(), t_out.len());
         traj.push(t_out[0], x0, v0);
         for &tn in &t_out[1..] {
@@ -363,6 +403,7 @@ impl<'a, S: SecondOrderSystem + ?Sized> Dopri5Solver<'a, S> {
                     t: self.t,
                     t_target,
                     max_steps: self.opts.max_steps,
+                    h: self.h,
                 });
             }
             if self.h < tiny {
@@ -460,6 +501,52 @@ fn step_factor(err: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A stiff run (damping 1e12, which needs ~1e13 steps) stops at a budget sized from its
+    /// length with the message that says why; a discontinuous one (`sign(x')`) likewise.
+    #[test]
+    fn step_budget_is_sized_from_the_run() {
+        let t: Vec<f64> = (0..2000).map(|k| k as f64 * 0.01).collect();
+        let stiff = crate::FnSystem::new(
+            1,
+            0,
+            |_t, x: &[f64], v: &[f64], _u: &[f64], a: &mut [f64]| a[0] = -1e12 * v[0] - x[0],
+        );
+        let sign = crate::FnSystem::new(
+            1,
+            1,
+            |_t, x: &[f64], v: &[f64], u: &[f64], a: &mut [f64]| {
+                a[0] = u[0] - 4.0 * x[0] - 0.5 * v[0].signum() * (v[0] != 0.0) as u8 as f64
+            },
+        );
+        let u = SampledInput::new(0.0, 0.01, vec![t.iter().map(|t| (1.1 * t).cos()).collect()])
+            .unwrap();
+        let d = Dopri5::default();
+        let runs: [(&dyn SecondOrderSystem, &SampledInput); 2] =
+            [(&stiff, &SampledInput::zero(0)), (&sign, &u)];
+        for (sys, input) in runs {
+            let e = d.integrate(sys, input, &[1.0], &[0.0], &t).unwrap_err();
+            let DynError::TooManySteps { max_steps, .. } = e else {
+                panic!("{e}")
+            };
+            assert_eq!(max_steps, BUDGET_BASE + 2000 * STEPS_PER_STOP);
+            assert!(
+                e.to_string()
+                    .starts_with("the model is too stiff or discontinuous")
+            );
+        }
+        // The budget follows the run's length, and a smooth run stays far inside it.
+        assert_eq!(d.budget(&u, &t[..100]), BUDGET_BASE + 100 * STEPS_PER_STOP);
+        let smooth = crate::FnSystem::new(
+            1,
+            1,
+            |_t, x: &[f64], v: &[f64], u: &[f64], a: &mut [f64]| {
+                a[0] = u[0] - 4.0 * x[0] - 0.5 * v[0]
+            },
+        );
+        let tr = d.integrate(&smooth, &u, &[1.0], &[0.0], &t).unwrap();
+        assert!(tr.stats.steps + tr.stats.rejected < 4 * t.len());
+    }
 
     /// The shortcut gives the clamped power to the bit over every decade of errors.
     #[test]

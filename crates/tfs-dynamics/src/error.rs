@@ -25,7 +25,7 @@ pub enum DynError {
     },
     /// The adaptive step size fell below what floating point can resolve.
     #[error(
-        "step size underflow at t = {t:.6} s (h = {h:.3e} s); the system is stiff or singular here: check the model, or loosen rtol/atol"
+        "the model is too stiff or discontinuous to simulate at this tolerance: the step fell to h = {h:.3e} s at t = {t:.6} s; look for a term that jumps (sign(x'), a stop) or a coefficient far larger than the others"
     )]
     StepSizeUnderflow {
         /// Time where the integrator stalled (s).
@@ -35,7 +35,7 @@ pub enum DynError {
     },
     /// The step budget ran out before the final output time.
     #[error(
-        "too many steps: {max_steps} steps taken and stopped at t = {t:.6} s before reaching t = {t_target:.6} s; raise max_steps or loosen rtol/atol"
+        "the model is too stiff or discontinuous to simulate at this tolerance: {max_steps} steps got only to t = {t:.6} s on the way to t = {t_target:.6} s (steps of h = {h:.3e} s); look for a term that jumps (sign(x'), a stop) or a coefficient far larger than the others"
     )]
     TooManySteps {
         /// Time reached (s).
@@ -44,6 +44,22 @@ pub enum DynError {
         t_target: f64,
         /// The budget.
         max_steps: usize,
+        /// The step size the integrator was proposing when the budget ran out (s).
+        h: f64,
+    },
+    /// A record's displacement is too small for the simulation to follow.
+    #[error(
+        "{record}: column '{column}' spans only {span:.4e} (peak to peak), too little for a simulation with an absolute tolerance of {atol:e} to follow; give the record in smaller units (e.g. µm instead of m)"
+    )]
+    Unresolved {
+        /// The record's source.
+        record: String,
+        /// The displacement column.
+        column: String,
+        /// Its peak-to-peak span.
+        span: f64,
+        /// The integrator's absolute tolerance.
+        atol: f64,
     },
     /// A parameter has an invalid value.
     #[error("invalid parameter `{name}`: {reason}")]
@@ -93,10 +109,12 @@ impl DynError {
                 t,
                 t_target,
                 max_steps,
+                h,
             } => DynError::TooManySteps {
                 t: t + t0,
                 t_target: t_target + t0,
                 max_steps,
+                h,
             },
             other => other,
         }

@@ -137,7 +137,9 @@ pub fn fit_horizon(measured: &[&[f64]], periods: f64) -> usize {
 /// deviation, Jacobian by forward differences, starting from `(x0, v0)` (all DOFs; the others stay
 /// as given). A start that blows up has cost `+∞` and is returned unchanged.
 ///
-/// Errors: `measured` longer than the system's DOFs, or a slice shorter than `t`.
+/// Errors: `measured` longer than the system's DOFs, or a slice shorter than `t`; a run that
+/// exhausts the integrator's step budget ([`DynError::TooManySteps`]: the model is too stiff or
+/// discontinuous to simulate) stops the fit with that error.
 #[allow(clippy::too_many_arguments)]
 pub fn fit_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
     sys: &S,
@@ -192,9 +194,26 @@ pub fn fit_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
         }
         (x, v)
     };
+    // A run that exhausts its step budget says the model cannot be simulated at this tolerance
+    // (stiff or discontinuous), whatever its start: the fit stops and returns that error at
+    // once rather than spending a budget on every trial start.
+    let over_budget: std::sync::Mutex<Option<DynError>> = std::sync::Mutex::new(None);
     let residuals = |p: &[f64]| -> Option<Vec<f64>> {
+        match over_budget.lock() {
+            Ok(e) if e.is_none() => {}
+            _ => return None,
+        }
         let (x, v) = to_state(p);
-        let tr = integrator.integrate(sys, input, &x, &v, t).ok()?;
+        let tr = match integrator.integrate(sys, input, &x, &v, t) {
+            Ok(tr) => tr,
+            Err(e @ DynError::TooManySteps { .. }) => {
+                if let Ok(mut slot) = over_budget.lock() {
+                    slot.get_or_insert(e);
+                }
+                return None;
+            }
+            Err(_) => return None,
+        };
         let mut r = Vec::with_capacity(m * t.len());
         for i in 0..m {
             for (a, b) in tr.x[i].iter().zip(measured[i]) {
@@ -208,7 +227,14 @@ pub fn fit_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
         .map(|i| x0[i] / sx[i])
         .chain((0..m).map(|i| v0[i] / sv[i]))
         .collect();
+    let over = |slot: std::sync::Mutex<Option<DynError>>| -> Result<()> {
+        match slot.into_inner() {
+            Ok(Some(e)) => Err(e),
+            _ => Ok(()),
+        }
+    };
     let Some(mut r) = residuals(&p) else {
+        over(over_budget)?;
         return Ok(InitialFit {
             x0: x0.to_vec(),
             v0: v0.to_vec(),
@@ -283,6 +309,7 @@ pub fn fit_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
             break;
         }
     }
+    over(over_budget)?;
     let (x, v) = to_state(&p);
     Ok(InitialFit {
         x0: x,

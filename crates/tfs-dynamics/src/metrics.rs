@@ -28,6 +28,33 @@ fn check(measured: &[f64], predicted: &[f64]) -> Result<()> {
     Ok(())
 }
 
+/// `num / den` for sums of squares of `measured` and `predicted`; when the sums leave the
+/// normal range of `f64` (a record of amplitude 1e-160 squares to below the smallest normal
+/// number, 1e200 above the largest) the ratio is taken again on both signals divided by their
+/// largest magnitude, which it does not depend on. Signals in the normal range get the plain
+/// ratio, to the bit.
+fn scaled_ratio(
+    measured: &[f64],
+    predicted: &[f64],
+    sums: impl Fn(&[f64], &[f64]) -> (f64, f64),
+) -> (f64, f64) {
+    let (num, den) = sums(measured, predicted);
+    let normal = |v: f64| v == 0.0 || v.is_normal();
+    if normal(num) && normal(den) && (num / den).is_finite() {
+        return (num, den);
+    }
+    let scale = measured
+        .iter()
+        .chain(predicted)
+        .fold(0.0_f64, |m, v| m.max(v.abs()));
+    if !(scale > 0.0 && scale.is_finite()) {
+        return (num, den);
+    }
+    let a: Vec<f64> = measured.iter().map(|v| v / scale).collect();
+    let b: Vec<f64> = predicted.iter().map(|v| v / scale).collect();
+    sums(&a, &b)
+}
+
 /// `Σ (x − x̂)²`.
 fn sum_sq_error(measured: &[f64], predicted: &[f64]) -> f64 {
     measured
@@ -47,7 +74,9 @@ fn sum_sq_error(measured: &[f64], predicted: &[f64]) -> f64 {
 /// ```
 pub fn rmse_ratio(measured: &[f64], predicted: &[f64]) -> Result<f64> {
     check(measured, predicted)?;
-    let den: f64 = measured.iter().map(|x| x * x).sum();
+    let (num, den) = scaled_ratio(measured, predicted, |m, p| {
+        (sum_sq_error(m, p), m.iter().map(|x| x * x).sum())
+    });
     if den == 0.0 {
         return Err(DynError::InvalidParameter {
             name: "measured",
@@ -55,7 +84,6 @@ pub fn rmse_ratio(measured: &[f64], predicted: &[f64]) -> Result<f64> {
                 .into(),
         });
     }
-    let num = sum_sq_error(measured, predicted);
     Ok(num / den)
 }
 
@@ -85,8 +113,13 @@ pub fn rms_error(measured: &[f64], predicted: &[f64]) -> Result<f64> {
 pub fn rmse_variance(measured: &[f64], predicted: &[f64]) -> Result<f64> {
     check(measured, predicted)?;
     let n = measured.len() as f64;
-    let mean = measured.iter().sum::<f64>() / n;
-    let den: f64 = measured.iter().map(|x| (x - mean) * (x - mean)).sum();
+    let (num, den) = scaled_ratio(measured, predicted, |m, p| {
+        let mean = m.iter().sum::<f64>() / n;
+        (
+            sum_sq_error(m, p),
+            m.iter().map(|x| (x - mean) * (x - mean)).sum(),
+        )
+    });
     if den == 0.0 {
         return Err(DynError::InvalidParameter {
             name: "measured",
@@ -95,7 +128,6 @@ pub fn rmse_variance(measured: &[f64], predicted: &[f64]) -> Result<f64> {
                     .into(),
         });
     }
-    let num = sum_sq_error(measured, predicted);
     Ok(num / den)
 }
 
@@ -121,5 +153,24 @@ mod tests {
         assert!((c - d).abs() < 1e-9 * c, "{c} vs {d}");
         assert!((c - 0.04).abs() < 2e-3, "{c}");
         assert!(rmse_variance(&[2.0; 8], &[2.0; 8]).is_err());
+    }
+
+    /// Signals so small (or large) that their squares leave the range of `f64` get the ratio
+    /// they have at unit scale, not NaN.
+    #[test]
+    fn ratios_do_not_depend_on_the_scale() {
+        let x: Vec<f64> = (0..200).map(|k| (0.1 * k as f64).sin()).collect();
+        let p: Vec<f64> = x.iter().map(|v| 0.8 * v + 0.01).collect();
+        let at = |s: f64| -> Vec<f64> { x.iter().map(|v| v * s).collect() };
+        let pt = |s: f64| -> Vec<f64> { p.iter().map(|v| v * s).collect() };
+        let (r, rb) = (rmse_variance(&x, &p).unwrap(), rmse_ratio(&x, &p).unwrap());
+        for s in [1e-160, 1e-300, 1e160] {
+            let (a, b) = (
+                rmse_variance(&at(s), &pt(s)).unwrap(),
+                rmse_ratio(&at(s), &pt(s)).unwrap(),
+            );
+            assert!((a - r).abs() < 1e-9 * r, "scale {s}: {a} vs {r}");
+            assert!((b - rb).abs() < 1e-9 * rb, "scale {s}: {b} vs {rb}");
+        }
     }
 }

@@ -140,6 +140,12 @@ pub fn simulate_model_on_record(
         .iter()
         .map(|d| record.column(d).ok_or_else(|| missing(d)))
         .collect::<Result<_>>()?;
+    check_resolved(
+        record.source(),
+        compiled.dof_names(),
+        &measured,
+        &opts.integrator,
+    )?;
     // Internal states (the auxiliary coordinates after the DOFs) start at rest, z = 0.
     let n = compiled.dofs();
     x0.resize(compiled.system_dofs(), 0.0);
@@ -163,6 +169,40 @@ pub fn simulate_model_on_record(
     tr.v.truncate(n);
     tr.t = t_abs.to_vec();
     Ok(tr)
+}
+
+/// How many absolute tolerances a displacement must span (peak to peak) for its simulation to
+/// mean anything: below that the integrator's error allowance is a noticeable part of the motion.
+pub const RESOLVED_SPAN_ATOL: f64 = 1e3;
+
+/// Refuses a record whose measured displacement moves, but spans less than
+/// [`RESOLVED_SPAN_ATOL`] absolute tolerances of `integrator` (a record of amplitude 1e-160 in
+/// metres): its simulation would be the tolerance's, and its R-MSE noise or NaN. A constant
+/// column (a start at rest) is accepted.
+fn check_resolved(
+    record: &str,
+    dofs: &[String],
+    measured: &[&[f64]],
+    integrator: &Dopri5,
+) -> Result<()> {
+    for (dof, col) in dofs.iter().zip(measured) {
+        let (lo, hi) = col
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
+        let span = hi - lo;
+        // A constant column is a start at rest (a generator's convention), not a measurement.
+        if span > 0.0 && span < RESOLVED_SPAN_ATOL * integrator.atol {
+            return Err(DynError::Unresolved {
+                record: record.to_string(),
+                column: dof.clone(),
+                span,
+                atol: integrator.atol,
+            });
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -53,7 +53,7 @@ pub use model::{
 pub use parse::{MAX_POWER, MAX_SPEC_TERMS};
 pub use potential::{Polynomial, Restoring};
 pub use state::StateLaw;
-pub use term::{Coord, ExactDerivative, Factor, Term, Var};
+pub use term::{Coord, ExactDerivative, Factor, Term, Var, quote_name};
 
 /// Errors of term parsing, library evaluation and model handling.
 #[derive(Debug, thiserror::Error)]

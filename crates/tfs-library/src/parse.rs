@@ -127,6 +127,45 @@ impl<'a> Parser<'a> {
         Some(self.chars[start..self.pos].iter().collect())
     }
 
+    /// A column name: an identifier, or any text in double quotes (`"acc [m/s2]"`, `"base-acc"`;
+    /// `""` for a quote inside), so that a header with units or dashes can be named.
+    fn column_name(&mut self) -> Result<Option<String>> {
+        self.skip_ws();
+        if self.chars.get(self.pos) != Some(&'"') {
+            return Ok(self.ident());
+        }
+        let start = self.pos;
+        self.pos += 1;
+        let mut name = String::new();
+        loop {
+            match self.chars.get(self.pos) {
+                None => {
+                    return Err(self.err_at(
+                        start,
+                        "'\"' that is not closed".into(),
+                        "a closing '\"' after a quoted column name",
+                    ));
+                }
+                Some('"') if self.chars.get(self.pos + 1) == Some(&'"') => {
+                    name.push('"');
+                    self.pos += 2;
+                }
+                Some('"') => {
+                    self.pos += 1;
+                    break;
+                }
+                Some(c) => {
+                    name.push(*c);
+                    self.pos += 1;
+                }
+            }
+        }
+        if name.trim().is_empty() {
+            return Err(self.err_at(start, "'\"\"'".into(), "a column name inside the quotes"));
+        }
+        Ok(Some(name))
+    }
+
     fn uint(&mut self, what: &str) -> Result<u32> {
         self.skip_ws();
         let start = self.pos;
@@ -179,7 +218,7 @@ impl<'a> Parser<'a> {
         self.dofs.contains(&name)
     }
 
-    /// var := ident ["'"] | "(" ident "-" ident ")" ["'"]
+    /// var := name ["'"] | "(" name "-" name ")" ["'"], a name being an identifier or quoted text
     fn var(&mut self) -> Result<Var> {
         self.skip_ws();
         let start = self.pos;
@@ -189,7 +228,7 @@ impl<'a> Parser<'a> {
                 self.pos
             };
             let a = self
-                .ident()
+                .column_name()?
                 .ok_or_else(|| self.err("a DOF name after '(' in a relative coordinate (a-b)"))?;
             if !self.is_dof(&a) {
                 return Err(self.err_at(
@@ -207,7 +246,7 @@ impl<'a> Parser<'a> {
                 self.pos
             };
             let b = self
-                .ident()
+                .column_name()?
                 .ok_or_else(|| self.err("a DOF or input name after '-' in (a-b)"))?;
             if a == b {
                 return Err(self.err_at(
@@ -228,8 +267,8 @@ impl<'a> Parser<'a> {
             }
             return Ok(Var::RelDisp(a, b));
         }
-        let name = self.ident().ok_or_else(|| {
-            self.err("a variable: a DOF, a DOF velocity like x', (x2-x1), or an input column")
+        let name = self.column_name()?.ok_or_else(|| {
+            self.err("a variable: a DOF, a DOF velocity like x', (x2-x1), or an input column (quoted when its name has other characters: \"acc [m/s2]\")")
         })?;
         if self.chars.get(self.pos) == Some(&'\'') {
             if !self.is_dof(&name) {

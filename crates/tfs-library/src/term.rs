@@ -90,14 +90,29 @@ impl Var {
     }
 }
 
+/// A column name as the term grammar writes it: as it is when it is an identifier (`xb_acc`),
+/// else in double quotes with a quote inside doubled (`"acc [m/s2]"`), which parses back to the
+/// same name.
+pub fn quote_name(name: &str) -> std::borrow::Cow<'_, str> {
+    let mut chars = name.chars();
+    let plain = chars.next().is_some_and(|c| c.is_alphabetic() || c == '_')
+        && chars.all(|c| c.is_alphanumeric() || c == '_');
+    if plain {
+        std::borrow::Cow::Borrowed(name)
+    } else {
+        std::borrow::Cow::Owned(format!("\"{}\"", name.replace('"', "\"\"")))
+    }
+}
+
 impl fmt::Display for Var {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let q = quote_name;
         match self {
-            Var::Disp(d) => write!(f, "{d}"),
-            Var::Vel(d) => write!(f, "{d}'"),
-            Var::RelDisp(a, b) => write!(f, "({a}-{})", b.name()),
-            Var::RelVel(a, b) => write!(f, "({a}-{})'", b.name()),
-            Var::Input(n) => write!(f, "{n}"),
+            Var::Disp(d) => write!(f, "{}", q(d)),
+            Var::Vel(d) => write!(f, "{}'", q(d)),
+            Var::RelDisp(a, b) => write!(f, "({}-{})", q(a), q(b.name())),
+            Var::RelVel(a, b) => write!(f, "({}-{})'", q(a), q(b.name())),
+            Var::Input(n) => write!(f, "{}", q(n)),
         }
     }
 }

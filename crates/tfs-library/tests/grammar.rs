@@ -7,7 +7,17 @@ const DOFS: [&str; 3] = ["x", "x1", "x2"];
 
 fn var_strategy() -> impl Strategy<Value = Var> {
     let dof = prop::sample::select(vec!["x", "x1", "x2"]).prop_map(String::from);
-    let input = prop::sample::select(vec!["xb_acc", "u", "force", "xb"]).prop_map(String::from);
+    // Rig headers carry units and dashes: such names print quoted and parse back.
+    let input = prop::sample::select(vec![
+        "xb_acc",
+        "u",
+        "force",
+        "xb",
+        "acc [m/s2]",
+        "base-acc",
+        "say \"hi\"",
+    ])
+    .prop_map(String::from);
     prop_oneof![
         dof.clone().prop_map(Var::Disp),
         dof.clone().prop_map(Var::Vel),
@@ -344,4 +354,21 @@ fn internal_states_parse_evaluate_and_refuse_bad_input() {
     )
     .unwrap();
     assert_eq!(lib.len(), 3);
+}
+
+/// A column whose header has units or dashes is named in a spec by quoting it; the term prints
+/// quoted and parses back to the same column; an unclosed or empty quote is an error.
+#[test]
+fn quoted_column_names() {
+    let lib = Library::parse("x^1..3, x', \"acc [m/s2]\", abs(\"base-acc\")", &["x"]).unwrap();
+    let cols = lib.required_columns();
+    assert!(cols.contains(&"acc [m/s2]".to_string()), "{cols:?}");
+    assert!(cols.contains(&"base-acc".to_string()), "{cols:?}");
+    let t = Term::parse("\"acc [m/s2]\"", &["x"]).unwrap();
+    assert_eq!(t.to_string(), "\"acc [m/s2]\"");
+    assert_eq!(Term::parse(&t.to_string(), &["x"]).unwrap(), t);
+    for bad in ["\"acc", "\"\"", "x, \"  \""] {
+        let e = Library::parse(bad, &["x"]).unwrap_err().to_string();
+        assert!(e.contains("quote"), "{bad}: {e}");
+    }
 }

@@ -137,6 +137,7 @@ fn bad_dynamics(e: &DynError) -> bool {
         DynError::InvalidParameter { .. }
             | DynError::Dimension { .. }
             | DynError::MissingColumn { .. }
+            | DynError::Unresolved { .. }
     )
 }
 

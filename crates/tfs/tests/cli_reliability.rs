@@ -508,3 +508,194 @@ fn simulate_errors_say_only_what_went_wrong() {
     assert_fails(&o, &["gamma0"]);
     assert!(!stderr(&o).contains("diverged"), "{}", stderr(&o));
 }
+
+/// A hand-written 1-DOF model (`x'' = -4 x + c x' + extra - xb_acc`), as a model file.
+fn hand_model(dir: &Path, name: &str, damping: f64, extra: &str) -> PathBuf {
+    let p = dir.join(name);
+    let extra = if extra.is_empty() {
+        String::new()
+    } else {
+        format!(r#"{{"term":"{extra}","coef":-0.5}},"#)
+    };
+    std::fs::write(
+        &p,
+        format!(
+            r#"{{"format":"tfs-model/1","dofs":["x"],"inputs":["xb_acc"],"equations":[{{"dof":"x","terms":[
+            {{"term":"x","coef":-4.0}},{{"term":"x'","coef":{damping:e}}},{extra}{{"term":"xb_acc","coef":-1.0}}]}}]}}"#
+        ),
+    )
+    .unwrap();
+    p
+}
+
+/// `--out` never replaces what is not a regular, writable file: a device node, a FIFO or a
+/// read-only file is refused before any work and left as it was (the atomic rename used to put
+/// a regular file in its place, and `identify --out /dev/full` said "model written").
+#[cfg(unix)]
+#[test]
+fn out_replaces_only_regular_writable_files() {
+    use std::os::unix::fs::{FileTypeExt, PermissionsExt};
+    let dir = tempfile::tempdir().unwrap();
+    let sim = |out: &str| tfs(&["simulate", "kresling", "--duration", "5", "--out", out]);
+    assert_fails(&sim("/dev/null"), &["--out /dev/null", "character device"]);
+    assert!(
+        std::fs::metadata("/dev/null")
+            .unwrap()
+            .file_type()
+            .is_char_device()
+    );
+    let data = record(dir.path(), "a", 1);
+    assert_fails(
+        &tfs(&["identify", s(&data), "--out", "/dev/full"]),
+        &["--out /dev/full", "not a regular file"],
+    );
+    let fifo = dir.path().join("pipe.csv");
+    assert!(
+        Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success()
+    );
+    assert_fails(&sim(s(&fifo)), &["pipe.csv", "FIFO"]);
+    assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo());
+    let ro = dir.path().join("ro.csv");
+    std::fs::write(&ro, "keep").unwrap();
+    std::fs::set_permissions(&ro, std::fs::Permissions::from_mode(0o444)).unwrap();
+    assert_fails(&sim(s(&ro)), &["ro.csv", "read-only", "chmod"]);
+    assert_eq!(std::fs::read_to_string(&ro).unwrap(), "keep");
+    // A read-only metadata file beside a writable CSV: nothing is written at all.
+    let out = dir.path().join("b.csv");
+    let meta = dir.path().join("b.meta.json");
+    std::fs::write(&meta, "old").unwrap();
+    std::fs::set_permissions(&meta, std::fs::Permissions::from_mode(0o444)).unwrap();
+    assert_fails(&sim(s(&out)), &["b.meta.json", "read-only"]);
+    assert!(!out.exists());
+}
+
+/// Every file a command writes is checked against its inputs, the derived ones too: basin's
+/// SVG beside `--out X.png`, compare's figures (two records with the same file name in two
+/// folders get two sets of figures), and simulate's records are written as a set.
+#[test]
+fn derived_outputs_are_checked_and_distinct() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = hand_model(dir.path(), "map.svg", -0.2, "");
+    let before = std::fs::read(&m).unwrap();
+    let png = dir.path().join("map.png");
+    assert_fails(
+        &tfs(&[
+            "basin",
+            "--model",
+            s(&m),
+            "--grid",
+            "10x10",
+            "--out",
+            s(&png),
+        ]),
+        &["--out", "map.svg", "also an input"],
+    );
+    assert_eq!(std::fs::read(&m).unwrap(), before);
+    // compare: a/rec.csv and b/rec.csv each get their figures.
+    let m = hand_model(dir.path(), "lin.json", -0.2, "");
+    std::fs::create_dir_all(dir.path().join("a")).unwrap();
+    std::fs::create_dir_all(dir.path().join("b")).unwrap();
+    let ra = dir.path().join("a/rec.csv");
+    let rb = dir.path().join("b/rec.csv");
+    std::fs::copy(record(dir.path(), "r1", 1), &ra).unwrap();
+    std::fs::copy(record(dir.path(), "r2", 2), &rb).unwrap();
+    let plots = dir.path().join("figs");
+    let o = tfs(&[
+        "compare",
+        "--model",
+        s(&m),
+        s(&ra),
+        s(&rb),
+        "--plots",
+        s(&plots),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut names: Vec<String> = std::fs::read_dir(&plots)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".svg"))
+        .collect();
+    names.sort();
+    assert_eq!(names, ["a-rec-x.svg", "b-rec-x.svg"]);
+    // A figure among the inputs, in the --plots folder, is refused before any work.
+    let fig = plots.join("a-rec-x.svg");
+    std::fs::copy(&ra, &fig).unwrap();
+    assert_fails(
+        &tfs(&["compare", "--model", s(&m), s(&fig), "--plots", s(&plots)]),
+        &["--plots", "a-rec-x.svg"],
+    );
+}
+
+/// A 2,000-sample record `t,x,xb_acc` written directly (a forced, damped oscillation).
+fn plain_record(dir: &Path, name: &str, amplitude: f64) -> PathBuf {
+    let mut text = String::from("t,x,xb_acc\n");
+    for k in 0..2000 {
+        let t = k as f64 * 0.01;
+        let x = amplitude * ((1.3 * t).sin() + 0.3 * (2.9 * t).cos());
+        text.push_str(&format!("{t},{x:e},{:e}\n", (1.1 * t).cos()));
+    }
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// Runs `tfs args`; a run still going after `limit` is killed and the test fails (a hang).
+fn run_or_hang(args: &[&str], limit: Duration) -> Output {
+    let mut child = bin()
+        .args(args)
+        .stderr(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if t.elapsed() > limit {
+            child.kill().ok();
+            panic!("tfs {args:?} ran past {limit:?}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
+}
+
+/// A discontinuous model (`sign(x')`) and a stiff one (damping 1e12) on a 2,000-sample record:
+/// the simulation's step budget, sized from the record, stops them with what is wrong (they
+/// used to run for minutes, or ~1e8 s, printing nothing).
+#[test]
+fn stiff_or_discontinuous_models_stop_with_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = plain_record(dir.path(), "r.csv", 1.0);
+    let limit = Duration::from_secs(300);
+    for (name, damping, extra) in [("sign.json", -0.05, "sign(x')"), ("stiff.json", -1e12, "")] {
+        let m = hand_model(dir.path(), name, damping, extra);
+        let o = run_or_hang(&["compare", "--model", s(&m), s(&data)], limit);
+        assert_fails(&o, &["r.csv", "too stiff or discontinuous"]);
+    }
+}
+
+/// A model whose DOF is the time column, and a record too small for the simulation to
+/// resolve, are errors that say so (they were scored: R-MSE against time, or NaN).
+#[test]
+fn time_as_a_dof_and_unresolved_records_are_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = plain_record(dir.path(), "r.csv", 1.0);
+    let m = dir.path().join("t.json");
+    std::fs::write(
+        &m,
+        r#"{"format":"tfs-model/1","dofs":["t"],"inputs":["xb_acc"],"equations":[{"dof":"t","terms":[
+        {"term":"t","coef":-4.0},{"term":"xb_acc","coef":-1.0}]}]}"#,
+    )
+    .unwrap();
+    assert_fails(
+        &tfs(&["compare", "--model", s(&m), s(&data)]),
+        &["'t' is the time column"],
+    );
+    let tiny = plain_record(dir.path(), "tiny.csv", 1e-160);
+    let m = hand_model(dir.path(), "lin.json", -0.2, "");
+    let o = tfs(&["compare", "--model", s(&m), s(&tiny), "--json"]);
+    assert_fails(&o, &["tiny.csv", "'x'", "smaller units"]);
+}

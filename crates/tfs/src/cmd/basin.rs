@@ -58,7 +58,8 @@ pub struct Args {
 /// Runs `tfs basin`.
 pub fn run(args: Args) -> Result<()> {
     if let Some(out) = &args.out {
-        super::prepare_output(out, &[args.model.as_path()], "--out")?;
+        let figures = super::paths::figure_files(out);
+        super::paths::check_outputs(out, &figures, &[args.model.as_path()], "--out")?;
     }
     let (nx, ny) = parse_grid(&args.grid)?;
     let v_range = parse_range(&args.v, "--v")?;

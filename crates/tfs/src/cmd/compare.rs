@@ -9,7 +9,7 @@ use tfs::compare::score;
 use tfs::plot::{Figure, LineChart, Series};
 use tfs::records::{measured_columns, read_model};
 
-use super::{DataArgs, ModelOffsets, offsets_for_model, print_json, read_records};
+use super::{DataArgs, ModelOffsets, offsets_for_model, print_json};
 
 /// Arguments of `tfs compare`.
 #[derive(Debug, clap::Args)]
@@ -44,19 +44,31 @@ pub fn run(args: Args) -> Result<()> {
     // Columns that `tfs diagnose`/`refit` added as effects (delayed or filtered inputs) are
     // computed from the record, not read from it.
     let required = measured_columns(&model);
-    let mut records = read_records(&args.data, &required, &args.data_args)?;
+    let mut records = super::columns::read_model_records(
+        &args.data,
+        &args.model,
+        &model,
+        &required,
+        &args.data_args,
+    )?;
     let offsets_report = offsets_for_model(&mut records, &model, &required, args.offsets.into())?;
-    if let Some(dir) = &args.plots {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("--plots {}: cannot create the directory", dir.display()))?;
-    }
+    let figure_names = match &args.plots {
+        Some(dir) => super::paths::record_figures(dir, &args.model, &args.data, &model.dofs)?,
+        None => Vec::new(),
+    };
     let mut files = Vec::new();
     let pb = super::progress(records.len() as u64, "simulating");
-    for (path, rec) in args.data.iter().zip(&records) {
+    for (k, (path, rec)) in args.data.iter().zip(&records).enumerate() {
         pb.inc(1);
         let scored = score(&model, rec)?;
         if let Some(dir) = &args.plots {
-            plot_record(dir, path, rec, &model.dofs, &scored.trajectory)?;
+            plot_record(
+                dir,
+                (path, &figure_names[k]),
+                rec,
+                &model.dofs,
+                &scored.trajectory,
+            )?;
         }
         files.push(scored.to_json());
     }
@@ -126,19 +138,14 @@ pub fn run(args: Args) -> Result<()> {
 /// Writes the measured-vs-model time history of every DOF of one record (SVG and PNG).
 fn plot_record(
     dir: &std::path::Path,
-    path: &std::path::Path,
+    (path, name): (&std::path::Path, &str),
     rec: &tfs::data::Record,
     dofs: &[String],
     traj: &tfs::dynamics::Trajectory,
 ) -> Result<()> {
     for (i, dof) in dofs.iter().enumerate() {
         let measured = rec.column(dof).context("column vanished")?;
-        let stem = dir.join(format!(
-            "{}-{dof}",
-            path.file_stem()
-                .and_then(|s| s.to_str())
-                .unwrap_or("record")
-        ));
+        let stem = dir.join(format!("{name}-{dof}"));
         let chart = LineChart {
             title: format!("{}: measured vs model ({dof})", path.display()),
             x_label: "t (s)".into(),

@@ -10,7 +10,7 @@ use tfs::plot::{BarChart, Figure, LineChart, Series};
 
 use tfs::records::{measured_columns, read_model};
 
-use super::{DataArgs, ModelOffsets, offsets_for_model, print_json, read_records};
+use super::{DataArgs, ModelOffsets, offsets_for_model, print_json};
 
 /// Arguments of `tfs diagnose`.
 #[derive(Debug, clap::Args)]
@@ -80,9 +80,18 @@ fn memory_note(
 
 /// Runs `tfs diagnose`.
 pub fn run(args: Args) -> Result<()> {
+    if let Some(dir) = &args.plots {
+        super::paths::check_plots_for(dir, &args.model, &args.data, None)?;
+    }
     let model = read_model(&args.model)?;
     let required = measured_columns(&model);
-    let mut records = read_records(&args.data, &required, &args.data_args)?;
+    let mut records = super::columns::read_model_records(
+        &args.data,
+        &args.model,
+        &model,
+        &required,
+        &args.data_args,
+    )?;
     let offsets_report = offsets_for_model(&mut records, &model, &required, args.offsets.into())?;
     let opts = DiagnoseOptions {
         alpha: args.alpha,

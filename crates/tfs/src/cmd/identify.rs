@@ -123,7 +123,8 @@ pub fn run(args: Args) -> Result<()> {
         .collect();
     if args.dofs.iter().any(|d| d == time_column) {
         bail!(
-            "--dofs {time_column}: '{time_column}' is the time column, not a displacement; name the displacement columns (e.g. --dofs x)"
+            "--dofs {time_column}: '{time_column}' is the time column, not a displacement; name the displacement columns among the file's others ({})",
+            columns.join(", ")
         );
     }
     let file = args.data[0].display().to_string();
@@ -155,6 +156,16 @@ pub fn run(args: Args) -> Result<()> {
         }
     }
     let records = records_from(tables, &plan.required, &args.data_args)?;
+    super::columns::check_identify_rows(&records)?;
+    if let Some(note) = super::columns::unused_columns_note(
+        &file,
+        &columns,
+        &plan.dofs,
+        &plan.required,
+        args.library.is_some(),
+    ) {
+        eprintln!("note: {note}");
+    }
     let held_out = if args.validate.is_empty() {
         Vec::new()
     } else {

@@ -44,6 +44,13 @@ pub struct Args {
     /// Index (1-based) of the target stable state S2.
     #[arg(long, default_value_t = 2)]
     pub to: usize,
+    /// Fixed RK4 step of the basin map's unforced runs (s); a step too long for the model is
+    /// refused.
+    #[arg(long, default_value_t = 0.01)]
+    pub dt: f64,
+    /// Time cap of the basin map's runs (s); starts not settled by then are labelled unsettled.
+    #[arg(long, default_value_t = 100.0)]
+    pub t_max: f64,
     /// Print the result as JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -58,7 +65,8 @@ pub fn run(args: Args) -> Result<()> {
         if model.dofs.len() > 1 {
             let dx = parse_range(args.x.as_deref().unwrap_or(DEFAULT_DX), "--x")?;
             let label = path.display().to_string();
-            let cfg = BasinConfig::new(nx, ny, dx, v_range);
+            let mut cfg = BasinConfig::new(nx, ny, dx, v_range);
+            (cfg.dt, cfg.t_max) = (args.dt, args.t_max);
             let c = chain_map(&label, &model, args.search.as_deref(), cfg)?;
             let m = chain_med(&c, args.from, args.to)
                 .map_err(|e| anyhow!("{label}: minimum-energy deployment: {e:#}"))?;
@@ -83,13 +91,14 @@ pub fn run(args: Args) -> Result<()> {
         (None, None) => bail!("give --model FILE or --truth SPEC"),
     };
     check_med_states(&sdof, &what, search, args.from, args.to)?;
-    let cfg = BasinConfig::new(nx, ny, x_range, v_range);
+    let mut cfg = BasinConfig::new(nx, ny, x_range, v_range);
+    (cfg.dt, cfg.t_max) = (args.dt, args.t_max);
     let (from, to) = (args.from - 1, args.to - 1);
     // A model runs as its concrete compiled form (its batched evaluation inlined into the SIMD
     // blocks), a truth as the boxed system; the search is the same.
     let med = match &compiled {
-        Some(c) => med_of(c, &sdof.wells, &cfg, from, to),
-        None => med_of(&*sdof.system, &sdof.wells, &cfg, from, to),
+        Some(c) => med_of(c, &sdof.wells, &cfg, from, to, "model"),
+        None => med_of(&*sdof.system, &sdof.wells, &cfg, from, to, "truth"),
     }
     .map_err(|e| match e.downcast_ref::<BasinError>() {
         // The library numbers states from 0; the flags and the output from 1.
@@ -132,14 +141,16 @@ pub fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
-/// The basin map and the MED search on it.
+/// The basin map and the MED search on it (`label`, "model" or "truth", names the map in
+/// messages).
 fn med_of<S: SecondOrderSystem + ?Sized>(
     sys: &S,
     wells: &WellInfo,
     cfg: &BasinConfig,
     from: usize,
     to: usize,
+    label: &str,
 ) -> Result<Med> {
-    let map = run_map(sys, wells, cfg, "basin")?;
+    let map = run_map(sys, wells, cfg, label)?;
     Ok(med_sdof(sys, wells, &map, cfg, from, to)?)
 }

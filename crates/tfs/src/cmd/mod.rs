@@ -2,11 +2,13 @@
 
 pub mod basin;
 pub mod chain_basin;
+pub mod columns;
 pub mod compare;
 pub mod diagnose;
 pub mod identify;
 pub mod kresling;
 pub mod med;
+pub mod paths;
 pub mod plots;
 pub mod refit;
 pub mod simulate;
@@ -98,33 +100,11 @@ pub fn records_from(
 }
 
 /// Checks an output path before anything is computed: it must not be one of the `inputs`
-/// (writing there would replace a measurement or a model with the result), and its folder is
-/// created when missing. `flag` names the option in messages.
+/// (writing there would replace a measurement or a model with the result) nor a file tfs may
+/// not replace (see [`paths::check_outputs`]), and its folder is created when missing. `flag`
+/// names the option in messages.
 pub fn prepare_output(out: &Path, inputs: &[&Path], flag: &str) -> Result<()> {
-    if out.as_os_str() == "-" {
-        bail!("{flag} -: write to a file; the result goes to stdout with --json");
-    }
-    if out.is_dir() {
-        bail!("{flag} {}: is a directory; give a file name", out.display());
-    }
-    let id = tfs::records::file_identity(out);
-    if let Some(p) = inputs.iter().find(|p| tfs::records::file_identity(p) == id) {
-        bail!(
-            "{flag} {}: this is also an input ({}); writing there would replace it with the result. Choose another file name",
-            out.display(),
-            p.display()
-        );
-    }
-    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).with_context(|| {
-            format!(
-                "{flag} {}: cannot create the folder {}",
-                out.display(),
-                dir.display()
-            )
-        })?;
-    }
-    Ok(())
+    paths::check_outputs(out, &[out.to_path_buf()], inputs, flag)
 }
 
 /// Writes a model file atomically (the previous file survives any failure).

@@ -70,10 +70,20 @@ pub fn run(args: Args) -> Result<()> {
         .map(PathBuf::as_path)
         .collect();
     super::prepare_output(&args.out, &inputs, "--out")?;
+    super::columns::refuse_repeated("--add", &args.add)?;
+    if let Some(dir) = &args.plots {
+        super::paths::check_plots_for(dir, &args.model, &args.data, Some(&args.out))?;
+    }
     tfs::records::refuse_repeated(&inputs[1..])?;
     let model = read_model(&args.model)?;
     let required = measured_columns(&model);
-    let mut records = read_records(&args.data, &required, &args.data_args)?;
+    let mut records = super::columns::read_model_records(
+        &args.data,
+        &args.model,
+        &model,
+        &required,
+        &args.data_args,
+    )?;
     let offsets_report = offsets_for_model(&mut records, &model, &required, args.offsets.into())?;
     let mut held_out = Vec::new();
     if args.refine && !args.validate.is_empty() {

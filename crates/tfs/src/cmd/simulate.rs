@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::{Subcommand, ValueEnum};
 use serde_json::json;
 use tfs::origami::Truth;
@@ -128,29 +128,12 @@ pub fn run(args: Args) -> Result<()> {
         pink: common.pink,
         seed: common.seed,
     };
-    super::prepare_output(&common.out, &[], "--out")?;
+    let (csvs, meta_path) = super::paths::simulate_outputs(&common.out, req.excitations.len());
+    let mut all = csvs.clone();
+    all.push(meta_path.clone());
+    super::paths::check_outputs(&common.out, &all, &[], "--out")?;
     let data = dataset(&req)?;
-
-    let mut files = Vec::new();
-    let n = data.records.len();
-    for (k, rec) in data.records.iter().enumerate() {
-        let path = if n == 1 {
-            common.out.clone()
-        } else {
-            let stem = common.out.with_extension("");
-            let ext = common
-                .out
-                .extension()
-                .and_then(|e| e.to_str())
-                .unwrap_or("csv");
-            PathBuf::from(format!("{}-{}.{ext}", stem.display(), k + 1))
-        };
-        tfs::data::write_csv(&path, rec)?;
-        files.push(path.display().to_string());
-    }
-    let meta_path = common.out.with_extension("meta.json");
-    tfs::data::write_atomic(&meta_path, serde_json::to_string_pretty(&data.meta)?)
-        .with_context(|| format!("writing {}", meta_path.display()))?;
+    let files = super::paths::write_record_set(&common.out, &data.records, &data.meta)?;
     let contacts = stop_contacts(&data);
     if common.json {
         let stops: Vec<_> = contacts
