@@ -33,6 +33,7 @@ pub fn identify_sindy(records: &[Record], spec: &IdentifySpec) -> Result<Identif
         let t0 = Instant::now();
         // Each record is compressed on its own, so the records go in parallel (collected in
         // order, the first error in record order: the same result on any number of threads).
+        check_terms_vary(&blocks, spec, d, lib)?;
         let comps: Vec<Result<Compressed>> = blocks
             .par_iter()
             .map(|r| record_compressed(r, spec, d, lib))
@@ -118,6 +119,34 @@ pub fn identify_sindy(records: &[Record], spec: &IdentifySpec) -> Result<Identif
         timing,
         t_all,
     )
+}
+
+/// Refuses a library term of DOF `d`'s equation that takes one value on every row of every
+/// record (a stop the data never reach, an input that does not move): nothing can be identified
+/// about it, and the regression would otherwise stop in its own words.
+fn check_terms_vary(blocks: &[Record], spec: &IdentifySpec, d: usize, lib: &Library) -> Result<()> {
+    let mut range = vec![(f64::INFINITY, f64::NEG_INFINITY); lib.len()];
+    for r in blocks {
+        let dt = check_record(r, &spec.dofs)?;
+        let mut cs = tfs_library::ColumnSet::new(r as &dyn tfs_data::Columns);
+        for dn in &spec.dofs {
+            let x = r.column(dn).expect("checked");
+            cs.insert(format!("{dn}'"), tfs_signal::central_difference(x, dt, 1)?)?;
+        }
+        let a = lib.evaluate(&cs)?;
+        for (j, (lo, hi)) in range.iter_mut().enumerate() {
+            for &v in a.col_as_slice(j) {
+                *lo = lo.min(v);
+                *hi = hi.max(v);
+            }
+        }
+    }
+    for (j, &(lo, hi)) in range.iter().enumerate() {
+        if lo == hi && !lib.terms()[j].is_constant() {
+            return crate::criterion1::single_valued(lib, j, &spec.dofs[d], lo);
+        }
+    }
+    Ok(())
 }
 
 /// The compression of one record's rows for DOF `d`: numerical derivatives, then the library

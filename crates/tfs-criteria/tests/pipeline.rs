@@ -26,6 +26,20 @@ fn missing_dof_column_is_an_error_that_names_it() {
         e.contains("'below(x, -100)'") && e.contains("never reach"),
         "{e}"
     );
+    // The classical baseline says the same, in the user's words (not the regression's "initial
+    // fit is identically zero"), alone in the library or beside other terms.
+    for lib in [
+        "below(x, -100)".to_string(),
+        format!("{LIB}, below(x, -100)"),
+    ] {
+        let e = identify_sindy(&recs, &IdentifySpec::new(&["x"], &lib))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("'below(x, -100)'") && e.contains("never reach"),
+            "{e}"
+        );
+    }
 }
 
 /// On noise-free data the classical baseline with central differences is accurate too.

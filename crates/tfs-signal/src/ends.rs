@@ -54,7 +54,7 @@ fn start_slope(y: impl Iterator<Item = f64>, m: usize, dt: f64) -> f64 {
 /// quadratic through the `m` samples at that end (`m` is clamped to `3..=len/2`).
 pub fn end_slopes(x: &[f64], dt: f64, m: usize) -> (f64, f64) {
     let n = x.len();
-    if n < 6 || !(dt > 0.0) {
+    if n < 6 || dt.is_nan() || dt <= 0.0 {
         return (0.0, 0.0);
     }
     let m = m.clamp(3, n / 2);

@@ -36,6 +36,16 @@ pub(crate) fn nonconstant_columns(lib: &Library) -> Vec<usize> {
         .collect()
 }
 
+/// The error for library term `j` of `dof`'s equation, which takes the single value `value` on
+/// every row of every record: nothing can be identified about it (the classical fit checks the
+/// same).
+pub(crate) fn single_valued<T>(lib: &Library, j: usize, dof: &str, value: f64) -> Result<T> {
+    invalid(format!(
+        "library term '{}' of the equation of '{dof}' takes the single value {value} on every record (for a stop below(x, c) or above(x, c): the data never reach c); drop it from the library",
+        lib.terms()[j]
+    ))
+}
+
 /// Criterion 1 for DOF `d` as a pass reports it: `given` (the elimination's re-runs keep the
 /// first pass's verdict, its support verdict cleared for this pass to fill) or computed by
 /// [`criterion1_dof`].
@@ -151,11 +161,7 @@ pub(crate) fn criterion1_dof(
                     .fold((lo, hi), |(lo, hi), &v| (lo.min(v), hi.max(v)))
             });
         if lo == hi {
-            return invalid(format!(
-                "library term '{}' of the equation of '{}' takes the single value {lo} on every record (for a stop below(x, c) or above(x, c): the data never reach c); drop it from the library",
-                lib.terms()[j],
-                spec.dofs[d]
-            ));
+            return single_valued(lib, j, &spec.dofs[d], lo);
         }
     }
     // The centred factor is needed only by Criterion 2's pruning; κ alone has a cheaper route.
