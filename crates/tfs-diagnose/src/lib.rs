@@ -46,6 +46,7 @@
 
 #![warn(missing_docs)]
 
+mod anchor;
 pub mod compare;
 mod design;
 pub mod effects;

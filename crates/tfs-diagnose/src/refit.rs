@@ -2,12 +2,14 @@
 //! parameter chosen by held-out error), keep the history, and print the error ladder.
 
 use faer::Mat;
+use rayon::prelude::*;
 use serde::Serialize;
 use serde_json::json;
 use tfs_data::Record;
 use tfs_library::{HistoryEntry, Model, RecordScore, Term};
 use tfs_regress::Compressed;
 
+use crate::anchor::Anchor;
 use crate::design::{compress_blocks, design, full_fit, partner_columns, with_equation};
 use crate::effects::{Catalogue, EffectColumn};
 use crate::prepare::{DiagnoseOptions, Layout, RecordStates, check_records};
@@ -202,8 +204,11 @@ pub fn add_effect(model: &Model, effect_name: &str, records: &[Record]) -> Resul
 
 /// Adds an effect to the equation of each target DOF: every variant of its family is fitted with
 /// the equation's terms on training folds and the one with the lowest held-out equation error is
-/// kept; the extended equation is then refitted on all records. The model's history gets a
-/// `"start"` entry (if empty) and an `"add <name>"` entry with the R-MSE of every record.
+/// kept; the extended equation is then refitted on all records toward the model's own
+/// coefficients ([`crate::anchor`]: held, ridge-regularised or free), keeping the fit whose free
+/// runs predict the records best. The model's history gets a `"start"` entry (if empty) and an
+/// `"add <name>"` entry with the R-MSE of every record (its details name the anchor kept and
+/// every anchor's R-MSE per record).
 pub fn add_effect_with(
     model: &Model,
     effect_name: &str,
@@ -219,6 +224,7 @@ pub fn add_effect_with(
     let mut out = model.clone();
     let mut added = Vec::new();
     let mut details = Vec::new();
+    let mut plans = Vec::new();
     for &idx in &dofs {
         let base: Vec<tfs_library::Term> = model.equations[idx]
             .terms
@@ -253,25 +259,43 @@ pub fn add_effect_with(
         };
         let best = re.scored;
         let (cols, v) = (best.cols, best.variant);
-        let coef = full_fit(&best.blocks)?;
-        out = with_equation(&out, idx, &cols, &coef)?;
         for c in v.add.iter().chain(v.replace.iter().map(|(_, c)| c)) {
             added.push(c.label());
         }
         added.extend(re.terms.iter().map(ToString::to_string));
         let readmitted: Vec<String> = re.terms.iter().map(ToString::to_string).collect();
-        details.push(json!({"dof": dof, "parameter": v.parameter, "readmitted": readmitted}));
         // A force on a coupling acts on both masses: the same variant goes into each partner's
         // equation (refitted there), unless that DOF is a target of its own.
-        for (pi, pcols) in partner_columns(&out, dof, &v) {
+        let mut partners = Vec::new();
+        for (pi, pcols) in partner_columns(model, dof, &v) {
             if dofs.contains(&pi) {
                 continue;
             }
             let pd = design(&states, pi, &pcols)?;
             let pcoef = full_fit(&compress_blocks(&pd, &layout)?)?;
-            out = with_equation(&out, pi, &pcols, &pcoef)?;
-            let p = &model.dofs[pi];
+            partners.push((pi, pcols, pcoef));
+        }
+        details.push(json!({"dof": dof, "parameter": v.parameter, "readmitted": readmitted}));
+        for (pi, _, _) in &partners {
+            let p = &model.dofs[*pi];
             details.push(json!({"dof": p, "parameter": v.parameter, "partner_of": dof}));
+        }
+        let all: Vec<(&Compressed, usize)> = best.blocks.iter().map(|c| (c, 1)).collect();
+        let merged = Compressed::merge_counted(&all)?;
+        plans.push(Planned {
+            idx,
+            start: crate::anchor::start_values(model, idx, &cols),
+            cols,
+            merged,
+            partners,
+        });
+    }
+    if !plans.is_empty() {
+        let chosen = choose_anchor(model, &plans, records)?;
+        out = chosen.model;
+        if let Some(first) = details.first_mut().and_then(|d| d.as_object_mut()) {
+            first.insert("anchor".into(), json!(chosen.anchor.label()));
+            first.insert("train_r_mse".into(), json!(chosen.scores));
         }
     }
     if out.history.is_empty() {
@@ -291,6 +315,79 @@ pub fn add_effect_with(
         details: json!({"variants": details, "equations": out.equation_string(), "failed": failed}),
     });
     Ok(out)
+}
+
+/// The refit [`choose_anchor`] kept.
+struct Anchored {
+    model: Model,
+    anchor: Anchor,
+    /// Each anchor's R-MSE on each fit record (`null`: the simulation failed).
+    scores: Vec<(String, Vec<f64>)>,
+}
+
+/// One target DOF's refit to be made: its equation's columns with the effect, their merged
+/// compressed rows, the start value of each column ([`crate::anchor::start_values`]), and the
+/// partner equations a coupling force also enters (index, columns, coefficients).
+struct Planned {
+    idx: usize,
+    cols: Vec<EffectColumn>,
+    merged: Compressed,
+    start: Vec<Option<f64>>,
+    partners: Vec<(usize, Vec<EffectColumn>, Vec<f64>)>,
+}
+
+/// Refits every planned equation under each [`Anchor`] toward `model`'s coefficients (one
+/// anchor for all target DOFs, so a coupling force added to both masses stays one law), with
+/// the partners' equations as they were fitted, and keeps the model whose free runs predict the
+/// fit `records` best (mean R-MSE; one that fails to simulate a record is kept only when every
+/// anchor's does; ties go to the more held anchor). See [`crate::anchor`].
+fn choose_anchor(model: &Model, plans: &[Planned], records: &[Record]) -> Result<Anchored> {
+    let mut fits = Vec::new();
+    for anchor in Anchor::all() {
+        let mut m = model.clone();
+        for p in plans {
+            let coef = crate::anchor::fit(&p.merged, &p.start, anchor)?;
+            m = with_equation(&m, p.idx, &p.cols, &coef)?;
+            for (pi, pcols, pcoef) in &p.partners {
+                m = with_equation(&m, *pi, pcols, pcoef)?;
+            }
+        }
+        fits.push((anchor, m));
+    }
+    // Side by side; the choice is made in anchor order, as a serial loop would.
+    let each: Vec<Vec<f64>> = fits
+        .par_iter()
+        .map(|(_, m)| r_mse_each(m, records))
+        .collect();
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let mut pick = 0;
+    for (k, e) in each.iter().enumerate() {
+        if mean(e) < mean(&each[pick]) {
+            pick = k;
+        }
+    }
+    let scores = fits
+        .iter()
+        .zip(&each)
+        .map(|((a, _), e)| (a.label(), e.clone()))
+        .collect();
+    let (anchor, model) = fits.swap_remove(pick);
+    Ok(Anchored {
+        model,
+        anchor,
+        scores,
+    })
+}
+
+/// R-MSE of `model` on each of `records` (infinite where a simulation fails).
+fn r_mse_each(model: &Model, records: &[Record]) -> Vec<f64> {
+    records
+        .iter()
+        .map(|r| match crate::simulate::r_mse(model, r) {
+            Ok(v) if v.is_finite() => v,
+            _ => f64::INFINITY,
+        })
+        .collect()
 }
 
 /// Scores every record, keeping failed simulations (e.g. blow-up) as messages instead of scores.

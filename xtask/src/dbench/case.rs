@@ -148,6 +148,11 @@ pub struct CaseResult {
     pub rounds: Vec<Round>,
     /// Held-out R-MSE after adding the hidden effect itself by name (one hidden effect).
     pub oracle_after: Option<f64>,
+    /// Held-out R-MSE of the start model (single-effect cases; `None` when it fails to
+    /// simulate the record).
+    pub start_heldout: Option<f64>,
+    /// The oracle refit's equations, or why it failed (single-effect cases).
+    pub oracle_model: Option<String>,
     /// Seconds: identify, whole case.
     pub identify_seconds: f64,
     /// Whole case.
@@ -169,6 +174,8 @@ impl CaseResult {
             start: None,
             rounds: Vec::new(),
             oracle_after: None,
+            start_heldout: None,
+            oracle_model: None,
             identify_seconds: 0.0,
             seconds: 0.0,
         }
@@ -352,9 +359,20 @@ fn round(
 /// under `keep` ([`Args::keep_records`](super::Args)).
 /// `reference` is what the noise level is relative to.
 pub fn run(spec: &CaseSpec, keep: Option<&Path>, reference: SnrReference) -> CaseResult {
+    run_with(spec, keep, reference, true)
+}
+
+/// [`run`], with the diagnosis rounds only when `diagnose` (without, a single-effect case
+/// measures only the start model and the oracle refit on the held-out record).
+pub fn run_with(
+    spec: &CaseSpec,
+    keep: Option<&Path>,
+    reference: SnrReference,
+    diagnose: bool,
+) -> CaseResult {
     let t0 = Instant::now();
     let mut out = CaseResult::new(spec);
-    if let Err(e) = run_into(spec, &mut out, keep, reference) {
+    if let Err(e) = run_into(spec, &mut out, keep, reference, diagnose) {
         if out.status == "ok" {
             out.status = "failed".into();
         }
@@ -369,6 +387,7 @@ fn run_into(
     out: &mut CaseResult,
     keep: Option<&Path>,
     reference: SnrReference,
+    diagnose: bool,
 ) -> Result<()> {
     let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
     let b = truth::draw(spec.kind, &mut rng)?;
@@ -442,13 +461,15 @@ fn run_into(
     if let Some(keep) = keep {
         keep_records(keep, spec, &train, &heldout, &id.model)?;
     }
-    let (r1, m1) = round(&id.model, &train, &heldout, &id.offsets)?;
-    out.rounds.push(r1);
-    if let Some(m1) = m1
-        && spec.group == Group::Pair
-    {
-        let (r2, _) = round(&m1, &train, &heldout, &id.offsets)?;
-        out.rounds.push(r2);
+    if diagnose {
+        let (r1, m1) = round(&id.model, &train, &heldout, &id.offsets)?;
+        out.rounds.push(r1);
+        if let Some(m1) = m1
+            && spec.group == Group::Pair
+        {
+            let (r2, _) = round(&m1, &train, &heldout, &id.offsets)?;
+            out.rounds.push(r2);
+        }
     }
     if spec.group == Group::Single && !hides.is_empty() {
         let h = &hides[0];
@@ -457,12 +478,46 @@ fn run_into(
         } else {
             h.effect.clone()
         };
-        if let Ok(r) = tfs::refit::refit(&id.model, &[name], &train, false, Vec::new(), &id.offsets)
-        {
-            out.oracle_after = tfs::diagnose::r_mse(&r.model, &heldout).ok();
+        out.start_heldout = tfs::diagnose::r_mse(&id.model, &heldout).ok();
+        match tfs::refit::refit(&id.model, &[name], &train, false, Vec::new(), &id.offsets) {
+            Ok(r) => {
+                out.oracle_after = tfs::diagnose::r_mse(&r.model, &heldout).ok();
+                let anchor = r.model.history.last().and_then(|h| {
+                    h.details["variants"][0]["anchor"]
+                        .as_str()
+                        .map(String::from)
+                });
+                let train = |i: usize| r.ladder.get(i).map_or(f64::NAN, |l| l.mean_r_mse);
+                out.oracle_model = Some(format!(
+                    "{} (fit records {:.4e} -> {:.4e}): {}",
+                    anchor.as_deref().unwrap_or("-"),
+                    train(0),
+                    train(r.ladder.len().saturating_sub(1)),
+                    r.model.equation_string()
+                ));
+            }
+            Err(e) => out.oracle_model = Some(format!("failed: {e:#}")),
         }
     }
     Ok(())
+}
+
+/// Whether the oracle refit of single-effect case `c` predicts the held-out record better than
+/// the start model (`None` when the case did not run, or is not a single-effect one). A refit
+/// that fails to simulate the record is not better; one that simulates it where the start
+/// model does not is.
+pub fn oracle_better(c: &CaseResult) -> Option<bool> {
+    if !c.ok() || c.spec.group != Group::Single {
+        return None;
+    }
+    let start = c
+        .start_heldout
+        .or_else(|| c.rounds.first().and_then(|r| r.before));
+    Some(match (c.oracle_after, start) {
+        (Some(o), Some(s)) => o < s,
+        (Some(_), None) => true,
+        (None, _) => false,
+    })
 }
 
 /// Writes case `spec`'s training and held-out records and its start model into

@@ -66,6 +66,8 @@ fn case(v: &Value) -> Result<CaseResult> {
         .unwrap_or_default();
     c.start = opt_string(&v["start"]);
     c.oracle_after = v["oracle_after"].as_f64();
+    c.start_heldout = v["start_heldout"].as_f64();
+    c.oracle_model = opt_string(&v["oracle_model"]);
     c.identify_seconds = v["identify_seconds"].as_f64().unwrap_or(f64::NAN);
     c.seconds = v["seconds"].as_f64().unwrap_or(f64::NAN);
     c.rounds = v["rounds"]
