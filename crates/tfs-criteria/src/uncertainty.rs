@@ -389,144 +389,185 @@ pub(crate) fn uncertainty_stage(
     thr: f64,
 ) -> Result<Uncertainty> {
     let opt = &ctx.spec.tfs;
-    let (lib, names) = (ctx.lib, &ctx.names);
-    let (keep, const_j) = (&reg.keep[..], reg.const_j);
+    let keep = &reg.keep[..];
     let support: Vec<bool> = coef.iter().map(|v| *v != 0.0).collect();
-    let mut intervals: Vec<Option<[f64; 2]>> = vec![None; keep.len()];
-    let mut inclusion: Vec<Option<f64>> = vec![None; keep.len()];
-    let mut interval_note = "no coefficient intervals (tfs.bagging = 0)".to_string();
-    let mut term_test: Option<TermTest> = None;
-    if opt.uncertainty.bagging >= 2 && support.iter().any(|&s| s) {
-        let rows: Vec<(usize, usize, &WindowTransform)> = transforms
-            .iter()
-            .take(used)
-            .enumerate()
-            .flat_map(|(r, wins)| wins.iter().enumerate().map(move |(w, t)| (r, w, t)))
-            .collect();
-        // The clusters are compressed only for the bootstrap, which a pass the elimination
-        // replaces skips.
-        // Every cluster's rows over the regression columns, built once: the jackknife reads
-        // the model's columns of them, the bootstrap compresses them whole.
-        let clusters_all: Vec<ClusterRows> =
-            bin_clusters(&rows, delta, keep).into_values().collect();
-        let n_parts = clusters_all.len();
-        if n_parts >= crate::criterion3::settings::MIN_CLUSTERS {
-            // The constant is estimated in the time domain, not from the bins: no interval.
-            let sel: Vec<usize> = (0..keep.len())
-                .filter(|&j| support[j] && Some(j) != const_j)
-                .collect();
-            let clusters = cluster_intervals(&clusters_all, &sel, coef);
-            if let Some((half, g, nus)) = &clusters {
-                for (k, &j) in sel.iter().enumerate() {
-                    intervals[j] = Some([coef[j] - half[k], coef[j] + half[k]]);
-                }
-                let m = ctx
-                    .shared
-                    .candidates
-                    .get(ctx.d)
-                    .copied()
-                    .unwrap_or(lib.len());
-                let dofs = sel
-                    .iter()
-                    .zip(nus)
-                    .map(|(&j, &nu)| (names[keep[j]].clone(), nu))
-                    .collect();
-                term_test = Some(TermTest::new(m, (*g - 1) as f64, dofs));
-            }
-            // Terms that fail the term test; the elimination of `identify_tfs` removes the
-            // least significant and re-runs the selection, and that pass replaces this model.
-            let weak = (0..keep.len())
-                .filter(|&j| {
-                    intervals[j]
-                        .zip(term_test.as_ref())
-                        .is_some_and(|(iv, t)| !t.passes(&names[keep[j]], coef[j], iv))
-                })
-                .count();
-            // (`identify_tfs` re-runs whenever a term can go and one is left.)
-            let replaced = !ctx.final_pass && weak > 0 && lib.len() > 1;
-            let inclusion_note = if replaced {
-                "inclusion not computed in this pass (terms are removed and the selection re-run)"
-                    .to_string()
-            } else {
-                let parts = cluster_blocks(clusters_all)?;
-                // The model's terms were picked on the first records of Criterion 4 and
-                // trimmed by the term test, so `thr` need not give them on these rows: the
-                // resamples use the threshold at which STLSQ on all of them does.
-                let all_rows = Compressed::merge(&parts)?;
-                let boot_thr = lambda_path(&all_rows, &all_rows, &path_opts(opt.fit.n_thresholds))
-                    .ok()
-                    .and_then(|p| threshold_for_support(&p, &support, const_j));
-                let s = bagging_with_total(
-                    &parts,
-                    &all_rows,
-                    &Stlsq {
-                        threshold: boot_thr.unwrap_or(thr),
-                        ..Stlsq::default()
-                    },
-                    &BagOptions {
-                        n_boot: opt.uncertainty.bagging,
-                        level: INTERVAL_LEVEL,
-                        seed: 1,
-                    },
-                )?;
-                for (inc, &p) in inclusion.iter_mut().zip(&s.inclusion) {
-                    *inc = Some(p);
-                }
-                if let Some(cj) = const_j {
-                    inclusion[cj] = None;
-                }
-                let scaled = Stlsq::default().initial_scaled_coef(&all_rows);
-                let terms: Vec<CaveatTerm> = (0..keep.len())
-                    .filter(|&j| Some(j) != const_j)
-                    .map(|j| CaveatTerm {
-                        name: names[keep[j]].clone(),
-                        kept: support[j],
-                        significant: intervals[j]
-                            .zip(term_test.as_ref())
-                            .is_some_and(|(iv, t)| t.passes(&names[keep[j]], coef[j], iv)),
-                        inclusion: inclusion[j].unwrap_or(1.0),
-                        scaled: scaled.get(j).copied().unwrap_or(0.0),
-                    })
-                    .collect();
-                let caveat = inclusion_caveat(&terms, boot_thr.unwrap_or(thr)).unwrap_or_default();
-                match boot_thr {
-                    Some(b) => format!(
-                        "inclusion = share of {} bootstrap resamples of the same {} clusters in which STLSQ keeps the term, at the threshold (scaled {b:.3}) at which it keeps exactly the model's terms on all of them{caveat}",
-                        opt.uncertainty.bagging, n_parts
-                    ),
-                    None => format!(
-                        "inclusion = share of {} bootstrap resamples of the same {} clusters in which STLSQ at the selection's threshold (scaled {thr:.3}) keeps the term; no threshold gives exactly the model's terms on all the clusters (they were picked on the first records of criterion 4 and trimmed by the term test){caveat}",
-                        opt.uncertainty.bagging, n_parts
-                    ),
-                }
-            };
-            interval_note = match clusters {
-                Some((_, g, _)) => format!(
-                    "coefficient intervals: {:.0}% (± t·SE), standard errors by a jackknife over {g} clusters of {CLUSTER_BINS} neighbouring bins of one window pair (each left out in turn), t on each coefficient's effective degrees of freedom ({}: how many clusters in effect pin it down, from the design); {inclusion_note}",
-                    100.0 * INTERVAL_LEVEL,
-                    term_test.as_ref().map_or(String::new(), |t| t
-                        .interval_dof
-                        .iter()
-                        .map(|(n, v)| format!("{n} {v:.1}"))
-                        .collect::<Vec<_>>()
-                        .join(", ")),
-                ),
-                None => format!(
-                    "no coefficient intervals: too few independent clusters of bins; {inclusion_note}"
-                ),
-            };
-        } else {
-            interval_note = format!(
-                "no coefficient intervals: only {n_parts} independent window(s) to resample"
-            );
-        }
+    let mut out = Uncertainty {
+        intervals: vec![None; keep.len()],
+        inclusion: vec![None; keep.len()],
+        note: "no coefficient intervals (tfs.bagging = 0)".to_string(),
+        term_test: None,
+    };
+    if !(opt.uncertainty.bagging >= 2 && support.iter().any(|&s| s)) {
+        return Ok(out);
     }
-    Ok(Uncertainty {
-        intervals,
-        inclusion,
-        note: interval_note,
-        term_test,
+    let rows: Vec<(usize, usize, &WindowTransform)> = transforms
+        .iter()
+        .take(used)
+        .enumerate()
+        .flat_map(|(r, wins)| wins.iter().enumerate().map(move |(w, t)| (r, w, t)))
+        .collect();
+    // Every cluster's rows over the regression columns, built once: the jackknife reads the
+    // model's columns of them, the bootstrap compresses them whole (a pass the elimination
+    // replaces skips it).
+    let clusters_all: Vec<ClusterRows> = bin_clusters(&rows, delta, keep).into_values().collect();
+    let n_parts = clusters_all.len();
+    if n_parts < crate::criterion3::settings::MIN_CLUSTERS {
+        out.note =
+            format!("no coefficient intervals: only {n_parts} independent window(s) to resample");
+        return Ok(out);
+    }
+    let groups = jackknife_step(ctx, reg, &clusters_all, coef, &support, &mut out);
+    // Terms that fail the term test; the elimination of `identify_tfs` removes the least
+    // significant and re-runs the selection, and that pass replaces this model (`identify_tfs`
+    // re-runs whenever a term can go and one is left).
+    let weak = (0..keep.len())
+        .filter(|&j| !passes_term_test(ctx, reg, &out, coef, j).unwrap_or(true))
+        .count();
+    let replaced = !ctx.final_pass && weak > 0 && ctx.lib.len() > 1;
+    let inclusion_note = if replaced {
+        "inclusion not computed in this pass (terms are removed and the selection re-run)"
+            .to_string()
+    } else {
+        bootstrap_step(ctx, reg, clusters_all, coef, &support, thr, &mut out)?
+    };
+    out.note = interval_note(groups, out.term_test.as_ref(), &inclusion_note);
+    Ok(out)
+}
+
+/// Whether kept column `j` passes the term test (`None` without an interval or a test).
+fn passes_term_test(
+    ctx: &DofContext<'_>,
+    reg: &Regression,
+    u: &Uncertainty,
+    coef: &[f64],
+    j: usize,
+) -> Option<bool> {
+    let (iv, t) = u.intervals[j].zip(u.term_test.as_ref())?;
+    Some(t.passes(&ctx.names[reg.keep[j]], coef[j], iv))
+}
+
+/// The jackknife over the clusters: intervals of the kept terms (not the constant, which is
+/// estimated in the time domain) and their term test, written into `out`; the number of
+/// clusters that pinned them down (`None` when too few did).
+fn jackknife_step(
+    ctx: &DofContext<'_>,
+    reg: &Regression,
+    clusters_all: &[ClusterRows],
+    coef: &[f64],
+    support: &[bool],
+    out: &mut Uncertainty,
+) -> Option<usize> {
+    let keep = &reg.keep[..];
+    let sel: Vec<usize> = (0..keep.len())
+        .filter(|&j| support[j] && Some(j) != reg.const_j)
+        .collect();
+    let (half, g, nus) = cluster_intervals(clusters_all, &sel, coef)?;
+    for (k, &j) in sel.iter().enumerate() {
+        out.intervals[j] = Some([coef[j] - half[k], coef[j] + half[k]]);
+    }
+    let m = ctx
+        .shared
+        .candidates
+        .get(ctx.d)
+        .copied()
+        .unwrap_or(ctx.lib.len());
+    let dofs = sel
+        .iter()
+        .zip(&nus)
+        .map(|(&j, &nu)| (ctx.names[keep[j]].clone(), nu))
+        .collect();
+    out.term_test = Some(TermTest::new(m, (g - 1) as f64, dofs));
+    Some(g)
+}
+
+/// The bootstrap over the clusters: each term's inclusion probability (written into `out`) at
+/// the threshold at which STLSQ keeps exactly the model's terms on all the rows, and the trace's
+/// sentence on how it was obtained (with the inclusion caveat, if any).
+fn bootstrap_step(
+    ctx: &DofContext<'_>,
+    reg: &Regression,
+    clusters_all: Vec<ClusterRows>,
+    coef: &[f64],
+    support: &[bool],
+    thr: f64,
+    out: &mut Uncertainty,
+) -> Result<String> {
+    let opt = &ctx.spec.tfs;
+    let (keep, const_j) = (&reg.keep[..], reg.const_j);
+    let n_parts = clusters_all.len();
+    let parts = cluster_blocks(clusters_all)?;
+    // The model's terms were picked on the first records of Criterion 4 and trimmed by the
+    // term test, so `thr` need not give them on these rows: the resamples use the threshold at
+    // which STLSQ on all of them does.
+    let all_rows = Compressed::merge(&parts)?;
+    let boot_thr = lambda_path(&all_rows, &all_rows, &path_opts(opt.fit.n_thresholds))
+        .ok()
+        .and_then(|p| threshold_for_support(&p, support, const_j));
+    let s = bagging_with_total(
+        &parts,
+        &all_rows,
+        &Stlsq {
+            threshold: boot_thr.unwrap_or(thr),
+            ..Stlsq::default()
+        },
+        &BagOptions {
+            n_boot: opt.uncertainty.bagging,
+            level: INTERVAL_LEVEL,
+            seed: 1,
+        },
+    )?;
+    for (inc, &p) in out.inclusion.iter_mut().zip(&s.inclusion) {
+        *inc = Some(p);
+    }
+    if let Some(cj) = const_j {
+        out.inclusion[cj] = None;
+    }
+    let scaled = Stlsq::default().initial_scaled_coef(&all_rows);
+    let terms: Vec<CaveatTerm> = (0..keep.len())
+        .filter(|&j| Some(j) != const_j)
+        .map(|j| CaveatTerm {
+            name: ctx.names[keep[j]].clone(),
+            kept: support[j],
+            significant: passes_term_test(ctx, reg, out, coef, j).unwrap_or(false),
+            inclusion: out.inclusion[j].unwrap_or(1.0),
+            scaled: scaled.get(j).copied().unwrap_or(0.0),
+        })
+        .collect();
+    let caveat = inclusion_caveat(&terms, boot_thr.unwrap_or(thr)).unwrap_or_default();
+    Ok(match boot_thr {
+        Some(b) => format!(
+            "inclusion = share of {} bootstrap resamples of the same {} clusters in which STLSQ keeps the term, at the threshold (scaled {b:.3}) at which it keeps exactly the model's terms on all of them{caveat}",
+            opt.uncertainty.bagging, n_parts
+        ),
+        None => format!(
+            "inclusion = share of {} bootstrap resamples of the same {} clusters in which STLSQ at the selection's threshold (scaled {thr:.3}) keeps the term; no threshold gives exactly the model's terms on all the clusters (they were picked on the first records of criterion 4 and trimmed by the term test){caveat}",
+            opt.uncertainty.bagging, n_parts
+        ),
     })
+}
+
+/// The trace's sentence on the intervals: how they were obtained from `groups` clusters (with
+/// each term's effective degrees of freedom) or why there are none, then `inclusion_note`.
+fn interval_note(
+    groups: Option<usize>,
+    term_test: Option<&TermTest>,
+    inclusion_note: &str,
+) -> String {
+    match groups {
+        Some(g) => format!(
+            "coefficient intervals: {:.0}% (± t·SE), standard errors by a jackknife over {g} clusters of {CLUSTER_BINS} neighbouring bins of one window pair (each left out in turn), t on each coefficient's effective degrees of freedom ({}: how many clusters in effect pin it down, from the design); {inclusion_note}",
+            100.0 * INTERVAL_LEVEL,
+            term_test.map_or(String::new(), |t| t
+                .interval_dof
+                .iter()
+                .map(|(n, v)| format!("{n} {v:.1}"))
+                .collect::<Vec<_>>()
+                .join(", ")),
+        ),
+        None => format!(
+            "no coefficient intervals: too few independent clusters of bins; {inclusion_note}"
+        ),
+    }
 }
 
 #[cfg(test)]
