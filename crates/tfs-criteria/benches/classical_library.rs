@@ -7,8 +7,8 @@
 //! into the compression (`Library::evaluate_rows` into `Compressed::from_chunks`), the records
 //! in parallel, as `identify_sindy` now does; the factors are checked equal to the bit.
 //! `identify_sindy` is the whole classical fit on the same records. (The compression's own
-//! kernels got faster in the same change and serve both paths; the whole `tfs identify` against
-//! the build before is timed in `docs/DECISIONS.md`.)
+//! kernels got faster in the same change and serve both paths; the whole `tfs identify` on
+//! these records is timed in `docs/benchmark.md`.)
 //!
 //! `cargo bench -p tfs-criteria --bench classical_library`
 
