@@ -280,32 +280,9 @@ pub enum Problem {
     },
 }
 
-/// The displacement SNR estimated from the records' noise floors: a value, or a lower bound
-/// when the records show no noise floor at all.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct SnrEstimate {
-    /// The SNR (dB).
-    pub db: f64,
-    /// True when some record's spectrum shows no noise floor (its upper half falls like the
-    /// signal's own tail, steeper than any noise floor): `db` then comes from white noise at the
-    /// lowest level that spectrum reaches, so the SNR is at least `db` if the noise is white
-    /// (noise confined to low frequencies, like drift, cannot be seen there).
-    pub lower_bound: bool,
-}
-
-impl fmt::Display for SnrEstimate {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        if self.lower_bound {
-            write!(
-                f,
-                "at least {:.1} dB if the noise is white; the spectrum shows no noise floor, so the data are clean or their noise sits at low frequencies",
-                self.db
-            )
-        } else {
-            write!(f, "{:.1} dB", self.db)
-        }
-    }
-}
+/// The displacement SNR estimated from the records' noise floors (the one estimate of
+/// `tfs_signal::estimate`).
+pub use tfs_signal::estimate::SnrEstimate;
 
 /// The estimated-SNR clause of a support verdict.
 fn snr_clause(snr: Option<SnrEstimate>) -> String {

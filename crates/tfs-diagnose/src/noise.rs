@@ -1,29 +1,36 @@
 //! What measurement noise can explain of an equation residual. The tool's own noise estimate —
 //! the power-law floor that `tfs_signal::band` fits to the upper half of each channel's
-//! spectrum — is carried through what the diagnosis does to the records: the displacement's
-//! noise differentiated twice and low-passed at the cut-off, plus each input's noise through its
-//! coefficient. A residual is called noise only when this says it is the size of the noise.
+//! spectrum, the same one identification uses — is carried through what the diagnosis does to
+//! the records by `tfs_signal::estimate`: each channel's noise through the equation's linear
+//! terms in that channel (the displacement's twice differentiated as the target), low-passed at
+//! the cut-off. A residual is called noise only when this says it is the size of the noise.
 
 use serde::Serialize;
 use tfs_library::{Factor, Model, Var};
-use tfs_signal::band::{Band, reconstruct};
+use tfs_signal::band::reconstruct;
+use tfs_signal::estimate::{SnrEstimate, derivative_response, residual_noise_var, snr_db};
 
 use crate::prepare::RecordStates;
 
-/// Below this estimated noise power (relative to the displacement's variance: 80 dB) the records
-/// are called clean.
-pub const CLEAN_SNR_DB: f64 = 80.0;
+/// Above this estimated SNR of the displacement (80 dB) the records are called clean.
+pub const CLEAN_SNR_DB: f64 = SnrEstimate::CLEAN_DB;
 
 /// The noise estimate of one DOF's equation residual over the records.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct NoiseEstimate {
     /// RMS of the residual that measurement noise alone would leave (units of `x''`).
     pub residual_rms: f64,
-    /// Estimated SNR of the displacement (dB; the lowest over the records, `+∞` with no floor).
+    /// Estimated SNR of the displacement over the records (dB; `+∞` without a noise estimate),
+    /// as identification states it.
     pub snr_db: f64,
+    /// True when some record's spectrum shows no noise floor: `snr_db` is then a lower bound.
+    pub snr_is_bound: bool,
     /// True when every channel's floor was fitted on noise alone; otherwise the spectrum of some
     /// channel reaches into the band the floor is fitted on, and the estimate is an upper bound.
     pub noise_only: bool,
+    /// The cut-offs the residual's `x''` was low-passed at (Hz, lowest and highest over the
+    /// records).
+    pub band_hz: [f64; 2],
 }
 
 impl NoiseEstimate {
@@ -31,73 +38,78 @@ impl NoiseEstimate {
     pub fn clean(&self) -> bool {
         self.snr_db >= CLEAN_SNR_DB
     }
+
+    /// The displacement SNR in words, as identification prints it: `29.7 dB`, or `at least
+    /// 108.5 dB` when it is a bound.
+    pub fn snr_words(&self) -> String {
+        let db = self.snr_db.min(999.0);
+        if self.snr_is_bound {
+            format!("at least {db:.1} dB")
+        } else {
+            format!("{db:.1} dB")
+        }
+    }
 }
 
-/// `2·∫₀^fc PSD(f)·(2πf)^(2·order) df` over the band's bins: the variance of the noise after
-/// `order` derivatives and a low-pass at `fc`.
-fn band_variance(band: &Band, dt: f64, fc: f64, order: i32) -> f64 {
-    if band.bin_hz <= 0.0 {
-        return 0.0;
+/// The linear terms of equation `idx` of `model` per channel, as (channel, [(derivative order,
+/// coefficient)]): `x` and `x'` of every DOF, and every input to the first power.
+fn linear_terms(model: &Model, idx: usize) -> Vec<(&str, Vec<(usize, f64)>)> {
+    let mut out: Vec<(&str, Vec<(usize, f64)>)> = Vec::new();
+    for t in &model.equations[idx].terms {
+        let (name, order) = match t.term.factors() {
+            [Factor::Pow(Var::Disp(n), 1)] | [Factor::Pow(Var::Input(n), 1)] => (n.as_str(), 0),
+            [Factor::Pow(Var::Vel(n), 1)] => (n.as_str(), 1),
+            _ => continue,
+        };
+        match out.iter_mut().find(|(n, _)| *n == name) {
+            Some((_, v)) => v.push((order, t.coef)),
+            None => out.push((name, vec![(order, t.coef)])),
+        }
     }
-    let kc = (fc / band.bin_hz).floor() as usize;
-    (1..=kc)
-        .map(|k| {
-            let f = k as f64 * band.bin_hz;
-            band.noise_psd(f, dt) * (2.0 * std::f64::consts::PI * f).powi(2 * order)
-        })
-        .sum::<f64>()
-        * 2.0
-        * band.bin_hz
+    out
 }
 
 /// The noise estimate of the residual of DOF `idx` of `model` on `states` (see the module docs).
 pub(crate) fn estimate(model: &Model, idx: usize, states: &[RecordStates]) -> NoiseEstimate {
-    let dof = &model.dofs[idx];
-    // The plain input terms of the equation and their coefficients.
-    let inputs: Vec<(&str, f64)> = model.equations[idx]
-        .terms
-        .iter()
-        .filter_map(|t| match t.term.factors() {
-            [Factor::Pow(Var::Input(n), 1)] => Some((n.as_str(), t.coef)),
-            _ => None,
-        })
-        .collect();
+    let dof = model.dofs[idx].as_str();
+    let mut channels = linear_terms(model, idx);
+    if !channels.iter().any(|(n, _)| *n == dof) {
+        channels.push((dof, Vec::new()));
+    }
     let (mut var_sum, mut rows) = (0.0, 0usize);
-    let mut snr_db = f64::INFINITY;
     let mut noise_only = true;
+    let mut own: Vec<(&[f64], tfs_signal::Band)> = Vec::new();
+    let mut band_hz = [f64::INFINITY, 0.0f64];
     for s in states {
         let dt = s.record.dt();
         let fc = s.cutoff_hz;
-        let Some(x) = s.record.column(dof) else {
-            continue;
-        };
-        let band = reconstruct(x, dt, None).band;
-        noise_only &= band.floor_is_noise_only();
-        let mut var = band_variance(&band, dt, fc, 2);
-        let mean = x.iter().sum::<f64>() / x.len().max(1) as f64;
-        let signal = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / x.len().max(1) as f64;
-        let noise = band.total_noise_var();
-        if noise > 0.0 && signal > 0.0 {
-            snr_db = snr_db.min(10.0 * (signal / noise).log10());
-        }
-        for (name, c) in &inputs {
-            if let Some(u) = s.record.column(name) {
-                let ub = reconstruct(u, dt, None).band;
-                noise_only &= ub.floor_is_noise_only();
-                var += c * c * band_variance(&ub, dt, fc, 0);
+        band_hz = [band_hz[0].min(fc), band_hz[1].max(fc)];
+        let mut var = 0.0;
+        for (name, terms) in &channels {
+            let Some(x) = s.record.column(name) else {
+                continue;
+            };
+            let band = reconstruct(x, dt, None).band;
+            noise_only &= band.floor_is_noise_only();
+            var += residual_noise_var(&band, dt, *name == dof, terms, fc, derivative_response);
+            if *name == dof {
+                own.push((x, band));
             }
         }
         let n = s.usable();
         var_sum += var * n as f64;
         rows += n;
     }
+    let snr = snr_db(own.iter().map(|(x, b)| (*x, b)));
     NoiseEstimate {
         residual_rms: if rows > 0 {
             (var_sum / rows as f64).sqrt()
         } else {
             0.0
         },
-        snr_db,
+        snr_db: snr.map_or(f64::INFINITY, |s| s.db),
+        snr_is_bound: snr.is_some_and(|s| s.lower_bound),
         noise_only,
+        band_hz,
     }
 }

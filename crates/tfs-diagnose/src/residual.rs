@@ -424,8 +424,9 @@ fn summarise(
     let best = pick(corr);
     let past = pick(history);
     let mut s = format!(
-        "{dof}: equation residual is {:.1} % of the RMS of {dof}''",
-        100.0 * rel
+        "{dof}: equation residual is {:.1} % of the RMS of {dof}'' {}",
+        100.0 * rel,
+        tfs_signal::estimate::band_words(noise.band_hz)
     );
     // Noise only when the noise estimate says the residual is its size: at most 1.5 times the
     // residual noise alone would leave (at least ~45 % of the residual power is noise).
@@ -433,13 +434,14 @@ fn summarise(
     let systematic = best.1.abs() >= 0.2 || past.1.abs() >= 0.2;
     if noise.clean() {
         s.push_str(&format!(
-            "; the records are clean (measurement noise estimated {:.0} dB below the signal), so none of it is noise",
-            noise.snr_db.min(999.0)
+            "; the records are clean (estimated displacement SNR {}), so none of it is noise",
+            noise.snr_words()
         ));
     } else if is_noise {
         s.push_str(&format!(
-            "; measurement noise alone would leave {:.1} % (noise estimate from the records' spectra)",
-            100.0 * noise_rel
+            "; measurement noise alone would leave {:.1} % (estimated displacement SNR {})",
+            100.0 * noise_rel,
+            noise.snr_words()
         ));
         if !systematic {
             s.push_str(&format!(
@@ -450,13 +452,14 @@ fn summarise(
         }
     } else {
         s.push_str(&format!(
-            "; measurement noise {} {:.1} % (noise estimate from the records' spectra), so it is mostly model error, not noise",
+            "; measurement noise {} {:.1} % (estimated displacement SNR {}), so it is mostly model error, not noise",
             if noise.noise_only {
                 "would leave"
             } else {
                 "would leave at most"
             },
-            100.0 * noise_rel
+            100.0 * noise_rel,
+            noise.snr_words()
         ));
     }
     if past.1.abs() >= 0.2 && past.1.abs() >= best.1.abs() * 0.5 {

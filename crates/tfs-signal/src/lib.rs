@@ -17,6 +17,9 @@
 //! * [`band`] — band-limited reconstruction with spectral derivatives, the band chosen from the
 //!   data ([`band::reconstruct`], [`Band`]), and draws of the noise it carries
 //!   ([`band::noise_draw`]).
+//! * [`estimate`] — the records' own measurement-noise estimate, one per channel (its floor),
+//!   and what it becomes through a processing step: the SNR ([`estimate::snr_db`]) and the
+//!   variance left after derivatives and band limits ([`estimate::filtered_noise_var`]).
 //! * [`diff`] — central differences, Savitzky–Golay and spectral derivatives behind one
 //!   [`Differentiator`] enum.
 //! * [`noise`] — white and pink Gaussian noise scaled exactly to a requested SNR.
@@ -53,6 +56,7 @@
 pub mod band;
 pub mod diff;
 pub mod ends;
+pub mod estimate;
 pub mod excitation;
 pub mod fft;
 pub mod floor;

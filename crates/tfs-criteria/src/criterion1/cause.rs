@@ -2,11 +2,13 @@
 //! span of the library's columns, and two things put it there: measurement noise (amplified by
 //! the differentiation) and a law the library cannot express (a missing term, a memory effect).
 //! The calibration cannot tell them apart, since both look alike to κ. The records' own noise
-//! estimate can: the fitted floor of each channel's spectrum (the one `tfs_signal::band` fits) is
-//! carried through Criterion 1's Savitzky–Golay derivatives and the library's linear terms, and
-//! gives the share of `x''` that noise alone would leave unexplained. The verdict says low SNR
-//! only when the library's residual is about that size; otherwise the library does not explain
-//! the data.
+//! estimate can (`tfs_signal::estimate`: the fitted floor of each channel's spectrum). It is
+//! carried through the library's linear terms and two ways of differentiating — the records
+//! reconstructed at each one's best cut-off, where the least noise comes in for the signal kept,
+//! and Criterion 1's Savitzky–Golay derivatives — and gives the share of `x''` that noise alone would leave
+//! unexplained each way. A library residual well above that share on the band-limited `x''` is
+//! model error, however noisy Criterion 1's own block is; the verdict says low SNR only when the
+//! noise accounts for the residual there and in the block.
 
 use faer::Mat;
 use rayon::prelude::*;
@@ -31,10 +33,18 @@ pub enum SnrVerdict {
     High,
     /// κ < κ0 and the library's residual is about the size measurement noise alone would leave.
     LowSnr {
-        /// RMS of the least-squares residual of `x''` on the library, over the RMS of `x''`.
+        /// RMS of the least-squares residual of Criterion 1's Savitzky–Golay `x''` on the
+        /// library, over the RMS of that `x''`.
         residual_share: f64,
         /// The same share that the estimated measurement noise alone would leave.
         noise_share: f64,
+        /// The library's residual on the band-limited reconstruction (the `x''` the fit uses),
+        /// same scale.
+        band_residual_share: f64,
+        /// What the estimated noise alone would leave there.
+        band_noise_share: f64,
+        /// The band-limited reconstruction's cut-offs over the records (Hz, lowest and highest).
+        band_hz: [f64; 2],
     },
     /// κ < κ0, the residual is well above what the estimated noise would leave, and the library
     /// leaves a material part of it on the band-limited reconstruction too: the data are clean
@@ -50,6 +60,8 @@ pub enum SnrVerdict {
         /// RMS of Criterion 1's Savitzky–Golay `x''` error on the noise-free reconstruction, same
         /// scale (shown when it is a cause too).
         derivative_share: f64,
+        /// The band-limited reconstruction's cut-offs over the records (Hz, lowest and highest).
+        band_hz: [f64; 2],
     },
     /// κ < κ0, and the noise estimate could not be carried through the blocks (the reason given):
     /// noise and model error are not told apart.
@@ -69,6 +81,8 @@ pub enum SnrVerdict {
         band_residual_share: f64,
         /// What the estimated noise alone would leave there.
         band_noise_share: f64,
+        /// The band-limited reconstruction's cut-offs over the records (Hz, lowest and highest).
+        band_hz: [f64; 2],
     },
 }
 
@@ -101,22 +115,30 @@ impl std::fmt::Display for SnrVerdict {
             SnrVerdict::LowSnr {
                 residual_share,
                 noise_share,
+                band_residual_share,
+                band_noise_share,
+                band_hz,
             } => write!(
                 f,
-                "low SNR: the library leaves {} of x'' unexplained and measurement noise alone would leave {} (noise estimate: the fitted floor of the records' spectra through the derivatives)",
+                "low SNR: the library leaves {} of Criterion 1's Savitzky–Golay x'' unexplained and measurement noise alone would leave {} there; of x'' {} (each record's best cut-off) it leaves {} and the noise {} (noise estimate: the fitted floor of the records' spectra through the derivatives)",
                 pct(residual_share),
-                pct(noise_share)
+                pct(noise_share),
+                tfs_signal::estimate::band_words(band_hz),
+                pct(band_residual_share),
+                pct(band_noise_share)
             ),
             SnrVerdict::ModelError {
                 residual_share,
                 noise_share,
                 noise_only,
                 derivative_share,
+                band_hz,
             } => {
                 write!(
                     f,
-                    "κ below κ0 from model error, not noise: the library leaves {} of the band-limited x'' unexplained, while measurement noise alone would leave {}{} (noise estimate: the fitted floor of the records' spectra through the derivatives), so the data are clean enough and the library misses part of the law (a term or a memory effect; `tfs diagnose` ranks candidates)",
+                    "κ below κ0 from model error, not noise: the library leaves {} of x'' {} (each record's best cut-off) unexplained, while measurement noise alone would leave {}{} (noise estimate: the fitted floor of the records' spectra through the derivatives), so the data are clean enough and the library misses part of the law (a term or a memory effect; `tfs diagnose` ranks candidates)",
                     pct(residual_share),
+                    tfs_signal::estimate::band_words(band_hz),
                     if noise_only { "" } else { "at most " },
                     pct(noise_share)
                 )?;
@@ -138,11 +160,13 @@ impl std::fmt::Display for SnrVerdict {
                 derivative_share,
                 band_residual_share,
                 band_noise_share,
+                band_hz,
             } => write!(
                 f,
-                "κ below κ0 mostly from the derivatives, not noise: the library leaves {} of x'' unexplained in Criterion 1's block, whose Savitzky–Golay x'' is itself off by {} on the band-limited signal (too few samples per period of its fastest components); on the band-limited reconstruction it leaves {} (measurement noise alone would leave {})",
+                "κ below κ0 mostly from the derivatives, not noise: the library leaves {} of x'' unexplained in Criterion 1's block, whose Savitzky–Golay x'' is itself off by {} on the band-limited signal (too few samples per period of its fastest components); of x'' {} (each record's best cut-off) it leaves {} (measurement noise alone would leave {})",
                 pct(residual_share),
                 pct(derivative_share),
+                tfs_signal::estimate::band_words(band_hz),
                 pct(band_residual_share),
                 pct(band_noise_share)
             ),
@@ -188,12 +212,7 @@ impl Filters<'_> {
                 if dof && f > cutoff {
                     return (0.0, 0.0);
                 }
-                let w = 2.0 * std::f64::consts::PI * f;
-                match order {
-                    0 => (1.0, 0.0),
-                    1 => (0.0, w),
-                    _ => (-w * w, 0.0),
-                }
+                tfs_signal::estimate::derivative_response(order, f)
             }
         }
     }
@@ -229,28 +248,10 @@ fn channel_noise_var(
     terms: &[(usize, f64)],
     filters: Filters<'_>,
 ) -> f64 {
-    if band.bin_hz <= 0.0 || band.mirror_len < 2 {
-        return 0.0;
-    }
     let cutoff = band.cutoff_hz;
-    (1..=band.mirror_len / 2)
-        .map(|k| {
-            let f = k as f64 * band.bin_hz;
-            let (mut re, mut im) = if own {
-                filters.response(2, dt, f, dof, cutoff)
-            } else {
-                (0.0, 0.0)
-            };
-            for &(order, c) in terms {
-                let (r, i) = filters.response(order, dt, f, dof, cutoff);
-                re -= c * r;
-                im -= c * i;
-            }
-            band.noise_psd(f, dt) * (re * re + im * im)
-        })
-        .sum::<f64>()
-        * 2.0
-        * band.bin_hz
+    tfs_signal::estimate::residual_noise_var(band, dt, own, terms, f64::INFINITY, |order, f| {
+        filters.response(order, dt, f, dof, cutoff)
+    })
 }
 
 /// The residual of `x''` on the library over blocks `td` (columns `nonconst`, with a constant)
@@ -376,11 +377,12 @@ fn derivative_share(preps: &[Prepared<'_>], d: usize, w2: &[f64]) -> f64 {
 const MODEL_SHARE: f64 = 0.1;
 
 /// Why κ is below κ0 (see the module docs): `td` is Criterion 1's own block (columns
-/// `nonconst`), `sg` its Savitzky–Golay half window and order. Low SNR when noise explains the
-/// residual of the block (it leaves at least 1/[`NOISE_FACTOR`]² of its power). Otherwise model
-/// error when the library leaves more of the band-limited reconstruction's `x''` than its noise
-/// would, beyond that noise at least [`MODEL_SHARE`] of the block's residual power; otherwise the
-/// block's derivatives are the cause.
+/// `nonconst`), `sg` its Savitzky–Golay half window and order. The band-limited reconstruction
+/// is looked at first, being where the noise is least: model error when the library leaves more
+/// of its `x''` than [`NOISE_FACTOR`] times what the noise would, and that excess is at least
+/// [`MODEL_SHARE`] of the block's excess over its own noise. Otherwise low SNR when noise
+/// explains the block's residual (it leaves at least 1/[`NOISE_FACTOR`]² of its power);
+/// otherwise the block's derivatives are the cause.
 pub(crate) fn low_kappa_cause(
     td: &[(Mat<f64>, Vec<f64>)],
     nonconst: &[usize],
@@ -398,33 +400,58 @@ pub(crate) fn low_kappa_cause(
         (dofs, d, lib),
         Filters::SavitzkyGolay([&w1, &w2]),
     )?;
+    // The records reconstructed at the cut-off that best reconstructs each DOF (no guard band):
+    // where the least noise is let in for the signal kept.
+    let plain: Vec<Prepared<'_>> = preps
+        .iter()
+        .map(|p| Prepared {
+            rec: p.rec,
+            dt: p.dt,
+            smooth: p
+                .smooth
+                .iter()
+                .zip(dofs)
+                .map(|(s, name)| {
+                    let x = p.rec.column(name).expect("checked when prepared");
+                    tfs_signal::band::reconstruct(x, p.dt, Some(s.band.mse_cutoff_hz))
+                })
+                .collect(),
+        })
+        .collect();
+    let bl = time_domain_blocks(&plain, dofs, d, lib)?;
+    let (band_residual, band_noise, noise_only) =
+        shares(&bl, nonconst, &plain, (dofs, d, lib), Filters::Spectral)?;
+    let band_hz = plain
+        .iter()
+        .map(|p| p.smooth[d].band.cutoff_hz)
+        .fold([f64::INFINITY, 0.0], |[lo, hi], c| [lo.min(c), hi.max(c)]);
+    let model_power = band_residual.powi(2) - band_noise.powi(2);
+    let block_power = residual_share.powi(2) - noise_share.powi(2);
+    // A residual well above the noise where the noise is least is the library's, whatever the
+    // noisier block says: the noise cannot be the reason the fit misses the law there.
+    if band_residual > NOISE_FACTOR * band_noise && model_power >= MODEL_SHARE * block_power {
+        return Ok(SnrVerdict::ModelError {
+            residual_share: band_residual,
+            noise_share: band_noise,
+            noise_only,
+            derivative_share: derivative_share(preps, d, &w2),
+            band_hz,
+        });
+    }
     if residual_share <= NOISE_FACTOR * noise_share {
         return Ok(SnrVerdict::LowSnr {
             residual_share,
             noise_share,
+            band_residual_share: band_residual,
+            band_noise_share: band_noise,
+            band_hz,
         });
     }
-    let bl = time_domain_blocks(preps, dofs, d, lib)?;
-    let (band_residual, band_noise, noise_only) =
-        shares(&bl, nonconst, preps, (dofs, d, lib), Filters::Spectral)?;
-    let derivative = derivative_share(preps, d, &w2);
-    let model_power = band_residual.powi(2) - band_noise.powi(2);
-    let block_power = residual_share.powi(2) - noise_share.powi(2);
-    Ok(
-        if band_residual > NOISE_FACTOR * band_noise && model_power >= MODEL_SHARE * block_power {
-            SnrVerdict::ModelError {
-                residual_share: band_residual,
-                noise_share: band_noise,
-                noise_only,
-                derivative_share: derivative,
-            }
-        } else {
-            SnrVerdict::Derivatives {
-                residual_share,
-                derivative_share: derivative,
-                band_residual_share: band_residual,
-                band_noise_share: band_noise,
-            }
-        },
-    )
+    Ok(SnrVerdict::Derivatives {
+        residual_share,
+        derivative_share: derivative_share(preps, d, &w2),
+        band_residual_share: band_residual,
+        band_noise_share: band_noise,
+        band_hz,
+    })
 }

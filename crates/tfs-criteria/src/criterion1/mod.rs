@@ -262,26 +262,11 @@ pub(crate) fn estimated_snr_db(
     dof: &str,
     d: usize,
 ) -> Option<crate::trace::SnrEstimate> {
-    let (mut sig, mut noise, mut lower_bound) = (0.0, 0.0, false);
-    for p in preps {
-        let x = p.rec.column(dof)?;
-        let n = x.len() as f64;
-        let mean = x.iter().sum::<f64>() / n;
-        let var = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
-        let band = &p.smooth[d].band;
-        let nv = if band.floor_is_signal_tail {
-            lower_bound = true;
-            band.white_noise_var_bound()
-        } else {
-            band.total_noise_var()
-        };
-        sig += n * (var - nv).max(0.0);
-        noise += n * nv;
-    }
-    (noise > 0.0 && sig > 0.0).then(|| crate::trace::SnrEstimate {
-        db: 10.0 * (sig / noise).log10(),
-        lower_bound,
-    })
+    let channels: Vec<(&[f64], &tfs_signal::Band)> = preps
+        .iter()
+        .map(|p| Some((p.rec.column(dof)?, &p.smooth[d].band)))
+        .collect::<Option<_>>()?;
+    tfs_signal::estimate::snr_db(channels)
 }
 
 /// The columns of Criterion 1's time-domain block `(Θ, x'')` of DOF `dof` on the *measured*
