@@ -350,7 +350,7 @@ fn predict_pieces(
 }
 
 /// Starts per record of [`divergence_horizon`]'s predictions (evenly spaced).
-const HORIZON_STARTS: usize = 16;
+pub(crate) const HORIZON_STARTS: usize = 16;
 
 /// The piece length (samples) of the short-horizon judge for `model` on `states`: the lag at
 /// which its predictions from the smoothed measured state lose their skill — their mean squared

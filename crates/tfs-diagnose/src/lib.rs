@@ -18,6 +18,8 @@
 //! * [`restoring_loop()`](restoring::restoring_loop) — the force–displacement loop measured
 //!   from a record against models' (a hysteresis loop where the structure has memory).
 //! * [`diagnose`] — all of the above in one report.
+//! * [`rules()`](rules::rules) — the rules the diagnosis applies, with their thresholds read from
+//!   the code (`docs/diagnosis.md` carries them as a table).
 //!
 //! Architecture invariant: no I/O and no plotting; everything returned is data.
 //!
@@ -62,6 +64,7 @@ mod readmit;
 pub mod refit;
 pub mod residual;
 pub mod restoring;
+pub mod rules;
 pub mod simulate;
 mod stats;
 mod verdict;
@@ -78,6 +81,7 @@ pub use refit::{
 };
 pub use residual::{Localisation, localise};
 pub use restoring::{RestoringLoop, restoring_loop};
+pub use rules::{Rule, rules, rules_table};
 pub use simulate::{augment_record, r_mse, simulate};
 pub use stats::paired_p_value;
 
@@ -127,13 +131,13 @@ pub fn diagnose_with(
     let mut verdict = ex.verdict;
     // Nothing missing on clean data: say both.
     if !ex.ranked.iter().any(|r| r.significant) && localisation.iter().all(|l| l.noise.clean()) {
-        let snr = localisation
+        let least = localisation
             .iter()
-            .map(|l| l.noise.snr_db)
-            .fold(f64::INFINITY, f64::min);
+            .map(|l| &l.noise)
+            .min_by(|a, b| a.snr_db.total_cmp(&b.snr_db))
+            .map_or_else(|| "above 80 dB".to_string(), |n| n.snr_words());
         verdict.push_str(&format!(
-            "; nothing is missing and the records are clean (measurement noise estimated {:.0} dB below the signal)",
-            snr.min(999.0)
+            "; nothing is missing and the records are clean (estimated displacement SNR {least})"
         ));
     }
     Ok(Diagnosis {
