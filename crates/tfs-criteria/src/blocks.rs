@@ -4,10 +4,11 @@
 
 use faer::Mat;
 use rayon::prelude::*;
+use std::sync::Mutex;
 use tfs_data::{Columns, Record};
 use tfs_library::{ColumnSet, Library};
-use tfs_signal::Smoothed;
-use tfs_signal::band::reconstruct_guarded;
+use tfs_signal::band::{band_guarded, reconstruct_guarded};
+use tfs_signal::{Band, Smoothed};
 
 use crate::error::{CriteriaError, Result, invalid};
 use crate::options::Checked;
@@ -134,6 +135,35 @@ pub(crate) struct Prepared<'a> {
     pub rec: &'a Record,
     pub dt: f64,
     pub smooth: Vec<Smoothed>,
+    /// The bands of its input columns, found on first use.
+    pub input_bands: InputBands,
+}
+
+/// The bands of a record's input columns, each found once on first use (by
+/// [`tfs_signal::band::band_guarded`], as [`tfs_signal::band::reconstruct`] would choose it) and
+/// shared by every DOF and pass that reads its noise floor (Criterion 1's noise estimate).
+#[derive(Default)]
+pub(crate) struct InputBands(Mutex<Vec<(String, Band)>>);
+
+impl InputBands {
+    /// The band of the column `name` of `rec` (sampled at `dt`), or `None` without that column.
+    pub(crate) fn get(&self, rec: &Record, name: &str, dt: f64) -> Option<Band> {
+        let found = |v: &[(String, Band)]| v.iter().find(|(n, _)| n == name).map(|(_, b)| *b);
+        // A poisoned lock still holds whole entries (each is pushed at once).
+        let lock = || self.0.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(b) = found(&lock()) {
+            return Some(b);
+        }
+        let b = band_guarded(rec.column(name)?, dt, None, 0.0);
+        lock().push((name.to_string(), b));
+        Some(b)
+    }
+
+    /// A copy holding the bands found so far (for the same record reconstructed another way).
+    pub(crate) fn snapshot(&self) -> Self {
+        let v = self.0.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        Self(Mutex::new(v))
+    }
 }
 
 /// Validates a record and reconstructs every DOF: band-limited at `cutoff_hz`, or at the
@@ -156,7 +186,12 @@ pub(crate) fn prepare<'a>(
             )
         })
         .collect();
-    Ok(Prepared { rec, dt, smooth })
+    Ok(Prepared {
+        rec,
+        dt,
+        smooth,
+        input_bands: InputBands::default(),
+    })
 }
 
 /// Columns of a prepared record: the DOFs and their velocities replaced by the reconstruction.

@@ -324,6 +324,7 @@ impl DrawJob<'_> {
                     rec: p.rec,
                     dt: p.dt,
                     smooth: shifted(sign),
+                    input_bands: Default::default(),
                 },
                 dofs,
                 dof,

@@ -5,7 +5,7 @@
 use crate::Complex;
 use crate::ends::{EndTrend, end_slopes};
 use crate::fft::{Work, fast_even_len, inverse_with, plan_forward, plan_inverse, with_work};
-use crate::floor::{NoiseFloor, choose_cutoff, cutoff_cost};
+use crate::floor::{NoiseFloor, choose_cutoff_on, cutoff_cost_on};
 
 /// The band chosen for one signal's reconstruction.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -13,7 +13,7 @@ pub struct Band {
     /// Cut-off frequency (Hz): bins above are set to zero.
     pub cutoff_hz: f64,
     /// The cut-off that minimises the reconstruction error of the signal itself (Hz): the one
-    /// [`choose_cutoff`] gives, or the given one; `cutoff_hz` is higher by the guard band of
+    /// [`choose_cutoff`](crate::floor::choose_cutoff) gives, or the given one; `cutoff_hz` is higher by the guard band of
     /// [`reconstruct_guarded`].
     pub mse_cutoff_hz: f64,
     /// Estimated white-noise floor of the (mirror-extended) power spectrum, per bin.
@@ -39,7 +39,7 @@ pub struct Band {
 impl Band {
     /// Estimated two-sided noise power spectral density (signal units² per Hz) at `f_hz` for a
     /// signal sampled at `dt`: the fitted floor `N̂_k` at `k = f/Δf` equals `2N·σ²` for white
-    /// noise of variance σ² (see [`choose_cutoff`]), and white noise has density `σ²·dt`.
+    /// noise of variance σ² (see [`choose_cutoff`](crate::floor::choose_cutoff)), and white noise has density `σ²·dt`.
     pub fn noise_psd(&self, f_hz: f64, dt: f64) -> f64 {
         if !self.floor_log_a.is_finite() || self.mirror_len == 0 || self.bin_hz <= 0.0 {
             return 0.0;
@@ -207,7 +207,7 @@ fn inverse_at(
 }
 
 /// Band-limited reconstruction of `x` sampled at `dt`, with spectral derivatives; the band is
-/// chosen by [`choose_cutoff`] (or given by `cutoff_hz`).
+/// chosen by [`choose_cutoff`](crate::floor::choose_cutoff) (or given by `cutoff_hz`).
 pub fn reconstruct(x: &[f64], dt: f64, cutoff_hz: Option<f64>) -> Smoothed {
     reconstruct_guarded(x, dt, cutoff_hz, 0.0)
 }
@@ -217,7 +217,7 @@ pub fn reconstruct(x: &[f64], dt: f64, cutoff_hz: Option<f64>) -> Smoothed {
 /// `cutoff_hz` is used as it is. [`Smoothed::band`] records both cut-offs, and its noise share
 /// and variance cover the widened band.
 ///
-/// [`choose_cutoff`] minimises the reconstruction error of `x` itself, counting a noise bin let
+/// [`choose_cutoff`](crate::floor::choose_cutoff) minimises the reconstruction error of `x` itself, counting a noise bin let
 /// in and a signal bin thrown away alike. For a regression on `x̂^k` they are not alike: the
 /// noise let in is removed from the coefficients on average by the errors-in-variables
 /// correction (and noise-dominated bins are gated out of the rows), so what remains of it is
@@ -230,6 +230,44 @@ pub fn reconstruct_guarded(
     cutoff_hz: Option<f64>,
     guard_octaves: f64,
 ) -> Smoothed {
+    let n = x.len();
+    let Chosen {
+        trend,
+        sp,
+        kc,
+        band,
+    } = choose_band(x, dt, cutoff_hz, guard_octaves);
+    let [mut xs, mut v, mut a] = inverse_at(&sp.spec[..=kc], band.bin_hz, sp.nn, (n, 1), true);
+    if let Some(tr) = trend {
+        for i in 0..n {
+            let (h, h1, h2) = tr.at(i as f64 * dt);
+            xs[i] += h;
+            v[i] += h1;
+            a[i] += h2;
+        }
+    }
+    Smoothed { x: xs, v, a, band }
+}
+
+/// The band [`reconstruct_guarded`] would reconstruct `x` in (the same search, to the bit),
+/// without the reconstruction itself: for a channel whose noise floor is wanted but whose
+/// band-limited samples are not (an input column in Criterion 1's noise estimate).
+pub fn band_guarded(x: &[f64], dt: f64, cutoff_hz: Option<f64>, guard_octaves: f64) -> Band {
+    choose_band(x, dt, cutoff_hz, guard_octaves).band
+}
+
+/// What [`choose_band`] found: the end trend removed before the transform (if any), the
+/// spectrum the band was chosen on, the band's last bin (guard band included) and the band.
+struct Chosen {
+    trend: Option<EndTrend>,
+    sp: Spectrum,
+    kc: usize,
+    band: Band,
+}
+
+/// The band of [`reconstruct_guarded`]: the end-trend search, the cut-off and its guard band,
+/// and the noise estimates of the band.
+fn choose_band(x: &[f64], dt: f64, cutoff_hz: Option<f64>, guard_octaves: f64) -> Chosen {
     let n = x.len();
     let plain = Spectrum::of(x, cutoff_hz, dt);
     let total: f64 = plain
@@ -266,9 +304,8 @@ pub fn reconstruct_guarded(
         None => (None, plain),
     };
     let df = 1.0 / (sp.nn as f64 * dt);
-    let floor_at = |k: usize| sp.floor_model.at(k);
     let floor_sum = |ks: std::ops::RangeInclusive<usize>| {
-        let s: f64 = ks.map(floor_at).sum();
+        let s: f64 = ks.map(|k| sp.fl[k]).sum();
         if s.is_finite() { s } else { 0.0 }
     };
     let (kc, floor, noise_sum) = (sp.kc, sp.floor, sp.noise_sum);
@@ -276,7 +313,7 @@ pub fn reconstruct_guarded(
     let last = sp.spec.len() - 1;
     let (kc, floor, noise_sum) = if cutoff_hz.is_none() && guard_octaves > 0.0 {
         let k2 = ((kc as f64 * guard_octaves.exp2()).round() as usize).clamp(kc, last);
-        let at_k2 = floor_at(k2);
+        let at_k2 = sp.fl[k2];
         let floor = if at_k2.is_finite() { at_k2 } else { floor };
         (k2, floor, noise_sum + floor_sum(kc + 1..=k2))
     } else {
@@ -285,31 +322,23 @@ pub fn reconstruct_guarded(
     let share = (noise_sum / total).min(1.0);
     // Parseval on the 2N-point extension: variance = 2·Σ_{1≤k≤kc} N̂_k / (2N)².
     let noise_var = 2.0 * noise_sum / (sp.nn as f64 * sp.nn as f64);
-    let [mut xs, mut v, mut a] = inverse_at(&sp.spec[..=kc], df, sp.nn, (n, 1), true);
-    if let Some(tr) = trend {
-        for i in 0..n {
-            let (h, h1, h2) = tr.at(i as f64 * dt);
-            xs[i] += h;
-            v[i] += h1;
-            a[i] += h2;
-        }
-    }
-    Smoothed {
-        x: xs,
-        v,
-        a,
-        band: Band {
-            cutoff_hz: kc as f64 * df,
-            mse_cutoff_hz,
-            noise_floor: floor,
-            in_band_noise_share: share,
-            noise_var,
-            floor_log_a: sp.floor_model.log_a,
-            floor_beta: sp.floor_model.beta,
-            bin_hz: df,
-            mirror_len: sp.nn,
-            floor_is_signal_tail: sp.floor_model.is_signal_tail(),
-        },
+    let band = Band {
+        cutoff_hz: kc as f64 * df,
+        mse_cutoff_hz,
+        noise_floor: floor,
+        in_band_noise_share: share,
+        noise_var,
+        floor_log_a: sp.floor_model.log_a,
+        floor_beta: sp.floor_model.beta,
+        bin_hz: df,
+        mirror_len: sp.nn,
+        floor_is_signal_tail: sp.floor_model.is_signal_tail(),
+    };
+    Chosen {
+        trend,
+        sp,
+        kc,
+        band,
     }
 }
 
@@ -323,38 +352,42 @@ struct Spectrum {
     nn: usize,
     /// The fitted noise floor.
     floor_model: NoiseFloor,
+    /// Its value at every bin ([`NoiseFloor::values`]).
+    fl: Vec<f64>,
     /// The cut-off bin (before any guard band).
     kc: usize,
     /// The floor at the cut-off.
     floor: f64,
     /// The floor summed over bins 1..=kc.
     noise_sum: f64,
-    /// The estimated reconstruction error at that cut-off ([`cutoff_cost`]).
+    /// The estimated reconstruction error at that cut-off ([`cutoff_cost`](crate::floor::cutoff_cost)).
     cost: f64,
 }
 
 impl Spectrum {
-    /// The spectrum of `x` (sampled at `dt`) cut by [`choose_cutoff`], or at `cutoff_hz`.
+    /// The spectrum of `x` (sampled at `dt`) cut by [`choose_cutoff`](crate::floor::choose_cutoff), or at `cutoff_hz`.
     fn of(x: &[f64], cutoff_hz: Option<f64>, dt: f64) -> Self {
         let (spec, nn) = mirror_spectrum(x);
         let df = 1.0 / (nn as f64 * dt);
         let power: Vec<f64> = spec.iter().map(|c| c.norm_sqr()).collect();
         let floor_model = NoiseFloor::fit(&power);
+        let fl = floor_model.values(power.len());
         let (kc, floor, noise_sum) = match cutoff_hz {
             Some(f) => {
-                let (_, floor, _) = choose_cutoff(&power, 0);
+                let (_, floor, _) = choose_cutoff_on(&power, &floor_model, &fl, 0);
                 let kc = ((f / df).round() as usize).min(spec.len() - 1);
-                let s: f64 = (1..=kc).map(|k| floor_model.at(k)).sum();
+                let s: f64 = (1..=kc).map(|k| fl[k]).sum();
                 (kc, floor, if s.is_finite() { s } else { 0.0 })
             }
-            None => choose_cutoff(&power, 1),
+            None => choose_cutoff_on(&power, &floor_model, &fl, 1),
         };
-        let cost = cutoff_cost(&power, &floor_model, kc);
+        let cost = cutoff_cost_on(&power, &fl, kc);
         Self {
             spec,
             power,
             nn,
             floor_model,
+            fl,
             kc,
             floor,
             noise_sum,
@@ -565,6 +598,27 @@ mod tests {
         // ends); the hold at the joins must not bring the error back.
         let (exact, padded) = (err(6000), err(6007));
         assert!(exact < 2e-3 && padded < 2e-3, "{exact} {padded}");
+    }
+
+    /// The band alone is the band of the reconstruction, with and without an end trend chosen
+    /// (a record that ends moving, and one at rest at both ends).
+    #[test]
+    fn band_alone_is_the_band_of_the_reconstruction() {
+        let dt = 0.01;
+        let n = 3000;
+        let noise = crate::noise::standard_normal(n, 9);
+        for phase in [0.0, 1.1] {
+            let x: Vec<f64> = (0..n)
+                .map(|i| {
+                    let t = i as f64 * dt;
+                    (2.0 * std::f64::consts::PI * 0.4 * t + phase).cos() + 1e-3 * noise[i]
+                })
+                .collect();
+            for guard in [0.0, 0.5] {
+                let full = reconstruct_guarded(&x, dt, None, guard).band;
+                assert_eq!(band_guarded(&x, dt, None, guard), full);
+            }
+        }
     }
 
     /// On pure white noise of variance σ² the fitted floor is flat (β = 0 after the significance

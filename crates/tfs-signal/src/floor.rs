@@ -22,30 +22,43 @@ pub const CHI2_1_MEDIAN: f64 = 0.454_936_4;
 /// `Σ_{k≤k_c} N̂_k + Σ_{k>k_c} (P_k − N̂_k)_+` (noise let in below the cut plus signal thrown away
 /// above it), with `k_c ≥ min_bin`. Returns `k_c`, the floor at `k_c` and `Σ_{1≤k≤k_c} N̂_k`.
 pub fn choose_cutoff(p: &[f64], min_bin: usize) -> (usize, f64, f64) {
-    let k = p.len();
     let ff = NoiseFloor::fit(p);
-    let (alpha, beta) = (ff.log_a, ff.beta);
-    // The floor at every bin, computed once (flat floors need no logarithms).
-    let fl: Vec<f64> = if beta == 0.0 {
-        vec![alpha.exp(); k]
-    } else {
-        (0..k)
-            .map(|i| (alpha + beta * (i.max(1) as f64).ln()).exp())
-            .collect()
-    };
+    let fl = ff.values(p.len());
+    choose_cutoff_on(p, &ff, &fl, min_bin)
+}
+
+/// [`choose_cutoff`] on the floor `ff` already fitted to `p`, whose value at every bin of `p` is
+/// `fl` ([`NoiseFloor::values`]): the band-limited reconstruction fits the floor once and shares
+/// its values between the cut-off and its cost ([`cutoff_cost_on`]).
+pub(crate) fn choose_cutoff_on(
+    p: &[f64],
+    ff: &NoiseFloor,
+    fl: &[f64],
+    min_bin: usize,
+) -> (usize, f64, f64) {
+    let k = p.len();
+    debug_assert_eq!(fl.len(), k);
     let floor = |i: usize| fl[i];
-    let mut tail = vec![0.0; k + 1];
-    for i in (0..k).rev() {
-        tail[i] = tail[i + 1] + (p[i] - floor(i)).max(0.0);
-    }
+    // The signal thrown away above each bin (summed from the top down) and the noise let in up
+    // to it (from `start` up): two running sums, each in its own order, walked in one loop so
+    // that neither waits for the other.
     let start = min_bin.min(k - 1);
+    let mut tail = vec![0.0; k + 1];
+    let mut heads = vec![0.0; k];
     let mut head: f64 = (0..start).map(floor).sum();
+    for (i, h) in heads.iter_mut().enumerate() {
+        let j = k - 1 - i;
+        tail[j] = tail[j + 1] + (p[j] - floor(j)).max(0.0);
+        if i >= start {
+            head += floor(i);
+            *h = head;
+        }
+    }
     let mut best = (start, f64::INFINITY, 0.0);
     for kc in start..k {
-        head += floor(kc);
-        let cost = head + tail[kc + 1];
+        let cost = heads[kc] + tail[kc + 1];
         if cost < best.1 {
-            best = (kc, cost, head - floor(0));
+            best = (kc, cost, heads[kc] - floor(0));
         }
     }
     // Harmonics: a nonlinear response has energy at multiples of the drive band that may be
@@ -127,10 +140,12 @@ impl NoiseFloor {
         }
         let nsub = subbands.min(k - lo).max(1);
         let mut pts: Vec<(f64, f64)> = Vec::with_capacity(nsub);
+        let mut band: Vec<f64> = Vec::new();
         for b in 0..nsub {
             let a0 = lo + b * (k - lo) / nsub;
             let a1 = (lo + (b + 1) * (k - lo) / nsub).max(a0 + 1).min(k);
-            let mut band: Vec<f64> = p[a0..a1].to_vec();
+            band.clear();
+            band.extend_from_slice(&p[a0..a1]);
             let mid = band.len() / 2;
             let med = *band.select_nth_unstable_by(mid, f64::total_cmp).1 / unit_median;
             if med > 0.0 {
@@ -198,6 +213,17 @@ impl NoiseFloor {
         (self.log_a + self.beta * (k.max(1) as f64).ln()).exp()
     }
 
+    /// The floor at every bin `0..len`: [`NoiseFloor::at`] of each, to the bit, with one
+    /// exponential for a flat floor (`β = 0` adds exactly zero to `ln A`) instead of a logarithm
+    /// and an exponential per bin.
+    pub fn values(&self, len: usize) -> Vec<f64> {
+        if self.beta == 0.0 {
+            vec![self.at(1); len]
+        } else {
+            (0..len).map(|k| self.at(k)).collect()
+        }
+    }
+
     /// Standard error of the fitted log floor at bin `k` (a prediction far below the fitted
     /// band carries the slope's uncertainty times the log distance).
     pub fn log_se(&self, k: usize) -> f64 {
@@ -215,11 +241,15 @@ impl NoiseFloor {
 /// minimises, so that two spectra of the same record (say, with and without a trend removed)
 /// can be compared at their own best cut-offs.
 pub fn cutoff_cost(p: &[f64], floor: &NoiseFloor, kc: usize) -> f64 {
+    cutoff_cost_on(p, &floor.values(p.len()), kc)
+}
+
+/// [`cutoff_cost`] with the floor's value at every bin of `p` given (`fl`,
+/// [`NoiseFloor::values`]).
+pub(crate) fn cutoff_cost_on(p: &[f64], fl: &[f64], kc: usize) -> f64 {
     let kc = kc.min(p.len().saturating_sub(1));
-    let head: f64 = (1..=kc).map(|k| floor.at(k)).sum();
-    let tail: f64 = (kc + 1..p.len())
-        .map(|k| (p[k] - floor.at(k)).max(0.0))
-        .sum();
+    let head: f64 = (1..=kc).map(|k| fl[k]).sum();
+    let tail: f64 = (kc + 1..p.len()).map(|k| (p[k] - fl[k]).max(0.0)).sum();
     let c = head + tail;
     if c.is_finite() { c } else { f64::INFINITY }
 }
@@ -253,5 +283,79 @@ mod tests {
         let w = NoiseFloor::fit(&white);
         assert_eq!(w.beta, 0.0);
         assert!((w.at(100) - 1.0).abs() < 0.2, "{}", w.at(100));
+    }
+
+    /// The floor's values at every bin are [`NoiseFloor::at`] to the bit, flat or sloped, so the
+    /// cut-off and its cost on them are those of the per-bin formula.
+    #[test]
+    fn floor_values_are_the_per_bin_floor_to_the_bit() {
+        for (beta, log_a) in [(0.0, 0.7), (0.0, -3.2), (-1.0, 2.5), (0.3, -0.4)] {
+            let f = NoiseFloor {
+                beta,
+                ..NoiseFloor::flat(log_a, 16.0, 7.0, 3.0)
+            };
+            let v = f.values(500);
+            for (k, x) in v.iter().enumerate() {
+                assert_eq!(x.to_bits(), f.at(k).to_bits(), "β {beta}, bin {k}");
+            }
+        }
+        // White and pink-like spectra: the cost on shared values is the per-bin sum.
+        let noise = crate::noise::standard_normal(4000, 5);
+        for tilt in [0.0, -1.0] {
+            let p: Vec<f64> = noise
+                .iter()
+                .enumerate()
+                .map(|(k, z)| {
+                    z * z * ((k.max(1) as f64).powf(tilt)) + if k < 40 { 50.0 } else { 0.0 }
+                })
+                .collect();
+            let ff = NoiseFloor::fit(&p);
+            for kc in [0, 1, 37, 1999, 3999] {
+                let kk = kc.min(p.len() - 1);
+                let head: f64 = (1..=kk).map(|k| ff.at(k)).sum();
+                let tail: f64 = (kk + 1..p.len()).map(|k| (p[k] - ff.at(k)).max(0.0)).sum();
+                assert_eq!(cutoff_cost(&p, &ff, kc).to_bits(), (head + tail).to_bits());
+            }
+        }
+    }
+
+    /// The cut-off's two running sums walked in one loop give the bits of the plain form (the
+    /// tail summed top-down, then the head bottom-up), on white and pink spectra.
+    #[test]
+    fn cutoff_scan_equals_the_plain_form_to_the_bit() {
+        let noise = crate::noise::standard_normal(3000, 11);
+        for tilt in [0.0, -1.0] {
+            let p: Vec<f64> = noise
+                .iter()
+                .enumerate()
+                .map(|(k, z)| {
+                    let signal = if k < 200 { 100.0 } else { 0.0 };
+                    z * z * (k.max(1) as f64).powf(tilt) + signal
+                })
+                .collect();
+            let ff = NoiseFloor::fit(&p);
+            let fl = ff.values(p.len());
+            for min_bin in [0, 1, 5] {
+                let k = p.len();
+                let mut tail = vec![0.0; k + 1];
+                for i in (0..k).rev() {
+                    tail[i] = tail[i + 1] + (p[i] - fl[i]).max(0.0);
+                }
+                let start = min_bin.min(k - 1);
+                let mut head: f64 = (0..start).map(|i| fl[i]).sum();
+                let mut best = (start, f64::INFINITY, 0.0);
+                for kc in start..k {
+                    head += fl[kc];
+                    let cost = head + tail[kc + 1];
+                    if cost < best.1 {
+                        best = (kc, cost, head - fl[0]);
+                    }
+                }
+                // No harmonics above the band: the harmonic search leaves the cut-off.
+                let (kc, _, noise_sum) = choose_cutoff_on(&p, &ff, &fl, min_bin);
+                assert_eq!(kc, best.0, "tilt {tilt}, min_bin {min_bin}");
+                assert_eq!(noise_sum.to_bits(), best.2.max(0.0).to_bits());
+            }
+        }
     }
 }

@@ -74,13 +74,15 @@ pub(crate) fn window_transforms(
         .map(|&st| {
             let all: Vec<usize> = (0..om.len()).collect();
             let lhs_full = s.lhs_spectrum_at(st, &win, &om, &all);
-            let max = lhs_full.iter().fold(0.0f64, |a, c| a.max(c.norm()));
+            // Each bin's magnitude, computed once (a `hypot` each).
+            let mag: Vec<f64> = lhs_full.iter().map(|c| c.norm()).collect();
+            let max = mag.iter().fold(0.0f64, |a, &m| a.max(m));
             // The strongest bin is always kept so no window is left without rows.
-            let top = (0..lhs_full.len())
-                .max_by(|&a, &b| lhs_full[a].norm().total_cmp(&lhs_full[b].norm()))
+            let top = (0..mag.len())
+                .max_by(|&a, &b| mag[a].total_cmp(&mag[b]))
                 .unwrap_or(0);
-            let bins: Vec<usize> = (0..lhs_full.len())
-                .filter(|&k| max > 0.0 && lhs_full[k].norm() >= delta_min * max)
+            let bins: Vec<usize> = (0..mag.len())
+                .filter(|&k| max > 0.0 && mag[k] >= delta_min * max)
                 .filter(|&k| {
                     k == top || gate.as_ref().is_none_or(|g| lhs_full[k].norm_sqr() >= g[k])
                 })
@@ -90,7 +92,7 @@ pub(crate) fn window_transforms(
                 .collect();
             WindowTransform {
                 freq: bins.iter().map(|&k| k as f64 * df).collect(),
-                rel_amp: bins.iter().map(|&k| lhs_full[k].norm() / max).collect(),
+                rel_amp: bins.iter().map(|&k| mag[k] / max).collect(),
                 lhs: bins.iter().map(|&k| lhs_full[k]).collect(),
                 cols,
                 weight: vec![1.0; bins.len()],
