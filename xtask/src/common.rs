@@ -15,6 +15,9 @@ pub struct Opts {
     pub quick: bool,
     /// Folder of a `cargo xtask peers` run whose table and figures the report includes.
     pub peers: std::path::PathBuf,
+    /// Python virtual environment with pysindy for Table B1's PySINDy row; `None` with
+    /// `--no-python` (the row then says it was not run).
+    pub venv: Option<std::path::PathBuf>,
 }
 
 impl Opts {

@@ -50,6 +50,14 @@ enum Cmd {
         /// Folder of a `cargo xtask peers` run to include (study 6); skipped with a note if absent.
         #[arg(long, default_value = "target/peers")]
         peers: PathBuf,
+        /// Python virtual environment with pysindy 2.1 for Table B1's PySINDy row (used as it
+        /// is, never created here: `cargo xtask peers` makes this default one). Without it the
+        /// row says PySINDy was not run.
+        #[arg(long, default_value = "target/peers/venv")]
+        venv: PathBuf,
+        /// Do not run PySINDy (Table B1's PySINDy row says so).
+        #[arg(long)]
+        no_python: bool,
     },
     /// tfs vs PySINDy (weak and classical) on the same CSVs, scored by one code path (a
     /// benchmark: creates a Python virtual environment; CI does not run it).
@@ -108,7 +116,17 @@ fn main() {
             out,
             only,
             peers,
-        } => match reproduce(Opts { quick, peers }, &out, &only) {
+            venv,
+            no_python,
+        } => match reproduce(
+            Opts {
+                quick,
+                peers,
+                venv: (!no_python).then_some(venv),
+            },
+            &out,
+            &only,
+        ) {
             Ok(o) if o.failed_studies == 0 && o.failed_checks == 0 => {}
             Ok(o) => {
                 eprintln!(

@@ -171,6 +171,11 @@ impl Study {
         }
     }
 
+    /// The report's output folder (for files a study writes besides its tables and figures).
+    pub fn out_dir(&self) -> &Path {
+        &self.out
+    }
+
     /// Adds a paragraph (markdown; shown pre-formatted-free in HTML).
     pub fn text(&mut self, s: impl Into<String>) {
         self.blocks.push(Block::Text(s.into()));

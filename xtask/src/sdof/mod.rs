@@ -4,6 +4,7 @@
 //! The studies live in one file each ([`white`], [`pink`], [`table_b1`]); this module holds what
 //! they share: the truth, the records, the fits, the tables and the figures they all draw.
 
+mod b1_pysindy;
 mod pink;
 mod table_b1;
 mod white;
