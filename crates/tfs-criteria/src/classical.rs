@@ -151,6 +151,8 @@ enum Chosen {
     Simulates(f64, usize),
     /// No support with terms simulates the held-out record: the lowest BIC.
     NoneSimulates,
+    /// Not simulated (`SindyOptions::vet_by_simulation` off): the lowest BIC.
+    NotVetted,
 }
 
 /// Each DOF's support: of the λ path's supports with terms fitted on the training records, the
@@ -199,6 +201,10 @@ fn select_on_held_out(
     let mut pick: Vec<usize> = cands.iter().map(|c| c.by_bic()[0]).collect();
     let mut how = Vec::new();
     for d in 0..cands.len() {
+        if !spec.sindy.vet_by_simulation {
+            how.push(Chosen::NotVetted);
+            continue;
+        }
         let mut chosen = Chosen::NoneSimulates;
         for (passed, k) in cands[d].by_bic().into_iter().enumerate() {
             let mut trial = pick.clone();
@@ -227,6 +233,10 @@ fn select_on_held_out(
             Chosen::Simulates(r, n) => format!(
                 "STLSQ threshold {thr:.4} (scaled): the lowest BIC on held-out '{h}' among the supports whose model simulates '{h}' (R-MSE {}; {n} with a lower BIC do not); coefficients refit on all records",
                 tfs_library::sig4(*r)
+            ),
+            Chosen::NotVetted => format!(
+                "STLSQ threshold {thr:.4} (scaled): the lowest BIC on held-out '{h}' of the {} supports with terms; coefficients refit on all records",
+                c.points.len()
             ),
             Chosen::NoneSimulates => format!(
                 "STLSQ threshold {thr:.4} (scaled): the lowest BIC on held-out '{h}' of the supports with terms; none of their models simulates '{h}'; coefficients refit on all records"

@@ -268,6 +268,11 @@ pub struct SindyOptions {
     pub threshold: Option<f64>,
     /// Points of the λ path.
     pub n_thresholds: usize,
+    /// With a selected threshold: pass over supports whose model (fitted without the held-out
+    /// record) cannot simulate that record, taking the lowest held-out BIC among those that can.
+    /// Off by default: it simulates the held-out record at least once, several times the cost
+    /// of the fit itself (a classical fit stays as cheap as the regression it is).
+    pub vet_by_simulation: bool,
 }
 
 impl Default for SindyOptions {
@@ -276,6 +281,7 @@ impl Default for SindyOptions {
             savitzky_golay: None,
             threshold: None,
             n_thresholds: 40,
+            vet_by_simulation: false,
         }
     }
 }

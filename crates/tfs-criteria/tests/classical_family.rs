@@ -128,6 +128,7 @@ fn identify(
         .collect();
     let mut spec = IdentifySpec::new(&["x"], LIB);
     spec.sindy.savitzky_golay = sg;
+    spec.sindy.vet_by_simulation = true;
     let id = identify_sindy(&recs, &spec).unwrap();
     eprintln!(
         "{} {snr_db} dB seed {seed}: {} | {:?}",

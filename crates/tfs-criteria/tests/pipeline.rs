@@ -211,6 +211,7 @@ fn classical_sindy_vets_both_dofs_of_the_chain_by_simulation() {
         "(x2-x1)^1..3, (x2-x1)', x1, xb_acc".into(),
     ];
     spec.sindy.savitzky_golay = Some((5, 3));
+    spec.sindy.vet_by_simulation = true;
     let id = identify_sindy(&recs, &spec).unwrap();
     eprintln!("{}", id.model.equation_string());
     let kept = |dof: &str, term: &str| {

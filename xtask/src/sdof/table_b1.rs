@@ -59,6 +59,7 @@ fn choose_derivative(train: &[Record]) -> Result<(Derivative, Vec<Offered>)> {
     for (i, sg) in DERIVATIVES.into_iter().enumerate() {
         let mut spec = IdentifySpec::new(&["x"], SINDY_LIBRARY);
         spec.sindy.savitzky_golay = sg;
+        spec.sindy.vet_by_simulation = true;
         let what = || format!("classical SINDy with {}", derivative_name(sg));
         let all = identify_sindy(train, &spec).with_context(what)?;
         let threshold = all.trace.dofs[0].settings.threshold;
@@ -174,6 +175,7 @@ pub fn study_table_b1(st: &mut Study, o: &Opts) -> Result<()> {
     pb.set_message("classical SINDy");
     let mut spec_s = IdentifySpec::new(&["x"], SINDY_LIBRARY);
     spec_s.sindy.savitzky_golay = sg;
+    spec_s.sindy.vet_by_simulation = true;
     let (b, t_sindy) =
         timed(|| identify_sindy(&train, &spec_s).context("classical SINDy identification"))?;
     pb.inc(1);
