@@ -25,10 +25,10 @@ use crate::record::PyRecord;
 /// coefficient, and `r_mse_before`/`r_mse_after`: the prediction error of the model's structure
 /// refitted on part of the records and judged on the rest, without and with the effect — a
 /// ranking score, not the error of the model given), `residual_summary`,
-/// `records`, `localisation`, `tests`, `cutoff_hz`, `offsets`; when the model fails to simulate
-/// some records, the candidates are added and simulated as `tfs diagnose` does: `simulation`
-/// says what that chose (`verdict` then names it) and `equation_error_verdict` keeps the
-/// ranking's own verdict.
+/// `records`, `localisation`, `tests`, `cutoff_hz`, `offsets`; `simulation`: the decision
+/// `tfs diagnose` and `refit(until_clean=…)` take (the candidates added and simulated: `before`,
+/// `tried` with each one's `reason`, `chosen`, `then`, `reason`, `ranking_stands`, `why`), and
+/// `equation_error_verdict` keeps the ranking's own verdict.
 #[pyfunction]
 #[pyo3(signature = (model, records, *, alpha=0.01, min_share=0.02, offsets="auto", clipped="error"))]
 pub fn diagnose<'py>(
@@ -49,8 +49,14 @@ pub fn diagnose<'py>(
             let (recs, report, w) = prepare_for_model(m, recs, offsets, clipped)?;
             let d = tfs::diagnose::diagnose(m, &recs, &opts)
                 .map_err(|e| tfs::Error::from(e).context("diagnosing the model"))?;
-            let gate = tfs::gate::on_diagnosis(m, &d, &recs, &opts)
-                .map_err(|e| e.context("simulating the candidates"))?;
+            let decision = tfs::decide::decide(
+                m,
+                &d.ranked,
+                &recs,
+                &opts,
+                &tfs::decide::DecideOptions::diagnose(),
+            )
+            .map_err(|e| e.context("simulating the candidates"))?;
             // The model's own error on the records, as `compare` scores it.
             let scores: Option<Vec<f64>> = d
                 .records
@@ -63,11 +69,11 @@ pub fn diagnose<'py>(
                 .map(|v| v.iter().sum::<f64>() / v.len() as f64);
             Ok((
                 json!({
-                    "verdict": tfs::gate::verdict(&d, gate.as_ref()),
+                    "verdict": decision.verdict(&d.verdict),
                     "r_mse": r_mse,
-                    "named": tfs::gate::named(&d.ranked, gate.as_ref()),
+                    "named": decision.chosen.clone(),
                     "equation_error_verdict": d.verdict,
-                    "simulation": gate.as_ref().map(|g| &g.0),
+                    "simulation": &decision,
                     "ranked": d.ranked,
                     "residual_summary": d.residual_summary, "records": d.records,
                     "localisation": d.localisation, "tests": d.tests,

@@ -40,10 +40,14 @@ def test_a_failure_its_own_terms_mend_names_no_effect():
     assert not d["verdict"].startswith("missing effect"), d["verdict"]
 
 
-def test_a_model_that_simulates_gets_no_simulation_report():
+def test_a_model_that_simulates_keeps_the_rankings_verdict():
     d = tfs.diagnose(tfs.Model.from_json(PAPER_MODEL), TEST)
-    assert d["simulation"] is None
+    sim = d["simulation"]
+    # Simulated, but nothing to cure: no refit-alone control, and the ranking's verdict stands.
+    assert sim["before"]["failed"] == 0 and "refitted" not in sim, sim
+    assert sim["ranking_stands"] and sim["reason"] in ("supported", "nothing-significant"), sim
     assert d["verdict"] == d["equation_error_verdict"]
+    assert all(t["reason"] for t in sim["tried"]), sim
 
 
 def test_the_loop_runs_from_python_as_the_cli_runs_it(cli, tmp_path):
@@ -52,6 +56,8 @@ def test_the_loop_runs_from_python_as_the_cli_runs_it(cli, tmp_path):
     looped = m.refit(TRAIN, until_clean=2)
     rounds = looped.report["rounds"]
     assert rounds[0]["added"] == "linear-damping", rounds
+    # One decision: what `diagnose` names is what the loop adds first.
+    assert tfs.diagnose(m, TRAIN)["named"] == rounds[0]["added"]
     ladder = looped.report["ladder"]
     assert ladder[-1]["mean_r_mse"] < ladder[0]["mean_r_mse"] / 5, ladder
     m.save(tmp_path / "m.json")

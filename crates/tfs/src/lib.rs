@@ -8,7 +8,8 @@
 //! It also holds the workflows that the CLI and the Python package (`crates/tfs-py`) share, so
 //! that both give the same results on the same data: [`records`] (validation, the DOF and input
 //! columns, the offsets policy), [`identify`] (options with the CLI's defaults, default libraries,
-//! fit and refinement), [`compare`], [`refit`], [`sdof`] (1-DOF systems for basins and MED) and [`simulate`]
+//! fit and refinement), [`compare`], [`refit`], [`decide`] (which effect a model is missing: one decision
+//! for `diagnose` and the loop), [`sdof`] (1-DOF systems for basins and MED) and [`simulate`]
 //! (the Kresling records, a model run from a given state).
 //!
 //! ```
@@ -27,6 +28,7 @@
 pub mod chain;
 pub mod compare;
 pub mod contact;
+pub mod decide;
 mod error;
 pub mod gate;
 pub mod identify;

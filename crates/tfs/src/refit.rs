@@ -44,7 +44,9 @@ pub struct LoopRound {
     pub added: Option<String>,
     /// The diagnosis's verdict in that round.
     pub verdict: String,
-    /// What decided the round beyond the verdict, when anything did ([`crate::gate`]): the
+    /// Why the decision ([`crate::decide::decide`]) added what it added, or nothing.
+    pub reason: crate::decide::Reason,
+    /// What decided the round beyond the verdict, when anything did ([`crate::decide`]): the
     /// model fails to simulate some records and a candidate makes fewer fail; a significant
     /// candidate was passed over because the model simulates the records worse with it; a stop
     /// was added on T-F-S's evidence.
@@ -68,8 +70,8 @@ pub struct RefitRequest {
 }
 
 /// The diagnosis loop: at most `max_rounds` times, rank the catalogue's effects on `records`
-/// and add the top significant one (refitting, with its history step); stop when none is
-/// significant. Returns the model and one [`LoopRound`] per round (the last says why it
+/// and add the one the diagnosis names ([`crate::decide::decide`], as `tfs diagnose` names it;
+/// refitting, with its history step); stop when it names none. Returns the model and one [`LoopRound`] per round (the last says why it
 /// stopped, unless the rounds ran out).
 pub fn until_clean(
     model: &Model,
@@ -154,13 +156,26 @@ fn until_clean_with(
     for round in 1..=max_rounds {
         let ex = explain(&model, records, &catalogue, opts)
             .with_context(|| format!("--until-clean: diagnosing in round {round}"))?;
-        let (chosen, note) = crate::gate::loop_choice(&model, &ex, records, &catalogue, opts)
-            .with_context(|| format!("--until-clean: round {round}"))?;
-        let Some(chosen) = chosen else {
+        let decision = crate::decide::decide(
+            &model,
+            &ex.ranked,
+            records,
+            opts,
+            &crate::decide::DecideOptions::loop_round(),
+        )
+        .with_context(|| format!("--until-clean: round {round}"))?;
+        // The decision's sentences when it did more than take the ranking's top significant
+        // candidate of a model that simulates every record.
+        let note = (!decision.ranking_stands || decision.before.failed > 0)
+            .then(|| decision.why.clone())
+            .filter(|w| !w.is_empty());
+        let reason = decision.reason;
+        let Some(chosen) = decision.added else {
             rounds.push(LoopRound {
                 round,
                 added: None,
                 verdict: ex.verdict,
+                reason,
                 note,
             });
             break;
@@ -172,6 +187,7 @@ fn until_clean_with(
             round,
             added: Some(chosen.effect),
             verdict: ex.verdict,
+            reason,
             note,
         });
     }

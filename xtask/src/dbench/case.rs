@@ -67,7 +67,7 @@ pub struct Round {
     pub top_parameter: Option<(String, f64)>,
     /// The diagnosis's verdict by equation error.
     pub verdict: String,
-    /// What the simulations said when they decided the effect named (`tfs::gate`: the model
+    /// What the simulations said when they decided the effect named (`tfs::decide`: the model
     /// fails some records, or a significant candidate makes them simulate worse), if they did.
     pub simulation: Option<String>,
     /// The five best-ranked candidates.
@@ -289,12 +289,20 @@ fn round(
         &opts,
     )
     .context("diagnose")?;
-    // What `tfs diagnose` names: the ranking's top significant effect unless simulating the
-    // candidates decides otherwise (`tfs::gate`).
-    let gate = tfs::gate::on_ranking(model, &d.ranked, train, &opts)
-        .context("diagnose: simulating the candidates")?;
-    let named = tfs::gate::named(&d.ranked, gate.as_ref());
-    let top = named.and_then(|n| d.ranked.iter().find(|r| r.name == n));
+    // What `tfs diagnose` names and `refit --until-clean` adds first: one decision
+    // (`tfs::decide`).
+    let decision = tfs::decide::decide(
+        model,
+        &d.ranked,
+        train,
+        &opts,
+        &tfs::decide::DecideOptions::diagnose(),
+    )
+    .context("diagnose: simulating the candidates")?;
+    let top = decision
+        .chosen
+        .as_ref()
+        .and_then(|n| d.ranked.iter().find(|r| &r.name == n));
     let before = tfs::diagnose::r_mse(model, heldout);
     let mut failure = before.as_ref().err().map(|e| format!("before: {e}"));
     let mut after = before.as_ref().ok().copied();
@@ -324,7 +332,7 @@ fn round(
             top_effect: top.map(|t| t.effect.clone()),
             top_parameter: top.and_then(|t| t.parameter.clone()),
             verdict: d.verdict.clone(),
-            simulation: gate.map(|g| g.0.why),
+            simulation: (!decision.ranking_stands).then(|| decision.why.clone()),
             ranked: d
                 .ranked
                 .iter()
@@ -382,13 +390,21 @@ pub fn run_with(
     out
 }
 
-fn run_into(
-    spec: &CaseSpec,
-    out: &mut CaseResult,
-    keep: Option<&Path>,
-    reference: SnrReference,
-    diagnose: bool,
-) -> Result<()> {
+/// A case's truth, hidden effects and records, drawn as [`run`] draws them.
+struct Drawn {
+    baseline: Baseline,
+    hides: Vec<Hide>,
+    /// The noise-free responses, training records first.
+    clean: Vec<truth::Clean>,
+    /// The start library of each DOF.
+    libs: Vec<String>,
+    train: Vec<Record>,
+    heldout: Record,
+}
+
+/// Draws case `spec`'s baseline and hidden effects and measures its records; a case that
+/// cannot run sets `out.status` (`not-applicable`, `truth-failed`) and returns the error.
+fn draw(spec: &CaseSpec, out: &mut CaseResult, reference: SnrReference) -> Result<Drawn> {
     let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
     let b = truth::draw(spec.kind, &mut rng)?;
     out.baseline = b.params.clone();
@@ -417,10 +433,7 @@ fn run_into(
             }
         }
     }
-    out.realised = size::realised(&b, &hides, &clean[..3]);
     let libs = libraries(&b, &hides)?;
-    out.unrepresentable =
-        size::unrepresentable(&b, &hides, &libs, &clean[..3]).context("unrepresentable part")?;
     let mut records = Vec::new();
     for (i, c) in clean.iter().enumerate() {
         let name = if i < 3 {
@@ -438,24 +451,86 @@ fn run_into(
         )?);
     }
     let heldout = records.pop().ok_or_else(|| anyhow!("no held-out record"))?;
-    let train = records;
-    // identify, as `tfs identify --library ... --offsets ...` does.
+    Ok(Drawn {
+        baseline: b,
+        hides,
+        clean,
+        libs,
+        train: records,
+        heldout,
+    })
+}
+
+/// The start model identified on `train` as `tfs identify --library ... --offsets ...` does
+/// (a chain's coupling law tied between its two equations, as `tfs identify` fits a chain by
+/// default).
+fn identify_start(
+    b: &Baseline,
+    libs: &[String],
+    train: &[Record],
+) -> Result<tfs::identify::Identification> {
     let opts = IdentifyOptions {
         library: Some(libs[0].clone()),
         dofs: b.dofs.clone(),
         offsets: b.offsets,
-        // A chain's coupling law tied between its two equations, as `tfs identify` fits a
-        // chain by default.
         tie: tfs::identify::Tie::Auto,
         ..Default::default()
     };
     let cols: Vec<String> = train[0].names().to_vec();
-    let t1 = Instant::now();
     let mut p = plan(&opts, &cols, "train0")?;
     if libs.len() > 1 {
-        p.spec.dof_libraries = libs.clone();
+        p.spec.dof_libraries = libs.to_vec();
     }
-    let id = identify(train.clone(), Vec::new(), &opts, &p).context("identify")?;
+    identify(train.to_vec(), Vec::new(), &opts, &p).context("identify")
+}
+
+/// A case's training records and the start model identified on them, as [`run`] makes them:
+/// what a test gives the diagnosis and the loop. `None` when the case does not apply (no truth
+/// for its effect on its baseline).
+#[cfg(test)]
+pub struct Start {
+    /// The training records.
+    pub train: Vec<Record>,
+    /// The identified start model and its offsets report.
+    pub id: tfs::identify::Identification,
+}
+
+/// [`Start`] of case `spec` (`None`: the case does not apply, or its truth fails).
+#[cfg(test)]
+pub fn start(spec: &CaseSpec, reference: SnrReference) -> Result<Option<Start>> {
+    let mut out = CaseResult::new(spec);
+    let drawn = match draw(spec, &mut out, reference) {
+        Ok(d) => d,
+        Err(_) if out.status != "ok" => return Ok(None),
+        Err(e) => return Err(e),
+    };
+    let id = identify_start(&drawn.baseline, &drawn.libs, &drawn.train)?;
+    Ok(Some(Start {
+        train: drawn.train,
+        id,
+    }))
+}
+
+fn run_into(
+    spec: &CaseSpec,
+    out: &mut CaseResult,
+    keep: Option<&Path>,
+    reference: SnrReference,
+    diagnose: bool,
+) -> Result<()> {
+    let Drawn {
+        baseline: b,
+        hides,
+        clean,
+        libs,
+        train,
+        heldout,
+    } = draw(spec, out, reference)?;
+    out.realised = size::realised(&b, &hides, &clean[..3]);
+    out.unrepresentable =
+        size::unrepresentable(&b, &hides, &libs, &clean[..3]).context("unrepresentable part")?;
+    let t1 = Instant::now();
+    let id = identify_start(&b, &libs, &train)?;
     out.identify_seconds = t1.elapsed().as_secs_f64();
     out.start = Some(id.model.equation_string());
     if let Some(keep) = keep {

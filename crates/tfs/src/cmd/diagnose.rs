@@ -50,11 +50,12 @@ pub struct Args {
 }
 
 /// Says when the records' means were removed from a structure with memory: the model has an
-/// internal state, or the top significant effect adds one (see
+/// internal state, or the effect named (`named`) adds one (see
 /// [`tfs::records::memory_offsets_note`]).
 fn memory_note(
     model: &tfs::library::Model,
     d: &tfs::diagnose::Diagnosis,
+    named: Option<&str>,
     offsets: &tfs::report::OffsetsReport,
     records: &[tfs::data::Record],
 ) -> Option<String> {
@@ -62,7 +63,7 @@ fn memory_note(
         return super::state_offsets_note(model, offsets, records);
     }
     let memory = {
-        let top = d.ranked.iter().find(|r| r.significant)?;
+        let top = d.ranked.iter().find(|r| Some(r.name.as_str()) == named)?;
         let adds_state = top.terms.iter().any(|t| {
             tfs::library::Library::parse(
                 t,
@@ -102,35 +103,34 @@ pub fn run(args: Args) -> Result<()> {
         diagnose(&model, &records, &opts).map_err(anyhow::Error::from)
     })
     .context("diagnosing the model")?;
-    // A model that fails to simulate some records: the candidates are added and simulated, and
-    // the one that makes the records simulate is what they are missing; otherwise a significant
-    // candidate whose addition makes the records simulate worse is passed over, as the loop
-    // does (tfs::gate).
+    // The one decision `refit --until-clean` takes too (tfs::decide): a model that fails to
+    // simulate some records is given the candidate that makes them simulate; otherwise a
+    // significant candidate whose addition makes the records simulate worse is passed over.
     let spinner = if tfs::gate::fails_somewhere(&d) {
         "the model fails to simulate some records: adding each candidate and simulating"
     } else {
         "checking the significant candidates: adding them in turn and simulating the records"
     };
-    let gate = super::with_spinner(spinner, || {
-        tfs::gate::on_diagnosis(&model, &d, &records, &opts)
+    let decision = super::with_spinner(spinner, || {
+        tfs::decide::decide(
+            &model,
+            &d.ranked,
+            &records,
+            &opts,
+            &tfs::decide::DecideOptions::diagnose(),
+        )
     })
     .context("simulating the candidates")?;
-    let verdict = tfs::gate::verdict(&d, gate.as_ref());
+    let verdict = decision.verdict(&d.verdict);
     if let Some(dir) = &args.plots {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("--plots {}: cannot create the directory", dir.display()))?;
         write_plots(dir, &d)?;
-        // The loop before and after adding the top significant effect, on the first record.
-        let chosen = gate.as_ref().and_then(|g| g.1.as_ref());
-        let after = match (chosen, tfs::gate::named(&d.ranked, gate.as_ref())) {
-            (Some(c), _) => Some((format!("model + {}", c.effect), c.model.clone())),
-            (None, Some(top)) => Some((
-                format!("model + {top}"),
-                tfs::diagnose::add_effect(&model, top, &records)
-                    .with_context(|| format!("--plots: adding {top} for the loop figure"))?,
-            )),
-            (None, None) => None,
-        };
+        // The loop before and after adding the effect named, on the first record.
+        let after = decision
+            .added
+            .as_ref()
+            .map(|c| (format!("model + {}", c.effect), c.model.clone()));
         let mut models: Vec<(&str, &tfs::library::Model)> = vec![("model", &model)];
         if let Some((label, m)) = &after {
             models.push((label.as_str(), m));
@@ -143,7 +143,7 @@ pub fn run(args: Args) -> Result<()> {
             "ranked": d.ranked,
             "verdict": verdict,
             "equation_error_verdict": d.verdict,
-            "simulation": gate.as_ref().map(|g| &g.0),
+            "simulation": &decision,
             "residual_summary": d.residual_summary,
             "records": d.records,
             "localisation": d.localisation,
@@ -156,7 +156,7 @@ pub fn run(args: Args) -> Result<()> {
             &args,
             &model,
             &d,
-            gate.as_ref(),
+            &decision,
             &verdict,
             &offsets_report,
             &records,
@@ -175,7 +175,7 @@ fn print_human(
     args: &Args,
     model: &tfs::library::Model,
     d: &tfs::diagnose::Diagnosis,
-    gate: Option<&tfs::gate::Simulated>,
+    decision: &tfs::decide::Decision,
     verdict: &str,
     offsets_report: &tfs::report::OffsetsReport,
     records: &[tfs::data::Record],
@@ -186,13 +186,22 @@ fn print_human(
         println!("{}", short_verdict(verdict));
     }
     if args.verbose {
-        if let Some((report, _)) = gate {
-            // The verdict gives the simulations' reasons when it follows them.
-            if report.decides() {
-                println!("equation-error ranking: {}", d.verdict);
-            } else {
-                println!("simulation: {}", report.why);
+        // The verdict gives the decision's reasons when it does not follow the ranking.
+        if decision.ranking_stands {
+            if !decision.why.is_empty() {
+                println!("simulation: {}", decision.why);
             }
+        } else {
+            println!("equation-error ranking: {}", d.verdict);
+        }
+        println!("decision: {}", decision.reason);
+        for t in &decision.tried {
+            let score = match (&t.score, &t.error) {
+                (Some(s), _) => s.describe(),
+                (None, Some(e)) => format!("could not be added ({e})"),
+                (None, None) => "not simulated".to_string(),
+            };
+            println!("  tried {}: {score}: {}", t.effect, t.reason);
         }
         println!(
             "offsets: {} ({})",
@@ -200,7 +209,13 @@ fn print_human(
             offsets_report.why
         );
     }
-    if let Some(note) = memory_note(model, d, offsets_report, records) {
+    if let Some(note) = memory_note(
+        model,
+        d,
+        decision.chosen.as_deref(),
+        offsets_report,
+        records,
+    ) {
         println!("note: {note}");
     }
     if args.verbose {

@@ -24,8 +24,8 @@ pub struct Args {
     /// DOF of a chain; `tfs diagnose` lists them all). Repeat to add several.
     #[arg(long = "add", required_unless_present = "until_clean")]
     pub add: Vec<String>,
-    /// After the --add effects, run the diagnosis loop: each round adds the top significant
-    /// effect `tfs diagnose` finds, until none is significant (at most N rounds, default 5).
+    /// After the --add effects, run the diagnosis loop: each round adds the effect `tfs
+    /// diagnose` names (the same decision), until it names none (at most N rounds, default 5).
     #[arg(long, value_name = "N", num_args = 0..=1, default_missing_value = "5")]
     pub until_clean: Option<usize>,
     /// CSV records with the model's displacement and input columns.
@@ -145,6 +145,9 @@ pub fn run(args: Args) -> Result<()> {
             match &r.added {
                 Some(name) => println!("round {}: added {name} ({})", r.round, r.verdict),
                 None => println!("round {}: {}; the loop stops", r.round, r.verdict),
+            }
+            if args.verbose {
+                println!("  decision: {}", r.reason);
             }
             if let Some(note) = r.note.as_ref().filter(|_| args.verbose) {
                 println!("  {note}");

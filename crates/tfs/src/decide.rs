@@ -1,0 +1,548 @@
+//! The diagnosis's one decision: which effect a model is missing, given the equation-error
+//! ranking of the catalogue's candidates and what the model does when simulated with each.
+//!
+//! `tfs diagnose`, the Python `diagnose`, `cargo xtask diagnose-bench` and every round of
+//! `tfs refit --until-clean` call [`decide`], so they name the same effect. In order:
+//!
+//! 1. **Failures.** When the model fails to simulate some records (blows up, leaves the range, a
+//!    non-finite R-MSE), every candidate whose held-out equation error falls is added (as
+//!    `refit --add` adds it, a stop re-scanned by T-F-S) and simulated; the one that leaves the
+//!    fewest records failing (then the lowest mean R-MSE of the others, then the ranking's order)
+//!    is chosen ([`Reason::CuresFailures`]) if it leaves fewer failing than the model and than the
+//!    model's own terms refitted with nothing added (a failure the refit alone cures was the start
+//!    fit's, and any candidate would seem to cure it). A failed simulation of a measured record is
+//!    not a matter of degree or of noise, so it outranks the equation error. With
+//!    [`DecideOptions::further`], when the chosen one still leaves records failing, the effects
+//!    needed with it are looked for by forward selection ([`Decision::then`]).
+//! 2. **Significant candidates.** Otherwise the significant candidates are added in the ranking's
+//!    order, and the first with which the records simulate no worse than without it
+//!    ([`Reason::Supported`]) is chosen; one with which they simulate worse (more records fail, or
+//!    as many and the mean R-MSE of the others rises: [`Reason::WorsensSimulation`]) or that
+//!    cannot be added ([`Reason::CouldNotAdd`]) is passed over. Every significant candidate is
+//!    held to this, whichever judge ranked it: the question is the same for all (does the model
+//!    with it reproduce the records it is fitted on no worse?), and a candidate the ranking put
+//!    first on a short-horizon score is still one the loop would add.
+//! 3. **A contact the equation error cannot resolve.** When no significant candidate was chosen,
+//!    a candidate that adds a one-sided contact term (`below`, `above`: recognised by its terms,
+//!    not its name) whose held-out equation error falls is added with its position re-scanned by
+//!    T-F-S ([`crate::contact::rescan_stop`]); it is chosen ([`Reason::StopByTfs`]) when the
+//!    re-identified model replaced the equation-error fit, T-F-S's own term test of its
+//!    coefficient passes at the diagnosis's level corrected over the library's terms and the
+//!    positions scanned ([`crate::gate::tfs_stop_p_value`]), and the records simulate better with
+//!    it. The stop's equation-error evidence is weak where the contact is stiff (the smoothing
+//!    spreads its short acceleration burst), while T-F-S resolves it through the momentum it
+//!    changes.
+//! 4. Else nothing is named: [`Reason::NothingSignificant`] or [`Reason::NoneSupported`].
+//!
+//! Each candidate's model is made once per decision (the same candidate tried in two steps
+//! reuses it), and the candidates of step 1 are made in parallel, collected in order.
+
+use std::collections::HashMap;
+use std::fmt;
+
+use serde::Serialize;
+use tfs_data::Record;
+use tfs_diagnose::{Catalogue, DiagnoseOptions, RankedEffect};
+use tfs_library::{Factor, Model, Term};
+
+use crate::error::Result;
+use crate::gate::{
+    Chosen, MAX_FURTHER, SimScore, Step, add_each, fewest_failing, further_steps, p_text,
+    refitted_as_is, tfs_stop_p_value, worsens,
+};
+
+/// Why a candidate was chosen or passed over ([`Trial::reason`]), and why the decision named
+/// what it named ([`Decision::reason`]). Printed in words; in JSON as its kebab-case name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Reason {
+    /// The model fails to simulate some records and this candidate leaves the fewest failing,
+    /// fewer than the model and than its own terms refitted with nothing added.
+    CuresFailures,
+    /// Tried because the model fails to simulate some records; another leaves fewer failing, or
+    /// it leaves no fewer than the model (or its terms refitted with nothing added).
+    CuresLess,
+    /// Significant by equation error, and the records simulate no worse with it.
+    Supported,
+    /// Significant by equation error, but the records simulate worse with it (more fail, or as
+    /// many and the mean R-MSE of the others rises): passed over.
+    WorsensSimulation,
+    /// Its refit could not be made: passed over.
+    CouldNotAdd,
+    /// A one-sided contact not significant by equation error that T-F-S's re-identification
+    /// with its position scanned keeps, whose term test passes, and with which the records
+    /// simulate better.
+    StopByTfs,
+    /// A one-sided contact not significant by equation error that T-F-S does not support (not
+    /// kept, its term test fails or has no test, or the records simulate no better with it).
+    StopNotByTfs,
+    /// No candidate is significant by equation error (nor a contact T-F-S supports).
+    NothingSignificant,
+    /// Every significant candidate was passed over (nor a contact T-F-S supports).
+    NoneSupported,
+}
+
+impl fmt::Display for Reason {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Reason::CuresFailures => "it leaves the fewest records failing to simulate",
+            Reason::CuresLess => "another candidate leaves fewer records failing to simulate",
+            Reason::Supported => "significant, and the records simulate no worse with it",
+            Reason::WorsensSimulation => {
+                "significant, but the records simulate worse with it: passed over"
+            }
+            Reason::CouldNotAdd => "it could not be added: passed over",
+            Reason::StopByTfs => "a stop that T-F-S's own term test supports",
+            Reason::StopNotByTfs => "a stop that T-F-S's own term test does not support",
+            Reason::NothingSignificant => "no candidate is significant",
+            Reason::NoneSupported => {
+                "every significant candidate was passed over by the simulations"
+            }
+        })
+    }
+}
+
+/// One candidate added and simulated, and what the decision made of it.
+#[derive(Debug, Clone, Serialize)]
+pub struct Trial {
+    /// The effect (`name@dof`).
+    pub effect: String,
+    /// How the model with it simulates the records (`None`: it could not be added).
+    pub score: Option<SimScore>,
+    /// Why it could not be added.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+    /// Why it was chosen or passed over.
+    pub reason: Reason,
+}
+
+/// How far a decision looks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DecideOptions {
+    /// When the candidate chosen for failing records still leaves some failing, how many more
+    /// effects to look for after it ([`Decision::then`]). It does not change the first effect.
+    pub further: usize,
+}
+
+impl DecideOptions {
+    /// As `tfs diagnose` decides: the effects the records need together, up to
+    /// [`MAX_FURTHER`] after the first.
+    pub fn diagnose() -> Self {
+        Self {
+            further: MAX_FURTHER,
+        }
+    }
+
+    /// As one round of `refit --until-clean` decides: the first effect only (the loop
+    /// re-diagnoses after adding it).
+    pub fn loop_round() -> Self {
+        Self { further: 0 }
+    }
+}
+
+/// The decision: the effect named (if any), with its model, every candidate tried and why.
+#[derive(Debug, Clone, Serialize)]
+pub struct Decision {
+    /// How the model without any candidate simulates the records.
+    pub before: SimScore,
+    /// How the model's own terms, refitted on the records as every candidate's model is
+    /// (nothing added), simulate them; looked at only when the model fails some records (and
+    /// not for an untied multi-DOF model, whose candidates refit only their own equations).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub refitted: Option<SimScore>,
+    /// Every candidate tried, in the order tried.
+    pub tried: Vec<Trial>,
+    /// The effect named (`name@dof`; `None`: none is).
+    pub chosen: Option<String>,
+    /// When the chosen one still leaves records failing: the effects that, added after it in
+    /// this order, each leave fewer failing (empty when none is needed, none helps or
+    /// [`DecideOptions::further`] is 0).
+    pub then: Vec<Step>,
+    /// Why the decision named what it named.
+    pub reason: Reason,
+    /// Whether the decision names what the equation-error ranking names on its own: its top
+    /// significant candidate, or nothing when none is significant.
+    pub ranking_stands: bool,
+    /// What was tried and why, in sentences.
+    pub why: String,
+    /// The chosen effect with the model that has it.
+    #[serde(skip)]
+    pub added: Option<Chosen>,
+}
+
+impl Decision {
+    /// The effects named, in the order they are added: the chosen one, then [`Decision::then`].
+    pub fn effects(&self) -> Vec<&str> {
+        self.chosen
+            .iter()
+            .map(String::as_str)
+            .chain(self.then.iter().map(|s| s.effect.as_str()))
+            .collect()
+    }
+
+    /// The verdict in a sentence: the ranking's own (`ranking_verdict`) where the decision
+    /// names what it names; else the effect (or effects, in order) chosen, with why and the
+    /// `--add` flags; else that the simulations support no significant candidate.
+    pub fn verdict(&self, ranking_verdict: &str) -> String {
+        if self.ranking_stands {
+            return ranking_verdict.to_string();
+        }
+        match &self.chosen {
+            Some(c) if self.then.is_empty() => {
+                format!("missing effect: {c} ({}); add it with --add {c}", self.why)
+            }
+            Some(_) => {
+                let effects = self.effects();
+                format!(
+                    "missing effects: {} ({}); add them with --add {}",
+                    effects.join(", then "),
+                    self.why,
+                    effects.join(" --add ")
+                )
+            }
+            None => format!(
+                "no missing effect that the simulations support ({})",
+                self.why
+            ),
+        }
+    }
+}
+
+/// Each candidate's model, made once per decision.
+struct Made<'a> {
+    model: &'a Model,
+    records: &'a [Record],
+    catalogue: &'a Catalogue,
+    opts: &'a DiagnoseOptions,
+    made: HashMap<String, std::result::Result<Chosen, String>>,
+}
+
+impl Made<'_> {
+    /// Makes the models of `names` not made yet, in parallel.
+    fn make(&mut self, names: &[&str]) {
+        let todo: Vec<&str> = names
+            .iter()
+            .copied()
+            .filter(|n| !self.made.contains_key(*n))
+            .collect();
+        let out = add_each(self.model, &todo, self.records, self.catalogue, self.opts);
+        for (n, m) in todo.into_iter().zip(out) {
+            self.made.insert(n.to_string(), m);
+        }
+    }
+
+    /// The model with `name` added, or why it could not be made.
+    fn get(&mut self, name: &str) -> &std::result::Result<Chosen, String> {
+        self.make(&[name]);
+        &self.made[name]
+    }
+
+    /// What [`Trial`] records of `name`'s model.
+    fn trial(&mut self, name: &str, reason: Reason) -> Trial {
+        let (score, error) = match self.get(name) {
+            Ok(c) => (Some(c.score), None),
+            Err(e) => (None, Some(e.clone())),
+        };
+        Trial {
+            effect: name.to_string(),
+            score,
+            error,
+            reason,
+        }
+    }
+
+    /// `name`'s model, taken out of the store (made again if asked for later).
+    fn take(&mut self, name: &str) -> Option<Chosen> {
+        self.make(&[name]);
+        self.made.remove(name).and_then(|m| m.ok())
+    }
+}
+
+/// Whether candidate `r` adds a one-sided contact term (`below`, `above`) to a model with DOFs
+/// `dofs`.
+fn adds_contact(r: &RankedEffect, dofs: &[String]) -> bool {
+    r.terms.iter().any(|t| {
+        Term::parse(t, dofs).is_ok_and(|t| {
+            t.factors()
+                .iter()
+                .any(|f| matches!(f, Factor::Below(..) | Factor::Above(..)))
+        })
+    })
+}
+
+/// The decision on `model`, whose candidates on `records` the diagnosis ranked as `ranked`
+/// (module docs). `opts` are the diagnosis's options (the catalogue's powers, the level of the
+/// T-F-S stop test); `how` says how far to look after the first effect.
+pub fn decide(
+    model: &Model,
+    ranked: &[RankedEffect],
+    records: &[Record],
+    opts: &DiagnoseOptions,
+    how: &DecideOptions,
+) -> Result<Decision> {
+    let catalogue = Catalogue::standard(opts.max_power);
+    let mut made = Made {
+        model,
+        records,
+        catalogue: &catalogue,
+        opts,
+        made: HashMap::new(),
+    };
+    let before = SimScore::of(model, records);
+    let mut out = Decision {
+        before,
+        refitted: None,
+        tried: Vec::new(),
+        chosen: None,
+        then: Vec::new(),
+        reason: Reason::NothingSignificant,
+        ranking_stands: false,
+        why: String::new(),
+        added: None,
+    };
+    let mut notes: Vec<String> = Vec::new();
+    if before.failed > 0 {
+        if let Some(chosen) = for_failures(&mut made, ranked, &mut out, &mut notes, how)? {
+            out.chosen = Some(chosen.effect.clone());
+            out.reason = Reason::CuresFailures;
+            out.why = notes.join("; ");
+            out.added = Some(chosen);
+            return Ok(out);
+        }
+    }
+    let top = ranked.iter().find(|r| r.significant).map(|r| &r.name);
+    if let Some(chosen) = first_supported(&mut made, ranked, &before, &mut out, &mut notes) {
+        out.ranking_stands = Some(&chosen.effect) == top;
+        notes.push(format!(
+            "{} is the {} significant: with it {}, without it {}",
+            chosen.effect,
+            if out.ranking_stands { "top" } else { "next" },
+            chosen.score.describe(),
+            before.describe()
+        ));
+        out.chosen = Some(chosen.effect.clone());
+        out.reason = Reason::Supported;
+        out.why = notes.join("; ");
+        out.added = Some(chosen);
+        return Ok(out);
+    }
+    if let Some(chosen) = contact_by_tfs(&mut made, ranked, &before, &mut out, &mut notes) {
+        out.chosen = Some(chosen.effect.clone());
+        out.reason = Reason::StopByTfs;
+        out.why = notes.join("; ");
+        out.added = Some(chosen);
+        return Ok(out);
+    }
+    out.reason = if top.is_some() {
+        Reason::NoneSupported
+    } else {
+        Reason::NothingSignificant
+    };
+    out.ranking_stands = top.is_none();
+    if top.is_some() {
+        notes.push("no significant candidate that the simulations support".into());
+    }
+    out.why = notes.join("; ");
+    Ok(out)
+}
+
+/// Step 1 (module docs): the candidate that leaves the fewest records failing, if it leaves
+/// fewer than the model and its own terms refitted; the effects needed after it with
+/// `how.further`. Records the tries in `out` and a sentence in `notes` either way.
+fn for_failures(
+    made: &mut Made<'_>,
+    ranked: &[RankedEffect],
+    out: &mut Decision,
+    notes: &mut Vec<String>,
+    how: &DecideOptions,
+) -> Result<Option<Chosen>> {
+    let before = out.before;
+    let names: Vec<&str> = ranked
+        .iter()
+        .filter(|r| r.delta_heldout > 0.0)
+        .map(|r| r.name.as_str())
+        .collect();
+    out.refitted = refitted_as_is(made.model, made.records, made.opts)
+        .ok()
+        .flatten()
+        // Simulated here: the refit keeps the start's history, whose last rung scored the
+        // start's coefficients (what `SimScore::of` would read).
+        .map(|m| crate::contact::score(&m, made.records).summary());
+    // Where the refit alone makes as many simulate, the failures say nothing about the
+    // candidates: a candidate must leave fewer failing than that refit too.
+    let bar = match out.refitted {
+        Some(r) if r.failed < before.failed => r,
+        _ => before,
+    };
+    made.make(&names);
+    let scores: Vec<Option<SimScore>> = names
+        .iter()
+        .map(|n| made.get(n).as_ref().ok().map(|c| c.score))
+        .collect();
+    let best = fewest_failing(&bar, &scores);
+    for (i, n) in names.iter().enumerate() {
+        let reason = match (Some(i) == best, &scores[i]) {
+            (true, _) => Reason::CuresFailures,
+            (false, None) => Reason::CouldNotAdd,
+            (false, Some(_)) => Reason::CuresLess,
+        };
+        let trial = made.trial(n, reason);
+        out.tried.push(trial);
+    }
+    let Some(i) = best else {
+        notes.push(if bar.failed < before.failed {
+            format!(
+                "the model fails to simulate {}, but its own terms refitted on these records (nothing added) leave {} failing, and none of the {} candidates whose held-out equation error falls leaves fewer: the failure is the start fit's, not a missing effect's (identify the model again on these records)",
+                before.failing(),
+                bar.failed,
+                names.len()
+            )
+        } else {
+            format!(
+                "the model fails to simulate {} and none of the {} candidates whose held-out equation error falls makes fewer fail",
+                before.failing(),
+                names.len()
+            )
+        });
+        return Ok(None);
+    };
+    let Some(chosen) = made.take(names[i]) else {
+        return Ok(None);
+    };
+    let mut why = format!(
+        "the model fails to simulate {}; of the {} candidates whose held-out equation error falls, adding {} leaves the fewest failing: {}",
+        before.failing(),
+        names.len(),
+        chosen.effect,
+        chosen.score.describe()
+    );
+    if how.further > 0 {
+        out.then = further_steps(
+            &chosen,
+            &names,
+            made.records,
+            made.catalogue,
+            made.opts,
+            how.further,
+        );
+    }
+    for s in &out.then {
+        why.push_str(&format!(
+            "; then adding {} leaves the fewest: {}",
+            s.effect,
+            s.score.describe()
+        ));
+    }
+    notes.push(why);
+    Ok(Some(chosen))
+}
+
+/// Step 2 (module docs): the first significant candidate, in the ranking's order, with which
+/// the records simulate no worse than `before`; each passed over is recorded with a sentence.
+fn first_supported(
+    made: &mut Made<'_>,
+    ranked: &[RankedEffect],
+    before: &SimScore,
+    out: &mut Decision,
+    notes: &mut Vec<String>,
+) -> Option<Chosen> {
+    for cand in ranked.iter().filter(|r| r.significant) {
+        let made_it = match made.get(&cand.name) {
+            Ok(c) => Ok(c.score),
+            Err(e) => Err(e.clone()),
+        };
+        let score = match made_it {
+            Ok(s) => s,
+            Err(e) => {
+                notes.push(format!(
+                    "{} passed over: it could not be added ({e})",
+                    cand.name
+                ));
+                let trial = made.trial(&cand.name, Reason::CouldNotAdd);
+                out.tried.push(trial);
+                continue;
+            }
+        };
+        if worsens(before, &score) {
+            notes.push(format!(
+                "{} passed over: with it {}, without it {}",
+                cand.name,
+                score.describe(),
+                before.describe()
+            ));
+            let trial = made.trial(&cand.name, Reason::WorsensSimulation);
+            out.tried.push(trial);
+            continue;
+        }
+        let trial = made.trial(&cand.name, Reason::Supported);
+        out.tried.push(trial);
+        return made.take(&cand.name);
+    }
+    None
+}
+
+/// Step 3 (module docs): a one-sided contact the equation error does not make significant,
+/// chosen on T-F-S's evidence; each looked at is recorded with a sentence.
+fn contact_by_tfs(
+    made: &mut Made<'_>,
+    ranked: &[RankedEffect],
+    before: &SimScore,
+    out: &mut Decision,
+    notes: &mut Vec<String>,
+) -> Option<Chosen> {
+    let dofs = made.model.dofs.clone();
+    let alpha = made.opts.alpha;
+    let contacts = ranked
+        .iter()
+        .filter(|r| !r.significant && r.delta_heldout > 0.0 && adds_contact(r, &dofs));
+    for cand in contacts {
+        let looked = made.get(&cand.name).as_ref().ok().and_then(|m| {
+            let stop = m.stops.last()?;
+            let p = stop
+                .kept
+                .then(|| tfs_stop_p_value(&m.model, stop))
+                .flatten();
+            Some((m.score, stop.clone(), p))
+        });
+        let Some((score, stop, p)) = looked else {
+            continue;
+        };
+        let accepted = p.is_some_and(|p| p < alpha) && score.key() < before.key();
+        let tfs = match p {
+            Some(p) => format!(
+                "T-F-S re-identified the model with {} (stiffness {:.4e}, {} corrected over the library's terms and the {} positions scanned)",
+                stop.to,
+                stop.coef,
+                p_text(p),
+                stop.positions
+            ),
+            None if stop.kept => format!(
+                "T-F-S re-identified the model with {} but has no term test to judge it by",
+                stop.to
+            ),
+            None => "T-F-S's re-identification did not replace the equation-error fit".to_string(),
+        };
+        let words = format!(
+            "{} is not significant by equation error; {tfs}; with it {}, without it {}",
+            cand.name,
+            score.describe(),
+            before.describe()
+        );
+        let reason = if accepted {
+            Reason::StopByTfs
+        } else {
+            Reason::StopNotByTfs
+        };
+        let trial = made.trial(&cand.name, reason);
+        out.tried.push(trial);
+        if accepted {
+            notes.push(format!("{words}: added"));
+            return made.take(&cand.name);
+        }
+        notes.push(format!("{words}: not added"));
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests;
