@@ -5,6 +5,8 @@
 //! hide two; each case runs identify → diagnose → refit through the `tfs` library as the CLI does.
 //! Writes `report.md`, `results.json` and figures.
 
+#[cfg(test)]
+mod agree;
 mod case;
 mod hide;
 mod oracle;
