@@ -9,6 +9,8 @@
 //! power's coefficient. The filter is linear, so a refit's coefficients still belong to the
 //! unfiltered terms.
 
+use std::sync::Arc;
+
 use faer::Mat;
 use tfs_library::{ColumnSet, Equation, Factor, Model, ModelTerm, Term, evaluate_term};
 use tfs_regress::{Compressed, LeastSquares, Regressor};
@@ -16,12 +18,22 @@ use tfs_signal::spectral_derivative;
 
 use crate::Result;
 use crate::effects::{EffectColumn, Variant};
-use crate::prepare::{Layout, RecordStates};
+use crate::prepare::{BandKey, Layout, RecordStates};
 
 /// Design matrices of one equation: per record, usable rows × columns, and the target.
 pub(crate) struct Design {
     pub a: Vec<Mat<f64>>,
     pub b: Vec<Vec<f64>>,
+}
+
+impl Design {
+    /// No records (what a scored variant keeps once it no longer needs its rows).
+    pub(crate) fn empty() -> Self {
+        Self {
+            a: Vec::new(),
+            b: Vec::new(),
+        }
+    }
 }
 
 /// Evaluates `columns` for DOF `dof_idx` on every record's usable rows; a nonlinear column is
@@ -45,9 +57,9 @@ pub(crate) fn design(
             }
         }
         let (lo, n) = (s.margin, s.usable());
-        let cols: Vec<Vec<f64>> = columns
+        let cols: Vec<Arc<Vec<f64>>> = columns
             .iter()
-            .map(|c| -> Result<Vec<f64>> {
+            .map(|c| -> Result<Arc<Vec<f64>>> {
                 let expansion = c.expansion();
                 if !needs_band_limit(&expansion) {
                     let mut out = vec![0.0; n];
@@ -57,11 +69,20 @@ pub(crate) fn design(
                             *o += w * x;
                         }
                     }
-                    return Ok(out);
+                    return Ok(Arc::new(out));
                 }
                 // A nonlinear column of band-limited states holds harmonics beyond the
                 // cut-off that the smoothed acceleration has lost; the same low-pass puts both
-                // sides of the equation in one band (see the module docs).
+                // sides of the equation in one band (see the module docs). A plain monomial's
+                // is made once per record ([`crate::prepare::BandCache`]).
+                let key = (c.computed.is_none() && c.centre.is_none() && c.term.degree().is_some())
+                    .then(|| {
+                        let fc = s.cutoff_hz.to_bits();
+                        BandKey(c.term.clone(), lo, n, fc, s.record.len())
+                    });
+                if let Some(hit) = key.as_ref().and_then(|k| s.band_cache.get(k)) {
+                    return Ok(hit);
+                }
                 let mut full = vec![0.0; s.record.len()];
                 for (t, w) in &expansion {
                     let v = evaluate_term(t, &set)?;
@@ -70,7 +91,11 @@ pub(crate) fn design(
                     }
                 }
                 let band = spectral_derivative(&full, dt, 0, Some(s.cutoff_hz))?;
-                Ok(band[lo..lo + n].to_vec())
+                let out = Arc::new(band[lo..lo + n].to_vec());
+                if let Some(k) = key {
+                    s.band_cache.put(k, out.clone());
+                }
+                Ok(out)
             })
             .collect::<Result<_>>()?;
         a.push(Mat::from_fn(n, columns.len(), |i, j| cols[j][i]));
@@ -291,6 +316,71 @@ pub(crate) fn anchored(model: &Model) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A swept record of `x` (a cubic-ish motion) and `xb_acc`, and its smoothed states for
+    /// the model `x'' = -x - x^3 + xb_acc` at a 3 Hz cut-off.
+    fn swept_states() -> (Model, Vec<RecordStates>) {
+        let dofs = ["x"];
+        let t: Vec<f64> = (0..3000).map(|k| k as f64 * 0.01).collect();
+        let x: Vec<f64> = t
+            .iter()
+            .map(|&t| (0.7 * t + 0.04 * t * t).sin() + 0.3 * (2.1 * t).cos())
+            .collect();
+        let u: Vec<f64> = t.iter().map(|&t| (1.3 * t).sin()).collect();
+        let rec = tfs_data::Record::new(
+            "swept",
+            t,
+            vec![("x".to_string(), x), ("xb_acc".to_string(), u)],
+        )
+        .unwrap();
+        let eq = Equation {
+            dof: "x".into(),
+            terms: [("x", -1.0), ("x^3", -1.0), ("xb_acc", 1.0)]
+                .iter()
+                .map(|(t, c)| ModelTerm::new(Term::parse(t, &dofs).unwrap(), *c))
+                .collect(),
+        };
+        let model = Model::new(vec!["x".into()], vec![eq], "test").unwrap();
+        let opts = crate::DiagnoseOptions {
+            cutoff_hz: Some(3.0),
+            ..Default::default()
+        };
+        let states = vec![RecordStates::new(&model, &rec, &opts).unwrap()];
+        (model, states)
+    }
+
+    /// The band-limited monomials of a design are made once per record and read back to the
+    /// bit: a second design (another variant over the same terms) equals one made on fresh
+    /// states, column by column, and a centred column (an effect's parameter) is made anew.
+    #[test]
+    fn band_limited_monomials_are_made_once_and_read_back_exactly() {
+        let (_, states) = swept_states();
+        let term = |s: &str| Term::parse(s, &["x"]).unwrap();
+        let cols: Vec<EffectColumn> = ["x", "x^3", "x^2", "xb_acc"]
+            .iter()
+            .map(|t| EffectColumn::term(term(t)))
+            .collect();
+        let first = design(&states, 0, &cols).unwrap();
+        // x^2 and x^3 are band-limited monomials; x and xb_acc are not band-limited.
+        let kept = |s: &RecordStates| format!("{:?}", s.band_cache);
+        assert_eq!(kept(&states[0]), "BandCache(2 columns)");
+        let mut more = cols.clone();
+        more.push(EffectColumn::centred(term("x^3"), "x", 0.25));
+        let second = design(&states, 0, &more).unwrap();
+        assert_eq!(kept(&states[0]), "BandCache(2 columns)");
+        let fresh: Vec<RecordStates> = states.to_vec();
+        assert_eq!(kept(&fresh[0]), "BandCache(0 columns)");
+        let anew = design(&fresh, 0, &more).unwrap();
+        let bits = |m: &Mat<f64>, j: usize| -> Vec<u64> {
+            (0..m.nrows()).map(|i| m[(i, j)].to_bits()).collect()
+        };
+        for j in 0..cols.len() {
+            assert_eq!(bits(&first.a[0], j), bits(&anew.a[0], j), "column {j}");
+            assert_eq!(bits(&second.a[0], j), bits(&anew.a[0], j), "column {j}");
+        }
+        assert_eq!(bits(&second.a[0], 4), bits(&anew.a[0], 4));
+        assert_eq!(first.b, anew.b);
+    }
 
     fn term(s: &str) -> Term {
         Term::parse(s, &["x1", "x2"]).unwrap()

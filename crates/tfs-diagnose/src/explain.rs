@@ -128,6 +128,16 @@ pub(crate) struct DofSetup {
 }
 
 impl DofSetup {
+    /// The same without the start equation's design, for a setup that is only rescanned (a
+    /// null draw, [`crate::null`]): the design is read only when an effect is analysed against
+    /// it, and a draw's would otherwise be kept for every draw at once.
+    pub(crate) fn lean(self) -> Self {
+        Self {
+            base_design: Design::empty(),
+            ..self
+        }
+    }
+
     /// What an anchored per-fold model of this equation takes away again (its columns and their
     /// per-fold fit, [`FoldEquation::anchor`]); `None` when `anchored` is false.
     pub(crate) fn anchor(&self, anchored: bool) -> Option<(&[EffectColumn], &Cv)> {
@@ -202,6 +212,19 @@ pub(crate) struct Scored {
     pub cv: Cv,
     /// Held-out residual sum of squares over all blocks.
     pub cv_rss: f64,
+}
+
+impl Scored {
+    /// The same without its design (a matrix of the usable rows of every record per column):
+    /// what is read after a variant is scored — the columns, blocks, cross-validation — is
+    /// small, and a scan keeps many scored variants (the shortlist of a stop's positions, every
+    /// effect's best until the ranking).
+    pub(crate) fn lean(self) -> Self {
+        Self {
+            design: Design::empty(),
+            ..self
+        }
+    }
 }
 
 /// Scores variant `v` on the equation of DOF `idx` with the terms `base`.
@@ -344,7 +367,7 @@ fn analyse(
         coef,
         interval,
         share,
-        scored: s,
+        scored: s.lean(),
     }))
 }
 

@@ -55,7 +55,7 @@ pub(crate) fn alternatives(
     let mut scored: Vec<Scored> = variants
         .par_iter()
         .filter(|v| *v != chosen)
-        .map(|v| score_variant(states, layout, idx, terms, v))
+        .map(|v| score_variant(states, layout, idx, terms, v).map(Scored::lean))
         .collect::<Result<_>>()?;
     scored.retain(|s| s.cv_rss.is_finite());
     scored.sort_by(|a, b| a.cv_rss.total_cmp(&b.cv_rss));

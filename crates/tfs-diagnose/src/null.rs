@@ -337,7 +337,9 @@ fn synthesize(
     let dt = sources.first()?.record.dt();
     let mut setups: Vec<Option<DofSetup>> = (0..model.dofs.len()).map(|_| None).collect();
     for &idx in dofs {
-        setups[idx] = setup_dof(model, idx, &states, &layout).ok();
+        setups[idx] = setup_dof(model, idx, &states, &layout)
+            .ok()
+            .map(DofSetup::lean);
     }
     Some(Synthetic {
         states,

@@ -171,6 +171,66 @@ pub struct RecordStates {
     /// Smoothed accelerations, one vector per DOF (model order).
     pub acc: Vec<Vec<f64>>,
     cols: Vec<(String, Vec<f64>)>,
+    /// Design columns made once and shared by every variant's design ([`BandCache`]).
+    pub(crate) band_cache: BandCache,
+}
+
+/// The usable rows of the band-limited design columns of one record's plain monomials
+/// (`x^3`, `x^2·x'`), made once per record: every variant's design holds the start
+/// equation's terms, and band-limiting a column is a forward and an inverse transform of the
+/// whole record. Only monomials are kept (at most the library's own terms; an effect's
+/// parameter scan makes a new column per value and is not kept). Each column is keyed by its
+/// term and the rows, cut-off and record length it was made with; a copy of the states starts
+/// with an empty cache, and [`RecordStates::set`] empties it.
+#[derive(Default)]
+pub(crate) struct BandCache(std::sync::Mutex<Vec<(BandKey, std::sync::Arc<Vec<f64>>)>>);
+
+/// What a cached column was made from: its term, first usable row, usable rows, the cut-off's
+/// bits and the record's length.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct BandKey(
+    pub tfs_library::Term,
+    pub usize,
+    pub usize,
+    pub u64,
+    pub usize,
+);
+
+impl BandCache {
+    /// The cached column of `key`, if made.
+    pub(crate) fn get(&self, key: &BandKey) -> Option<std::sync::Arc<Vec<f64>>> {
+        let slots = self.0.lock().ok()?;
+        slots.iter().find(|(k, _)| k == key).map(|(_, v)| v.clone())
+    }
+
+    /// Keeps `values` as the column of `key` (the first kept stays when two threads made it).
+    pub(crate) fn put(&self, key: BandKey, values: std::sync::Arc<Vec<f64>>) {
+        if let Ok(mut slots) = self.0.lock()
+            && !slots.iter().any(|(k, _)| *k == key)
+        {
+            slots.push((key, values));
+        }
+    }
+
+    /// Forgets every column.
+    fn clear(&mut self) {
+        if let Ok(slots) = self.0.get_mut() {
+            slots.clear();
+        }
+    }
+}
+
+impl Clone for BandCache {
+    fn clone(&self) -> Self {
+        Self::default()
+    }
+}
+
+impl std::fmt::Debug for BandCache {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let n = self.0.lock().map_or(0, |s| s.len());
+        write!(f, "BandCache({n} columns)")
+    }
 }
 
 impl Columns for RecordStates {
@@ -249,6 +309,7 @@ impl RecordStates {
             margin,
             acc,
             cols,
+            band_cache: BandCache::default(),
         };
         for c in computed {
             let v = c.compute(&out, dt)?;
@@ -259,6 +320,7 @@ impl RecordStates {
 
     /// Adds (or replaces) a derived column.
     pub fn set(&mut self, name: String, values: Vec<f64>) {
+        self.band_cache.clear();
         match self.cols.iter_mut().find(|(n, _)| *n == name) {
             Some(slot) => slot.1 = values,
             None => self.cols.push((name, values)),
