@@ -53,7 +53,8 @@ use crate::simulate::BaseRun;
 /// perturb.
 struct Source<'a> {
     record: &'a Record,
-    /// Per column of the record (in its order): the band of its noise, spanning every bin.
+    /// Per column of the record (in its order): the band of its noise, spanning every bin
+    /// (`None` for a column no draw perturbs).
     bands: Vec<Option<Band>>,
 }
 
@@ -246,11 +247,14 @@ fn sources<'a>(
                 return None;
             }
             let dt = r.dt();
+            // Only the channels a draw perturbs (the model's inputs and DOFs): a record's other
+            // columns (a simulator's clean channels) are carried along as they are.
+            let drawn = |c: &String| model.inputs.contains(c) || model.dofs.contains(c);
             let bands = r
                 .names()
                 .iter()
                 .map(|c| {
-                    let b = reconstruct(r.column(c)?, dt, None).band;
+                    let b = reconstruct(r.column(c).filter(|_| drawn(c))?, dt, None).band;
                     Some(raw_noise_band(&b))
                 })
                 .collect();
@@ -591,6 +595,45 @@ mod tests {
         assert!(c(0.5, 0.1, 8).clears());
         assert!(!c(0.05, 0.1, 8).clears());
         assert!(!c(0.5, 0.1, 1).clears());
+    }
+
+    /// Noise bands are made for the channels a draw perturbs (the model's DOFs and inputs)
+    /// and for no other column of the record (a simulator's clean channels).
+    #[test]
+    fn sources_band_only_the_drawn_channels() {
+        let dofs = ["x"];
+        let t: Vec<f64> = (0..2000).map(|k| k as f64 * 0.01).collect();
+        let wave = |f: f64| -> Vec<f64> { t.iter().map(|&t| (f * t).sin()).collect() };
+        let rec = Record::new(
+            "r",
+            t.clone(),
+            vec![
+                ("x".to_string(), wave(1.1)),
+                ("x_clean".to_string(), wave(1.1)),
+                ("xb_acc".to_string(), wave(0.7)),
+            ],
+        )
+        .unwrap();
+        let eq = tfs_library::Equation {
+            dof: "x".into(),
+            terms: [("x", -1.0), ("xb_acc", 1.0)]
+                .iter()
+                .map(|(n, c)| {
+                    tfs_library::ModelTerm::new(tfs_library::Term::parse(n, &dofs).unwrap(), *c)
+                })
+                .collect(),
+        };
+        let model = Model::new(vec!["x".into()], vec![eq], "test").unwrap();
+        let mut run = tfs_dynamics::Trajectory::with_capacity(1, t.len());
+        for (k, &tk) in t.iter().enumerate() {
+            run.push(tk, &[rec.column("x").unwrap()[k]], &[0.0]);
+        }
+        let records = [rec];
+        let runs = vec![Some(Ok(run))];
+        let s = sources(&model, &records, &runs).unwrap();
+        let banded: Vec<bool> = s[0].bands.iter().map(Option::is_some).collect();
+        assert_eq!(records[0].names(), ["x", "x_clean", "xb_acc"]);
+        assert_eq!(banded, [true, false, true]);
     }
 
     #[test]
