@@ -290,9 +290,13 @@ pub fn add_effect_with(
             partners,
         });
     }
+    // The chosen refit's R-MSE on each record where its choice simulated it (infinite where
+    // that failed: simulated again below for the message).
+    let mut known = None;
     if !plans.is_empty() {
         let chosen = choose_anchor(model, &plans, records)?;
         out = chosen.model;
+        known = Some(chosen.each);
         if let Some(first) = details.first_mut().and_then(|d| d.as_object_mut()) {
             first.insert("anchor".into(), json!(chosen.anchor.label()));
             first.insert("train_r_mse".into(), json!(chosen.scores));
@@ -307,7 +311,7 @@ pub fn add_effect_with(
             details: json!({"equations": model.equation_string(), "failed": failed}),
         });
     }
-    let (scores, failed) = try_scores(&out, records);
+    let (scores, failed) = try_scores_known(&out, records, known.as_deref());
     out.history.push(HistoryEntry {
         step: format!("add {effect_name}"),
         added,
@@ -323,6 +327,9 @@ struct Anchored {
     anchor: Anchor,
     /// Each anchor's R-MSE on each fit record (`null`: the simulation failed).
     scores: Vec<(String, Vec<f64>)>,
+    /// The kept model's R-MSE on each fit record (infinite where the simulation failed or
+    /// was not finite).
+    each: Vec<f64>,
 }
 
 /// One target DOF's refit to be made: its equation's columns with the effect, their merged
@@ -355,7 +362,7 @@ fn choose_anchor(model: &Model, plans: &[Planned], records: &[Record]) -> Result
         fits.push((anchor, m));
     }
     // Side by side; the choice is made in anchor order, as a serial loop would.
-    let each: Vec<Vec<f64>> = fits
+    let mut each: Vec<Vec<f64>> = fits
         .par_iter()
         .map(|(_, m)| r_mse_each(m, records))
         .collect();
@@ -376,6 +383,7 @@ fn choose_anchor(model: &Model, plans: &[Planned], records: &[Record]) -> Result
         model,
         anchor,
         scores,
+        each: each.swap_remove(pick),
     })
 }
 
@@ -392,10 +400,25 @@ fn r_mse_each(model: &Model, records: &[Record]) -> Vec<f64> {
 
 /// Scores every record, keeping failed simulations (e.g. blow-up) as messages instead of scores.
 fn try_scores(model: &Model, records: &[Record]) -> (Vec<RecordScore>, Vec<String>) {
+    try_scores_known(model, records, None)
+}
+
+/// [`try_scores`] where the finite entries of `known` (one per record, when given) are the
+/// model's R-MSE on those records already ([`r_mse_each`]: the same simulation), so only the
+/// others are simulated.
+fn try_scores_known(
+    model: &Model,
+    records: &[Record],
+    known: Option<&[f64]>,
+) -> (Vec<RecordScore>, Vec<String>) {
     let mut ok = Vec::new();
     let mut failed = Vec::new();
-    for r in records {
-        match crate::simulate::r_mse(model, r) {
+    for (k, r) in records.iter().enumerate() {
+        let score = match known.and_then(|v| v.get(k)).filter(|v| v.is_finite()) {
+            Some(&v) => Ok(v),
+            None => crate::simulate::r_mse(model, r),
+        };
+        match score {
             Ok(v) => ok.push(RecordScore {
                 record: r.source().to_string(),
                 r_mse: v,
@@ -516,6 +539,28 @@ mod tests {
                 .collect(),
             details: json!({ "failed": failed }),
         }
+    }
+
+    /// A refit's R-MSE that its anchor choice already has is taken as it is; a record
+    /// without one (infinite: the simulation failed) is simulated again for its message.
+    #[test]
+    fn known_scores_are_kept_and_failures_simulated_again() {
+        // `xb_acc` is missing from the records: every simulation fails.
+        let m = Model::from_json_str(
+            r#"{"format":"tfs-model/1","dofs":["x"],"equations":[{"dof":"x","terms":[{"term":"x","coef":-1},{"term":"xb_acc","coef":1}]}]}"#,
+        )
+        .unwrap();
+        let t: Vec<f64> = (0..50).map(|k| k as f64 * 0.1).collect();
+        let x: Vec<f64> = t.iter().map(|t| t.cos()).collect();
+        let rec = |n: &str| Record::new(n, t.clone(), vec![("x".to_string(), x.clone())]).unwrap();
+        let records = [rec("a"), rec("b")];
+        let (ok, failed) = try_scores_known(&m, &records, Some(&[0.25, f64::INFINITY]));
+        assert_eq!(ok.len(), 1);
+        assert_eq!((ok[0].record.as_str(), ok[0].r_mse), ("a", 0.25));
+        assert_eq!(failed.len(), 1);
+        assert!(failed[0].starts_with("b: "), "{failed:?}");
+        let (ok, failed) = try_scores(&m, &records);
+        assert!(ok.is_empty() && failed.len() == 2, "{ok:?} {failed:?}");
     }
 
     /// A step whose simulations failed says so instead of printing NaN, and no factor is
