@@ -44,9 +44,10 @@ use crate::design::{
 };
 use crate::effects::{Catalogue, EffectColumn, EffectContext, Variant};
 use crate::judge::{Candidate, Heldout, Judge, JudgeUse, mark_ties, order};
+use crate::judged::main_coefficient;
 use crate::prepare::{DiagnoseOptions, Layout, RecordStates, rms};
 use crate::simulate::BaseRun;
-use crate::stats::{block_wald_p_value, bootstrap_interval, paired_p_value};
+use crate::stats::{block_wald_p_value, paired_p_value};
 use crate::{DiagnoseError, Result};
 
 /// The evidence for one effect on one DOF (its best variant).
@@ -214,19 +215,6 @@ pub(crate) struct Scored {
     pub cv_rss: f64,
 }
 
-impl Scored {
-    /// The same without its design (a matrix of the usable rows of every record per column):
-    /// what is read after a variant is scored — the columns, blocks, cross-validation — is
-    /// small, and a scan keeps many scored variants (the shortlist of a stop's positions, every
-    /// effect's best until the ranking).
-    pub(crate) fn lean(self) -> Self {
-        Self {
-            design: Design::empty(),
-            ..self
-        }
-    }
-}
-
 /// Scores variant `v` on the equation of DOF `idx` with the terms `base`.
 pub(crate) fn score_variant(
     states: &[RecordStates],
@@ -369,22 +357,6 @@ fn analyse(
         share,
         scored: s.lean(),
     }))
-}
-
-/// The coefficient of the main effect column of `s` in its full-data fit `coef` and its block
-/// bootstrap interval (NaN when the variant has no main column).
-pub(crate) fn main_coefficient(
-    s: &Scored,
-    coef: &[f64],
-    opts: &DiagnoseOptions,
-) -> Result<(f64, [f64; 2])> {
-    Ok(match s.main {
-        Some(m) => (
-            coef[m],
-            bootstrap_interval(&s.blocks, m, opts.bootstrap, opts.seed)?,
-        ),
-        None => (f64::NAN, [f64::NAN, f64::NAN]),
-    })
 }
 
 /// The terms a variant adds or substitutes, then the start-library terms re-admitted beside it,

@@ -16,13 +16,15 @@
 use tfs_library::{Model, Term};
 
 use crate::Result;
+use crate::design::Design;
 use crate::design::{
     Cv, FoldEquation, compress_blocks, cross_validate, design, full_fit, partner_columns,
 };
 use crate::effects::{EffectColumn, Variant};
-use crate::explain::{DofSetup, Raw, Scored, main_coefficient, score_variant};
+use crate::explain::{DofSetup, Raw, Scored, score_variant};
 use crate::judge::{Choice, Heldout};
 use crate::prepare::{DiagnoseOptions, Layout, RecordStates};
+use crate::stats::bootstrap_interval;
 
 /// How many variants, lowest held-out residual first, the judge simulates for an effect whose
 /// parameter is chosen by simulation.
@@ -154,4 +156,33 @@ pub(crate) fn heldout<'a>(
         }
     }
     best
+}
+
+impl Scored {
+    /// The same without its design (a matrix of the usable rows of every record per column):
+    /// what is read after a variant is scored — the columns, blocks, cross-validation — is
+    /// small, and a scan keeps many scored variants (the shortlist of a stop's positions, every
+    /// effect's best until the ranking).
+    pub(crate) fn lean(self) -> Self {
+        Self {
+            design: Design::empty(),
+            ..self
+        }
+    }
+}
+
+/// The coefficient of the main effect column of `s` in its full-data fit `coef` and its block
+/// bootstrap interval (NaN when the variant has no main column).
+pub(crate) fn main_coefficient(
+    s: &Scored,
+    coef: &[f64],
+    opts: &DiagnoseOptions,
+) -> Result<(f64, [f64; 2])> {
+    Ok(match s.main {
+        Some(m) => (
+            coef[m],
+            bootstrap_interval(&s.blocks, m, opts.bootstrap, opts.seed)?,
+        ),
+        None => (f64::NAN, [f64::NAN, f64::NAN]),
+    })
 }
