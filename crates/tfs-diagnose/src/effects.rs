@@ -24,7 +24,7 @@
 //! powers in the model ([`EffectColumn::centred`]), so a DC offset does not change the effect.
 //!
 //! Numbers are written with `p` for the decimal point (`0.35` → `0p35`). Simulating a model with
-//! such columns needs [`crate::simulate`] (delays and filters are computed from the record).
+//! such columns needs `simulate.rs` (delays and filters are computed from the record).
 
 mod computed;
 mod input;
@@ -186,6 +186,32 @@ impl Variant {
     }
 }
 
+/// What the catalogue's effects are told about the data of one DOF's equation (see
+/// [`EffectContext`]), measured over the usable rows of every record (`prepare.rs`).
+#[derive(Debug, Clone)]
+pub(crate) struct DataScales {
+    /// RMS of the DOF's smoothed velocity.
+    pub velocity: f64,
+    /// Median over records of the dominant period of the DOF's displacement (s).
+    pub period: f64,
+    /// Mean of the DOF's smoothed displacement.
+    pub mean: f64,
+    /// Smallest and largest value of each displacement coordinate of the equation (its own, then
+    /// the relative ones its terms use).
+    pub ranges: Vec<(tfs_library::Var, f64, f64)>,
+    /// RMS about its mean of each of those coordinates.
+    pub rms: Vec<(tfs_library::Var, f64)>,
+    /// Duration of the shortest record (s).
+    pub shortest_record: f64,
+    /// Median over records of the RMS-frequency period (`prepare::rms_frequency_period`) of the
+    /// smoothed inputs the equation uses linearly, else of its lost inputs (s); NaN without
+    /// either.
+    pub input_period: f64,
+    /// The inputs every record carries that the model lost ([`lost_inputs`]),
+    /// when this equation uses no input linearly; empty otherwise.
+    pub lost_inputs: Vec<String>,
+}
+
 /// What an effect knows about the equation it is offered to.
 #[derive(Debug, Clone)]
 pub struct EffectContext<'a> {
@@ -246,7 +272,7 @@ impl<'a> EffectContext<'a> {
         model: &'a Model,
         dof: &'a str,
         terms: Vec<Term>,
-        scales: &crate::prepare::DataScales,
+        scales: &DataScales,
         dt: f64,
         max_power: u32,
     ) -> Self {
@@ -358,7 +384,7 @@ pub trait Effect: Send + Sync {
     /// True when `refit` chooses this effect's scanned parameter by how well the model
     /// simulates the records, among the variants with the lowest held-out residual, rather
     /// than by the residual alone (a stop's position); the diagnosis's judge then simulates
-    /// those variants too ([`crate::judged`]).
+    /// those variants too (`judged.rs`).
     fn parameter_by_simulation(&self) -> bool {
         false
     }

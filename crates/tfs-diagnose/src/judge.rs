@@ -24,7 +24,7 @@
 //! the model's score; for the short horizon, when paired tests over the pieces bear it out.
 //! Over chaotic divergence the short-horizon error is too coarse to order candidates on its own,
 //! so the significant ones are then ordered by their held-out equation error, and the pieces
-//! only break that order's ties, by their geometric-mean error ([`order`]).
+//! only break that order's ties, by their geometric-mean error (`rank.rs`).
 //!
 //! A candidate's per-fold model is the model with the candidate's equations refitted on the
 //! other folds. For a model fitted with laws tied between its equations (a chain) the refit
@@ -44,33 +44,11 @@ use tfs_dynamics::{Dopri5, Integrator, SampledInput, SimulateOptions};
 use tfs_library::{Factor, Model, Term, evaluate_term};
 
 use crate::design::{FoldEquation, fold_model};
-use crate::explain::{RankedEffect, Raw};
-use crate::prepare::{DiagnoseOptions, Layout, RecordStates};
+use crate::prepare::{DiagnoseOptions, Layout, RecordStates, variance};
 use crate::simulate::BaseRun;
 use crate::stats::paired_drop_p_value;
 
-/// What ranked the held-out predictions of the candidates.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Judge {
-    /// R-MSE of the free-run simulation under the measured input.
-    FreeRun,
-    /// R-MSE of simulations over pieces of two dominant periods, each from the measured state.
-    ShortHorizon,
-    /// Held-out equation error only (nothing could be simulated).
-    EquationError,
-}
-
-impl Judge {
-    /// In words, for reports.
-    pub fn describe(self) -> &'static str {
-        match self {
-            Judge::FreeRun => "free-run simulation",
-            Judge::ShortHorizon => "short-horizon prediction",
-            Judge::EquationError => "equation error",
-        }
-    }
-}
+pub use crate::evidence::Judge;
 
 /// The judge of one DOF's held-out predictions in an [`crate::Explanation`], and why.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -155,13 +133,6 @@ pub(crate) fn choose(
             from_fitted_rows: false,
         }
     }
-}
-
-/// The variance of `x` about its mean.
-pub(crate) fn variance(x: &[f64]) -> f64 {
-    let n = x.len().max(1) as f64;
-    let m = x.iter().sum::<f64>() / n;
-    x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / n
 }
 
 /// A held-out prediction score: its mean (what is reported) and the parts it is the mean of —
@@ -633,94 +604,10 @@ pub(crate) fn predicts_better_by(
     (resolved && drop.is_finite() && (drop >= min_share || most)).then_some(drop)
 }
 
-/// A ranked effect with its analysis and its held-out prediction score.
-pub(crate) struct Candidate {
-    /// What is reported.
-    pub entry: RankedEffect,
-    /// The equation-error analysis.
-    pub raw: Raw,
-    /// The held-out prediction score by the judge.
-    pub heldout: Option<Heldout>,
-    /// The judge resolves that the refitted model removes most of the model's own held-out
-    /// prediction error ([`predicts_better_by`] at [`MOST_OF_THE_ERROR`]): evidence the
-    /// equation error's bias cannot give, so the calibrated null does not re-judge it.
-    pub removes_most: bool,
-}
-
-/// Orders the candidates: significant first. Among the significant, with the free run as judge,
-/// by its held-out R-MSE where it shows skill and by the held-out equation error where it does
-/// not: an R-MSE of 1 or more (on the measured displacement's variance) predicts no better than
-/// the mean position, so every such candidate scores the same, "no skill" ([`skill_key`]).
-/// With the short horizon or the equation error alone, by the equation error (over chaotic
-/// divergence the short-horizon error is too coarse to order on its own); under the short
-/// horizon, a candidate that the equation error does not tell apart from its DOF's top one
-/// takes the top place when the paired tests over the pieces say the top predicts worse than it
-/// ([`short_horizon_breaks_tie`]). The rest by the free-run R-MSE (failed simulations last),
-/// then the equation error.
-pub(crate) fn order(ranked: &mut [Candidate], judge: Judge, alpha: f64) {
-    let sim_key = |c: &Candidate| c.entry.r_mse_after.unwrap_or(f64::INFINITY);
-    let key = |c: &Candidate| {
-        if !c.entry.significant {
-            sim_key(c)
-        } else if judge == Judge::FreeRun {
-            skill_key(c.entry.r_mse_after)
-        } else {
-            0.0
-        }
-    };
-    ranked.sort_by(|a, b| {
-        b.entry
-            .significant
-            .cmp(&a.entry.significant)
-            .then(key(a).total_cmp(&key(b)))
-            .then(b.entry.delta_heldout.total_cmp(&a.entry.delta_heldout))
-    });
-    if judge == Judge::ShortHorizon {
-        short_horizon_breaks_tie(ranked, alpha);
-    }
-}
-
-/// Under the short-horizon judge, per DOF: among the significant candidates whose held-out
-/// equation error is tied with the DOF's top one ([`equation_ties`]), the top one included, the
-/// one whose pieces' geometric-mean error is lowest ([`lowest_geometric_mean`]) takes the top place; the
-/// others keep their order. Only a tie is broken. The geometric mean, not the mean: the error of
-/// a chaotic prediction is heavy-tailed over the pieces, and the mean follows the one piece in
-/// which a model loses the motion (as the sole key it put true effects last). Whether the pieces
-/// resolve the difference is for [`mark_ties`] to say.
-fn short_horizon_breaks_tie(ranked: &mut [Candidate], alpha: f64) {
-    let mut dofs: Vec<String> = Vec::new();
-    for c in ranked.iter().filter(|c| c.entry.significant) {
-        if !dofs.contains(&c.entry.dof) {
-            dofs.push(c.entry.dof.clone());
-        }
-    }
-    for dof in dofs {
-        let mine: Vec<usize> = (0..ranked.len())
-            .filter(|&i| ranked[i].entry.significant && ranked[i].entry.dof == dof)
-            .collect();
-        let top = mine[0];
-        let tied: Vec<usize> = mine
-            .iter()
-            .copied()
-            .filter(|&i| i == top || equation_ties(&ranked[top], &ranked[i], alpha))
-            .collect();
-        let pieces: Option<Vec<&[f64]>> = tied
-            .iter()
-            .map(|&i| ranked[i].heldout.as_ref().map(|h| h.parts.as_slice()))
-            .collect();
-        let best = pieces
-            .and_then(|p| lowest_geometric_mean(&p))
-            .map(|k| tied[k]);
-        if let Some(i) = best {
-            ranked[top..=i].rotate_right(1);
-        }
-    }
-}
-
 /// Which of `scores` (per-piece errors of models scored on the same pieces) has the lowest
 /// geometric mean over the pieces (each piece's error at least the smallest positive number);
 /// the first of equals, `None` when there are none.
-fn lowest_geometric_mean(scores: &[&[f64]]) -> Option<usize> {
+pub(crate) fn lowest_geometric_mean(scores: &[&[f64]]) -> Option<usize> {
     let log_mean = |parts: &[f64]| {
         parts
             .iter()
@@ -736,53 +623,11 @@ fn lowest_geometric_mean(scores: &[&[f64]]) -> Option<usize> {
         .map(|(k, _)| k)
 }
 
-/// True when the paired one-sided tests over the held-out blocks (the RSS difference and its
-/// log-ratio, Bonferroni over the two) do not put `top`'s advantage in held-out equation error
-/// over `other` below `alpha`.
-fn equation_ties(top: &Candidate, other: &Candidate, alpha: f64) -> bool {
-    let (t, o) = (&top.raw.scored.cv.heldout, &other.raw.scored.cv.heldout);
-    paired_drop_p_value(o, t) >= alpha
-}
-
 /// A free-run R-MSE as an ordering key: the R-MSE while it shows skill (below 1), 1 for every
 /// score that does not (an R-MSE of 1 is the error of predicting the mean position), infinite
 /// for a failed simulation.
-fn skill_key(r_mse: Option<f64>) -> f64 {
+pub(crate) fn skill_key(r_mse: Option<f64>) -> f64 {
     r_mse.map_or(f64::INFINITY, |r| r.min(1.0))
-}
-
-/// Marks the significant candidates that the ordering's own evidence does not tell apart from
-/// the top-ranked one of their DOF ([`RankedEffect::tied_with_top`]): the held-out equation error
-/// does not ([`equation_ties`]), and neither does the judge — when the free run judges, neither of
-/// the two free runs shows skill ([`skill_key`]); when the short horizon judges, its paired tests
-/// over the pieces do not say the candidate predicts worse than the top ([`predicts_worse`]).
-pub(crate) fn mark_ties(ranked: &mut [Candidate], judge: Judge, alpha: f64) {
-    let mut tops: Vec<usize> = Vec::new();
-    for i in 0..ranked.len() {
-        if !ranked[i].entry.significant {
-            continue;
-        }
-        let Some(&t) = tops
-            .iter()
-            .find(|&&t| ranked[t].entry.dof == ranked[i].entry.dof)
-        else {
-            tops.push(i);
-            continue;
-        };
-        let (top, c) = (&ranked[t], &ranked[i]);
-        let judge_ties = match judge {
-            Judge::FreeRun => {
-                skill_key(top.entry.r_mse_after) == 1.0 && skill_key(c.entry.r_mse_after) == 1.0
-            }
-            Judge::ShortHorizon => match (&top.heldout, &c.heldout) {
-                (Some(th), Some(ch)) => !predicts_worse(judge, th, ch, 0.0, alpha),
-                _ => true,
-            },
-            Judge::EquationError => true,
-        };
-        let tied = equation_ties(top, c, alpha) && judge_ties;
-        ranked[i].entry.tied_with_top = tied;
-    }
 }
 
 #[cfg(test)]

@@ -44,9 +44,10 @@ use tfs_library::Model;
 use tfs_signal::band::{Band, noise_spectrum, reconstruct};
 
 use crate::effects::Catalogue;
-use crate::explain::{DofSetup, best_variant, context, setup_dof};
-use crate::judge::Candidate;
+use crate::evidence::NullEvidence;
+use crate::polish::best_variant;
 use crate::prepare::{DiagnoseOptions, Layout, RecordStates};
+use crate::scan::{DofSetup, context, setup_dof};
 use crate::simulate::BaseRun;
 
 /// One record's material for synthetic draws: the noise band of every channel the draws
@@ -65,40 +66,39 @@ struct NullTest {
     p: f64,
 }
 
-/// Re-judges every significant candidate in `ranked` against the calibrated null (see the
-/// module docs). `runs` are the start model's simulations of `records`; `tests` is the
-/// Bonferroni factor of the block tests.
+/// A candidate the null re-judges: the equation it extends, its effect, and its held-out drop
+/// on the measured records.
+pub(crate) struct NullJob {
+    /// The DOF whose equation it extends.
+    pub dof_idx: usize,
+    /// The catalogue effect.
+    pub effect: String,
+    /// Relative drop of the held-out equation error on the measured records.
+    pub delta: f64,
+    /// Held-out residual sum of squares with the effect on the measured records.
+    pub after: f64,
+}
+
+/// The null's part of the evidence of every candidate in `jobs` (see the module docs), in their
+/// order: `None` where the null cannot be made or tested. `runs` are the start model's
+/// simulations of `records`; `tests` is the Bonferroni factor of the block tests.
 pub(crate) fn calibrate(
     model: &Model,
     records: &[Record],
     catalogue: &Catalogue,
     opts: &DiagnoseOptions,
-    ranked: &mut [Candidate],
+    jobs: &[NullJob],
     runs: &[BaseRun],
     tests: usize,
-) {
-    for c in ranked
-        .iter_mut()
-        .filter(|c| c.entry.significant && c.removes_most)
-    {
-        c.entry.reason.push_str(
-            "; its model removes most of the held-out prediction error, which the equation error's bias alone cannot do, so the calibrated null does not re-judge it",
-        );
-    }
-    let flagged: Vec<usize> = (0..ranked.len())
-        .filter(|&k| ranked[k].entry.significant && !ranked[k].removes_most)
-        .collect();
-    if flagged.is_empty() || opts.null_draws < 2 {
-        return;
+) -> Vec<Option<NullEvidence>> {
+    let none = || vec![None; jobs.len()];
+    if jobs.is_empty() || opts.null_draws < 2 {
+        return none();
     }
     let Some(sources) = sources(model, records, runs) else {
-        return;
+        return none();
     };
-    let jobs: Vec<(usize, String)> = flagged
-        .iter()
-        .map(|&k| (ranked[k].raw.dof_idx, ranked[k].raw.effect.clone()))
-        .collect();
-    let mut dofs: Vec<usize> = jobs.iter().map(|j| j.0).collect();
+    let mut dofs: Vec<usize> = jobs.iter().map(|j| j.dof_idx).collect();
     dofs.sort_unstable();
     dofs.dedup();
     let synthetic: Vec<Option<Synthetic>> = (0..opts.null_draws)
@@ -108,11 +108,7 @@ pub(crate) fn calibrate(
     // The ceiling: a candidate whose measured absolute drop is larger than the whole held-out
     // residual the start model leaves on every synthetic draw of its equation fits something
     // the equation error's bias and the noise cannot hold, so re-scanning it is not needed.
-    let ceilings: Vec<Option<Ceiling>> = jobs
-        .iter()
-        .zip(&flagged)
-        .map(|(&(idx, _), &k)| ceiling(&synthetic, idx, &ranked[k]))
-        .collect();
+    let ceilings: Vec<Option<Ceiling>> = jobs.iter().map(|j| ceiling(&synthetic, j)).collect();
     let rescan: Vec<bool> = ceilings
         .iter()
         .map(|c| !c.as_ref().is_some_and(Ceiling::clears))
@@ -124,8 +120,8 @@ pub(crate) fn calibrate(
                 Some(syn) => jobs
                     .iter()
                     .zip(&rescan)
-                    .map(|((idx, name), &r)| {
-                        r.then(|| rescan_job(model, syn, catalogue, opts, *idx, name))
+                    .map(|(job, &r)| {
+                        r.then(|| rescan_job(model, syn, catalogue, opts, job.dof_idx, &job.effect))
                             .flatten()
                     })
                     .collect(),
@@ -135,46 +131,32 @@ pub(crate) fn calibrate(
     } else {
         Vec::new()
     };
-    for (j, &k) in flagged.iter().enumerate() {
-        if let Some(c) = ceilings[j].as_ref().filter(|c| c.clears()) {
-            let e = &mut ranked[k].entry;
-            e.reason = format!(
-                "{}; it removes more than the start model's whole held-out residual on any of {} simulations of itself with the estimated measurement noise (at most {:.1} % of the measured one): more than the equation error's own bias can give",
-                e.reason,
-                c.draws,
-                100.0 * c.largest / c.measured
-            );
-            continue;
-        }
-        let d: Vec<f64> = draws
-            .iter()
-            .filter_map(|row| row.get(j).copied().flatten())
-            .filter(|v| v.is_finite())
-            .collect();
-        let g: Vec<f64> = d.iter().map(|&v| log_gain(v)).collect();
-        let Some(t) = null_test(&g, log_gain(ranked[k].entry.delta_heldout)) else {
-            continue;
-        };
-        let (mean, sd) = mean_sd(&d);
-        let e = &mut ranked[k].entry;
-        let p = (t.p * tests as f64).min(1.0);
-        let null = format!(
-            "on {} simulations of the start model with the estimated measurement noise it falls {:.1} ± {:.1} %",
-            t.draws,
-            100.0 * mean,
-            100.0 * sd
-        );
-        if p < opts.alpha {
-            e.reason = format!("{}; {null} (corrected p = {p:.2e})", e.reason);
-        } else {
-            e.significant = false;
-            e.reason = format!(
-                "held-out equation error falls {:.1} %, but {null}: not beyond what the equation error's own bias gives with nothing missing (corrected p = {p:.2e} >= alpha = {})",
-                100.0 * e.delta_heldout,
-                opts.alpha
-            );
-        }
-    }
+    jobs.iter()
+        .enumerate()
+        .map(|(j, job)| {
+            if let Some(c) = ceilings[j].as_ref().filter(|c| c.clears()) {
+                return Some(NullEvidence::Clears {
+                    draws: c.draws,
+                    largest: c.largest,
+                    measured: c.measured,
+                });
+            }
+            let d: Vec<f64> = draws
+                .iter()
+                .filter_map(|row| row.get(j).copied().flatten())
+                .filter(|v| v.is_finite())
+                .collect();
+            let g: Vec<f64> = d.iter().map(|&v| log_gain(v)).collect();
+            let t = null_test(&g, log_gain(job.delta))?;
+            let (mean, sd) = mean_sd(&d);
+            Some(NullEvidence::Tested {
+                draws: t.draws,
+                mean,
+                sd,
+                p: (t.p * tests as f64).min(1.0),
+            })
+        })
+        .collect()
 }
 
 /// The scale the null test works on: a held-out drop `d` is one minus a ratio of error sums of
@@ -407,11 +389,10 @@ impl Ceiling {
     }
 }
 
-/// The ceiling of candidate `c` on the equation of DOF `idx`; `None` when its measured drop is
-/// not a finite fraction in (0, 1) or a draw's residual is not finite.
-fn ceiling(synthetic: &[Option<Synthetic>], idx: usize, c: &Candidate) -> Option<Ceiling> {
-    let delta = c.entry.delta_heldout;
-    let after = c.raw.scored.cv_rss;
+/// The ceiling of candidate `job`; `None` when its measured drop is not a finite fraction in
+/// (0, 1) or a draw's residual is not finite.
+fn ceiling(synthetic: &[Option<Synthetic>], job: &NullJob) -> Option<Ceiling> {
+    let (delta, after, idx) = (job.delta, job.after, job.dof_idx);
     if !(delta.is_finite() && delta > 0.0 && delta < 1.0 && after.is_finite()) {
         return None;
     }

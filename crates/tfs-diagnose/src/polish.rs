@@ -18,7 +18,28 @@ use tfs_library::{Factor, StateLaw, Term};
 
 use crate::Result;
 use crate::effects::{ComputedColumn, EffectColumn, Variant, input_variant, round3};
-use crate::explain::Scored;
+use crate::prepare::{Layout, RecordStates};
+use crate::score::{Scored, score_variant};
+
+/// Scores every variant of one effect on the equation of DOF `idx` (terms `base`) and returns
+/// the best (lowest held-out RSS), an internal state's parameters then refined locally by the
+/// same criterion ([`polish`]). The variants are scored side by side (an effect with
+/// many variants was otherwise the scan's serial tail), the choice the same as in order
+/// ([`crate::stats::first_lowest`]).
+pub(crate) fn best_variant(
+    states: &[RecordStates],
+    layout: &Layout,
+    idx: usize,
+    base: &[Term],
+    variants: &[Variant],
+) -> Result<Option<Scored>> {
+    let score = |v: &Variant| score_variant(states, layout, idx, base, v);
+    let Some(best) = crate::stats::first_lowest(variants, &score, |s: &Scored| s.cv_rss)? else {
+        return Ok(None);
+    };
+    let dt = states.first().map_or(0.0, |s| s.record.dt());
+    Ok(Some(polish(best, variants, &score, dt)?))
+}
 
 /// Most variants a refinement scores.
 pub const MAX_EVALS: usize = 12;

@@ -14,6 +14,9 @@ use tfs_signal::{NoiseFloor, amplitude_spectrum, spectral_derivative};
 
 use crate::{DiagnoseError, Result};
 
+/// Measured here ([`DataScales::measure`]), defined beside the effects it is told to.
+pub(crate) use crate::effects::DataScales;
+
 /// Options shared by compare, localise, explain and refit.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DiagnoseOptions {
@@ -44,7 +47,7 @@ pub struct DiagnoseOptions {
     pub simulate: bool,
     /// Synthetic draws of the calibrated null (the start model's own simulations with the
     /// estimated measurement noise) that every candidate passing the block tests is scanned on
-    /// again (`crate::null`); below 2 switches the null off. Needs `simulate`.
+    /// again (`null.rs`); below 2 switches the null off. Needs `simulate`.
     pub null_draws: usize,
 }
 
@@ -427,6 +430,13 @@ impl Layout {
     }
 }
 
+/// The variance of `x` about its mean.
+pub(crate) fn variance(x: &[f64]) -> f64 {
+    let n = x.len().max(1) as f64;
+    let m = x.iter().sum::<f64>() / n;
+    x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / n
+}
+
 /// Root mean square of a slice (0 for an empty slice).
 pub(crate) fn rms(v: &[f64]) -> f64 {
     if v.is_empty() {
@@ -465,32 +475,6 @@ pub(crate) fn rms_frequency_period(x: &[f64], dt: f64) -> Result<f64> {
     } else {
         f64::NAN
     })
-}
-
-/// What the catalogue's effects are told about the data of one DOF's equation (see
-/// [`crate::EffectContext`]), measured over the usable rows of every record.
-#[derive(Debug, Clone)]
-pub(crate) struct DataScales {
-    /// RMS of the DOF's smoothed velocity.
-    pub velocity: f64,
-    /// Median over records of the dominant period of the DOF's displacement (s).
-    pub period: f64,
-    /// Mean of the DOF's smoothed displacement.
-    pub mean: f64,
-    /// Smallest and largest value of each displacement coordinate of the equation (its own, then
-    /// the relative ones its terms use).
-    pub ranges: Vec<(tfs_library::Var, f64, f64)>,
-    /// RMS about its mean of each of those coordinates.
-    pub rms: Vec<(tfs_library::Var, f64)>,
-    /// Duration of the shortest record (s).
-    pub shortest_record: f64,
-    /// Median over records of the RMS-frequency period ([`rms_frequency_period`]) of the
-    /// smoothed inputs the equation uses linearly, else of its lost inputs (s); NaN without
-    /// either.
-    pub input_period: f64,
-    /// The inputs every record carries that the model lost ([`crate::effects::lost_inputs`]),
-    /// when this equation uses no input linearly; empty otherwise.
-    pub lost_inputs: Vec<String>,
 }
 
 impl DataScales {

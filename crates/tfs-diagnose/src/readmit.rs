@@ -25,8 +25,9 @@ use tfs_library::{Factor, Model, Term, Var};
 
 use crate::Result;
 use crate::effects::Variant;
-use crate::explain::{Scored, best_variant, score_variant};
+use crate::polish::best_variant;
 use crate::prepare::{Layout, RecordStates};
+use crate::score::{Scored, score_variant};
 use crate::stats::paired_drop_p_value;
 
 /// The terms of the start library of DOF `idx` that its equation lacks, in library order: the

@@ -112,7 +112,7 @@ pub fn rules() -> Vec<Rule> {
             "judge",
             format!(
                 "of the {} scanned parameter values with the lowest held-out residual, the one whose model predicts best",
-                crate::judged::SHORTLIST
+                crate::score::SHORTLIST
             ),
             "the parameter (stop position, time constant, …) that is reported and refitted",
         ),

@@ -112,7 +112,7 @@ pub(crate) fn noise_probe(
     let shift = spread
         .iter()
         .zip(&measured)
-        .map(|(sp, m)| sp * sp / crate::judge::variance(m).max(f64::MIN_POSITIVE))
+        .map(|(sp, m)| sp * sp / crate::prepare::variance(m).max(f64::MIN_POSITIVE))
         .sum::<f64>()
         / spread.len().max(1) as f64;
     Some(NoiseProbe {

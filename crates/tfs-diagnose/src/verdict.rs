@@ -1,9 +1,9 @@
 //! The diagnosis's one-sentence verdict: the top significant effect, what it cannot be told
 //! apart from, and the judge that ranked it — or that no candidate is significant.
 
-use crate::explain::RankedEffect;
 use crate::judge::{Judge, JudgeUse};
 use crate::prepare::DiagnoseOptions;
+use crate::rank::RankedEffect;
 
 /// One sentence: the top significant effect and the judge that ranked it, or that none is.
 pub(crate) fn verdict(
@@ -63,6 +63,7 @@ pub(crate) fn verdict(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::evidence::{EquationEvidence, Evidence, Significance};
 
     fn effect(name: &str) -> RankedEffect {
         RankedEffect {
@@ -83,6 +84,14 @@ mod tests {
             r_mse_after: Some(0.02),
             tied_with_top: false,
             reason: "passes".into(),
+            significance: Significance::Significant,
+            evidence: Evidence::new(EquationEvidence {
+                p_raw: 1e-6,
+                p: 1e-5,
+                tests: 10,
+                delta: 0.5,
+                share: 0.2,
+            }),
         }
     }
 

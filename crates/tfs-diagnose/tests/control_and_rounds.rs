@@ -129,6 +129,32 @@ fn two_hidden_effects_are_found_one_per_round() {
     println!("round 1: {}", first.verdict);
     let top1 = first.ranked[0].name.clone();
     assert!(first.ranked[0].significant);
+    // Each entry's decision and words are read from its evidence, whose parts the stages wrote:
+    // the judge's for every candidate (the candidates are simulated), the null's only for one the
+    // judge left significant. The JSON carries the typed reason beside the flag.
+    for r in &first.ranked {
+        let e = &r.evidence;
+        assert_eq!(r.significance, e.significance(&opts), "{}", r.name);
+        assert_eq!(r.significant, r.significance.is_significant(), "{}", r.name);
+        assert_eq!(r.reason, e.reason(&opts), "{}", r.name);
+        assert_eq!(r.p_value, e.equation().p, "{}", r.name);
+        let judged = e.prediction().expect("the judge's part");
+        assert_eq!(r.r_mse_after, judged.after, "{}", r.name);
+        assert!(
+            e.null().is_none() || e.judged(&opts).is_significant(),
+            "{}",
+            r.name
+        );
+    }
+    let json = serde_json::to_value(&first.ranked).unwrap();
+    for (j, r) in json.as_array().unwrap().iter().zip(&first.ranked) {
+        assert_eq!(
+            j["significance"],
+            serde_json::to_value(r.significance).unwrap()
+        );
+        assert_eq!(j["significant"], serde_json::json!(r.significant));
+    }
+    assert_eq!(json[0]["significance"], "significant");
     assert!(top1 == "offset" || top1 == "dry-friction", "{top1}");
     let m1 = add_effect(&start, &top1, &train).unwrap();
     let second = explain(&m1, &train, &cat, &opts).unwrap();

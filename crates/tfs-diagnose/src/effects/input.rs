@@ -2,7 +2,7 @@
 //! delayed or low-pass filtered copy of the input takes the input's place in the equation (and
 //! its coefficient, the gain); it is never added beside it. Both are scanned on the input's own
 //! time scale ([`EffectContext::input_period`]) and refined between grid values
-//! (`crate::polish`).
+//! (`polish.rs`).
 //!
 //! A model can have lost its input: when the input reaches the structure late or filtered, the
 //! plain input may explain so little that the fit drops it, and then no term is left for the
@@ -20,7 +20,7 @@ use super::{ComputedColumn, Effect, EffectColumn, EffectContext, Variant, round3
 /// added. δ is scanned over an eighth, a quarter and half a sample, then whole samples on a
 /// geometric grid (ratio about 1.25) from one sample up to half the input's RMS-frequency period
 /// ([`EffectContext::input_period`]): a longer delay is a sign flip of a narrow-band input. The
-/// best δ is then refined between grid values (`crate::polish`); between samples the input is
+/// best δ is then refined between grid values (`polish.rs`); between samples the input is
 /// read by band-limited interpolation ([`crate::effects::delayed`]).
 #[derive(Debug, Clone, Copy)]
 pub struct InputDelay;
@@ -172,7 +172,7 @@ pub(crate) fn linear_inputs(terms: &[Term]) -> Vec<String> {
 
 /// Input filter and gain (exciter or amplifier dynamics): every input term `u` is replaced by
 /// `u` low-pass filtered with time constant τ (added, for a model that lost the input), τ scanned over 1 %..50 % of the input's
-/// RMS-frequency period ([`EffectContext::input_period`]) and then refined (`crate::polish`);
+/// RMS-frequency period ([`EffectContext::input_period`]) and then refined (`polish.rs`);
 /// the gain is the refitted input coefficient.
 #[derive(Debug, Clone, Copy)]
 pub struct InputFilter;

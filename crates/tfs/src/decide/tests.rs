@@ -1,7 +1,7 @@
 //! Tests of the one decision: what diagnose names and the loop adds.
 
 use super::*;
-use tfs_diagnose::Judge;
+use tfs_diagnose::{EquationEvidence, Evidence, Judge, Significance};
 
 /// Two clean records of `x'' = −x − 0.1·x' − 0.5·x³ + u` under multisines, and the model
 /// without the dashpot fitted to them.
@@ -58,6 +58,14 @@ fn candidate(name: &str) -> RankedEffect {
         r_mse_after: None,
         tied_with_top: false,
         reason: String::new(),
+        significance: Significance::Significant,
+        evidence: Evidence::new(EquationEvidence {
+            p_raw: 1e-9,
+            p: 1e-8,
+            tests: 10,
+            delta: 0.5,
+            share: 0.1,
+        }),
     }
 }
 
@@ -120,7 +128,7 @@ fn the_decision_names_the_first_candidate_the_simulations_support() {
 fn a_decision_that_names_nothing_says_why() {
     let (start, records) = undamped_start();
     let mut quiet = candidate("linear-damping");
-    quiet.significant = false;
+    (quiet.significant, quiet.significance) = (false, Significance::NoFall);
     quiet.delta_heldout = -0.1;
     let d = decide_default(&start, &[quiet], &records);
     assert!(
@@ -198,6 +206,7 @@ fn a_failure_that_the_refit_alone_cures_names_no_effect() {
         .into_iter()
         .map(|n| RankedEffect {
             significant: false,
+            significance: Significance::NotSignificant,
             ..candidate(n)
         })
         .collect();

@@ -1,0 +1,144 @@
+//! Scoring one variant of an effect on one DOF's equation by held-out equation error: its
+//! columns, design, compressed blocks and cross-validation; the main column's coefficient with
+//! its block-bootstrap interval; and, for an effect whose parameter `refit` chooses by
+//! simulation, the shortlist of the next variants by held-out residual.
+//!
+//! The primitives every stage of the scan is built on (`scan.rs`, `readmit.rs`, `polish.rs`,
+//! `judged.rs`, `null.rs`); they know nothing of the stages.
+//!
+//! The shortlist: the equation error scores every variant of an effect and keeps the one with the
+//! lowest held-out residual. For most effects that is also the model `refit --add` returns. Not
+//! for a stop: the smoothing that makes the equation error usable spreads a contact's force over
+//! the samples around it, so the residual's best position can lie well inside the true one, and
+//! `refit` chooses the position among those with the lowest residual by how well the model
+//! simulates the records ([`crate::effects::Effect::parameter_by_simulation`]). The judge then
+//! judges what `refit` will return: the variants with the [`SHORTLIST`] lowest held-out residuals
+//! are each simulated (`judged.rs`), and the one that predicts the held-out data best speaks for
+//! the effect. Its significance is still the equation error's (the tests over blocks are
+//! corrected over every variant scanned, so choosing among a few of them adds no test).
+
+use tfs_library::Term;
+use tfs_regress::Compressed;
+
+use crate::Result;
+use crate::design::{
+    Cv, Design, compress_blocks, cross_validate, design, full_fit, variant_columns,
+};
+use crate::effects::{EffectColumn, Variant};
+use crate::prepare::{DiagnoseOptions, Layout, RecordStates};
+use crate::stats::bootstrap_interval;
+
+/// One variant scored: its columns, design, compressed blocks and cross-validation.
+pub(crate) struct Scored {
+    pub variant: Variant,
+    pub cols: Vec<EffectColumn>,
+    pub main: Option<usize>,
+    pub blocks: Vec<Compressed>,
+    pub design: Design,
+    pub cv: Cv,
+    /// Held-out residual sum of squares over all blocks.
+    pub cv_rss: f64,
+}
+
+impl Scored {
+    /// The same without its design (a matrix of the usable rows of every record per column):
+    /// what is read after a variant is scored — the columns, blocks, cross-validation — is
+    /// small, and a scan keeps many scored variants (the shortlist of a stop's positions, every
+    /// effect's best until the ranking).
+    pub(crate) fn lean(self) -> Self {
+        Self {
+            design: Design::empty(),
+            ..self
+        }
+    }
+}
+
+/// Scores variant `v` on the equation of DOF `idx` with the terms `base`.
+pub(crate) fn score_variant(
+    states: &[RecordStates],
+    layout: &Layout,
+    idx: usize,
+    base: &[Term],
+    v: &Variant,
+) -> Result<Scored> {
+    let (cols, main) = variant_columns(base, v);
+    let design = design(states, idx, &cols)?;
+    let blocks = compress_blocks(&design, layout)?;
+    let cv = cross_validate(&blocks, layout)?;
+    let cv_rss = cv.heldout.iter().sum();
+    Ok(Scored {
+        variant: v.clone(),
+        cols,
+        main,
+        blocks,
+        design,
+        cv,
+        cv_rss,
+    })
+}
+
+/// The coefficient of the main effect column of `s` in its full-data fit `coef` and its block
+/// bootstrap interval (NaN when the variant has no main column).
+pub(crate) fn main_coefficient(
+    s: &Scored,
+    coef: &[f64],
+    opts: &DiagnoseOptions,
+) -> Result<(f64, [f64; 2])> {
+    Ok(match s.main {
+        Some(m) => (
+            coef[m],
+            bootstrap_interval(&s.blocks, m, opts.bootstrap, opts.seed)?,
+        ),
+        None => (f64::NAN, [f64::NAN, f64::NAN]),
+    })
+}
+
+/// How many variants, lowest held-out residual first, the judge simulates for an effect whose
+/// parameter is chosen by simulation.
+pub(crate) const SHORTLIST: usize = 3;
+
+/// A variant beside the best one by equation error, with the coefficient of its main column in
+/// its full-data fit and that coefficient's block-bootstrap interval (what the report shows when
+/// the judge chooses it).
+pub(crate) struct Alternative {
+    /// The variant scored.
+    pub scored: Scored,
+    /// The main column's coefficient.
+    pub coef: f64,
+    /// Its 95 % block-bootstrap interval.
+    pub interval: [f64; 2],
+}
+
+/// The variants of `variants` other than `chosen`, scored on the equation of DOF `idx` with the
+/// terms `terms`, the [`SHORTLIST`]` − 1` with the lowest held-out residual first (ties in the
+/// catalogue's order), each with its main coefficient and interval.
+pub(crate) fn alternatives(
+    states: &[RecordStates],
+    layout: &Layout,
+    idx: usize,
+    terms: &[Term],
+    (variants, chosen): (&[Variant], &Variant),
+    opts: &DiagnoseOptions,
+) -> Result<Vec<Alternative>> {
+    use rayon::prelude::*;
+    let mut scored: Vec<Scored> = variants
+        .par_iter()
+        .filter(|v| *v != chosen)
+        .map(|v| score_variant(states, layout, idx, terms, v).map(Scored::lean))
+        .collect::<Result<_>>()?;
+    scored.retain(|s| s.cv_rss.is_finite());
+    scored.sort_by(|a, b| a.cv_rss.total_cmp(&b.cv_rss));
+    scored.truncate(SHORTLIST.saturating_sub(1));
+    scored
+        .into_iter()
+        .map(|s| {
+            let fit = full_fit(&s.blocks)?;
+            let (coef, interval) = main_coefficient(&s, &fit, opts)?;
+            Ok(Alternative {
+                scored: s,
+                coef,
+                interval,
+            })
+        })
+        .collect()
+}
