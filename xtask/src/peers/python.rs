@@ -118,8 +118,16 @@ pub(super) fn pysindy(
                 .get("fit_seconds")
                 .and_then(Value::as_f64)
                 .unwrap_or(f64::NAN);
-            let model = Model::from_path(out.join(file))
-                .with_context(|| format!("reading PySINDy model {file}"))?;
+            // A candidate whose threshold removed every term is a setting that failed, not a
+            // failed run: it is listed with its reason and the grid goes on.
+            let model = match Model::from_path(out.join(file)) {
+                Ok(m) => m,
+                Err(e) => {
+                    tried.push(json!({"params": c.get("params"), "test_r_mse": null,
+                        "failure": format!("{e}")}));
+                    continue;
+                }
+            };
             let r = simulate_model_on_record(&model, test, &SimulateOptions::default())
                 .map_err(anyhow::Error::from)
                 .and_then(|tr| Ok(rmse_ratio(clean_test, &tr.x[0])?))
