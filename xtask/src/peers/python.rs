@@ -94,6 +94,13 @@ pub(super) fn pysindy(
     if !st.success() {
         bail!("{} failed ({st})", script.display());
     }
+    oracle_pick(&out, test, clean_test)
+}
+
+/// For each variant of the script's `index.json` in `out`, the candidate with the lowest test
+/// R-MSE (the oracle); a candidate whose model file cannot be read (a threshold that removed
+/// every term) is listed in the grid with its reason and passed over.
+fn oracle_pick(out: &Path, test: &Record, clean_test: &[f64]) -> Result<Vec<Fit>> {
     let idx_path = out.join("index.json");
     let idx: Value = serde_json::from_str(
         &std::fs::read_to_string(&idx_path)
@@ -157,4 +164,64 @@ pub(super) fn pysindy(
         }
     }
     Ok(fits)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tfs::library::{Equation, ModelTerm, Term};
+
+    /// One PySINDy candidate with no terms (its model file is refused) does not abort the run:
+    /// the oracle chooses among the others and lists the empty one with its reason.
+    #[test]
+    fn an_empty_candidate_is_a_failed_setting_not_a_failed_run() {
+        let dir = tempfile::tempdir().unwrap();
+        let dofs = ["x".to_string()];
+        let term = |t: &str| Term::parse(t, &dofs).unwrap();
+        let model = Model::new(
+            dofs.to_vec(),
+            vec![Equation {
+                dof: "x".into(),
+                terms: vec![
+                    ModelTerm::new(term("x"), -1.0),
+                    ModelTerm::new(term("x'"), -0.1),
+                    ModelTerm::new(term("xb_acc"), -1.0),
+                ],
+            }],
+            "PySINDy weak",
+        )
+        .unwrap();
+        model.write_path(dir.path().join("good.json")).unwrap();
+        // The same file with every term removed, as the script writes a threshold that kept none.
+        let mut empty: Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.path().join("good.json")).unwrap())
+                .unwrap();
+        empty["equations"][0]["terms"] = json!([]);
+        std::fs::write(dir.path().join("empty.json"), empty.to_string()).unwrap();
+        let idx = json!({"weak": [
+            {"file": "empty.json", "params": {"H": 2.0}, "fit_seconds": 0.1},
+            {"file": "good.json", "params": {"H": 4.0}, "fit_seconds": 0.2},
+        ], "classical": []});
+        std::fs::write(dir.path().join("index.json"), idx.to_string()).unwrap();
+        let t: Vec<f64> = (0..1000).map(|k| k as f64 * 0.01).collect();
+        let u: Vec<f64> = t.iter().map(|t| (1.3 * t).sin()).collect();
+        let test = Record::new(
+            "test",
+            t.clone(),
+            vec![
+                ("x".into(), vec![0.0; t.len()]),
+                ("xb_acc".into(), u.clone()),
+            ],
+        )
+        .unwrap();
+        let fits = oracle_pick(dir.path(), &test, &u).unwrap();
+        let (name, weak, extra) = &fits[0];
+        assert_eq!(name, "PySINDy weak");
+        assert!(weak.is_ok(), "{weak:?}");
+        assert_eq!(extra["chosen"]["H"], json!(4.0));
+        let failure = extra["grid"][0]["failure"].as_str().unwrap();
+        assert!(failure.contains("empty.json"), "{failure}");
+        // No classical candidates: that variant fails and says so.
+        assert!(fits[1].1.is_err());
+    }
 }
