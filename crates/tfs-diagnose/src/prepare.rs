@@ -49,6 +49,12 @@ pub struct DiagnoseOptions {
     /// estimated measurement noise) that every candidate passing the block tests is scanned on
     /// again (`null.rs`); below 2 switches the null off. Needs `simulate`.
     pub null_draws: usize,
+    /// After an effect is added ([`crate::add_effect_with`]), also re-estimate the extended
+    /// model's coefficients by simulation error on the records (multiple shooting, as
+    /// `tfs refit --refine` does) and keep that fit when its free runs predict the records
+    /// better. Off by default (the diagnosis's own refits of every candidate stay equation-error
+    /// fits, fast); `tfs refit` and the Python `refit` switch it on for the effects they add.
+    pub refine_added: bool,
 }
 
 impl Default for DiagnoseOptions {
@@ -67,6 +73,7 @@ impl Default for DiagnoseOptions {
             max_power: 7,
             simulate: true,
             null_draws: 8,
+            refine_added: false,
         }
     }
 }

@@ -70,7 +70,7 @@ pub(crate) struct Readmitted {
 /// True when `term` may be offered beside variant `v`: not already one of its columns, and not
 /// a plain input the variant replaces by a computed copy (a delayed or filtered input takes the
 /// input's place, it is never put beside it).
-fn offerable(term: &Term, s: &Scored) -> bool {
+pub(crate) fn offerable(term: &Term, s: &Scored) -> bool {
     if s.cols.iter().any(|c| c.term == *term) {
         return false;
     }

@@ -103,6 +103,20 @@ pub(crate) fn add_one(
     opts: &DiagnoseOptions,
     notes: &mut AddNotes,
 ) -> Result<Model> {
+    // Refinement by simulation error only on a one-DOF model: a tied chain is refitted jointly
+    // with its ties after the effect is added (`keep_ties`), which would undo a refinement of
+    // each equation on its own, and multiple shooting on every DOF of a chain costs minutes per
+    // effect (the chain keeps the equation-error anchors' choice).
+    let untied;
+    let opts = if opts.refine_added && model.dofs.len() > 1 {
+        untied = DiagnoseOptions {
+            refine_added: false,
+            ..opts.clone()
+        };
+        &untied
+    } else {
+        opts
+    };
     let added = add_effect_with(model, name, records, catalogue, opts)?;
     let added = keep_ties(added, records, opts)?;
     notes.warnings.extend(dropped_terms(&added).into_iter().map(|t| {
@@ -151,16 +165,22 @@ fn until_clean_with(
     notes: &mut AddNotes,
 ) -> Result<(Model, Vec<LoopRound>)> {
     let catalogue = Catalogue::standard(opts.max_power);
+    // The diagnosis and the decision see every candidate as `tfs diagnose` does (equation-error
+    // refits); the effect they name is then added with `opts` (refined when it asks for that).
+    let scan = DiagnoseOptions {
+        refine_added: false,
+        ..opts.clone()
+    };
     let mut model = model.clone();
     let mut rounds = Vec::new();
     for round in 1..=max_rounds {
-        let ex = explain(&model, records, &catalogue, opts)
+        let ex = explain(&model, records, &catalogue, &scan)
             .with_context(|| format!("--until-clean: diagnosing in round {round}"))?;
         let decision = crate::decide::decide(
             &model,
             &ex.ranked,
             records,
-            opts,
+            &scan,
             &crate::decide::DecideOptions::loop_round(),
         )
         .with_context(|| format!("--until-clean: round {round}"))?;
@@ -180,9 +200,29 @@ fn until_clean_with(
             });
             break;
         };
-        model = chosen.model;
-        notes.stops.extend(chosen.stops);
-        notes.warnings.extend(chosen.warnings);
+        let mut again = AddNotes::default();
+        let refined = if opts.refine_added {
+            add_one(
+                &model,
+                &chosen.effect,
+                records,
+                &catalogue,
+                opts,
+                &mut again,
+            )
+            .ok()
+        } else {
+            None
+        };
+        if let Some(m) = refined {
+            model = m;
+            notes.stops.extend(again.stops);
+            notes.warnings.extend(again.warnings);
+        } else {
+            model = chosen.model;
+            notes.stops.extend(chosen.stops);
+            notes.warnings.extend(chosen.warnings);
+        }
         rounds.push(LoopRound {
             round,
             added: Some(chosen.effect),
@@ -348,7 +388,12 @@ pub fn refit_with(
     if req.until_clean == Some(0) {
         invalid!("--until-clean 0: give the most rounds the loop may run (at least 1)");
     }
-    let opts = DiagnoseOptions::default();
+    // Each effect added is also refined by simulation error where that predicts the records
+    // better (`DiagnoseOptions::refine_added`).
+    let opts = DiagnoseOptions {
+        refine_added: true,
+        ..DiagnoseOptions::default()
+    };
     let catalogue = Catalogue::standard(opts.max_power);
     let mut model = model.clone();
     let mut notes = AddNotes::default();

@@ -197,7 +197,8 @@ fn rig_loop(offsets: &str) -> (f64, f64, f64) {
     assert_eq!(ranked[0]["name"], "stiffness-x^3", "{}", d["verdict"]);
     assert_eq!(ranked[0]["significant"], true, "{}", d["verdict"]);
 
-    // 3. Add it and refit by equation error.
+    // 3. Add it and refit (equation error toward the start model, then simulation error where
+    // that predicts the training record better).
     let m1 = dir.path().join("m1.json");
     run(&[
         "refit",
@@ -244,9 +245,11 @@ fn force_driven_duffing_in_volts_diagnose_add_refine() {
     // Default treatment: the CLI removes the offsets of a force-driven rig.
     let (before, after, refined) = rig_loop("auto");
     assert!(before / after >= 10.0, "{before} -> {after}");
+    // Adding the effect already re-estimates it by simulation error where that predicts the
+    // records better, so `--refine` afterwards can only keep or improve it.
     assert!(
-        refined < after,
-        "refined {refined} vs equation-error {after}"
+        refined <= after * (1.0 + 1e-9),
+        "refined {refined} vs added {after}"
     );
 }
 
@@ -256,8 +259,10 @@ fn force_driven_duffing_in_volts_with_offsets_kept_as_a_constant() {
     // catalogue offers stiffness powers about the mean position.
     let (before, after, refined) = rig_loop("constant-term");
     assert!(before / after >= 10.0, "{before} -> {after}");
+    // Adding the effect already re-estimates it by simulation error where that predicts the
+    // records better, so `--refine` afterwards can only keep or improve it.
     assert!(
-        refined < after,
-        "refined {refined} vs equation-error {after}"
+        refined <= after * (1.0 + 1e-9),
+        "refined {refined} vs added {after}"
     );
 }
