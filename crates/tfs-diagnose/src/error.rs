@@ -58,6 +58,16 @@ pub enum DiagnoseError {
         /// What is wrong and what to do.
         reason: String,
     },
+    /// A model's short-horizon predictions of a record could not be simulated.
+    #[error(
+        "{record}: predicting it over pieces of {horizon} samples from the measured state failed (the model blew up or left the record's range); the model cannot be scored on this record"
+    )]
+    Prediction {
+        /// The record's source.
+        record: String,
+        /// The piece length (samples).
+        horizon: usize,
+    },
     /// A record could not be built or sliced.
     #[error(transparent)]
     Data(#[from] tfs_data::DataError),

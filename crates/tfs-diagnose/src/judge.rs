@@ -283,7 +283,7 @@ fn short_horizon(
 /// R-MSE (mean over DOFs) of `model`'s predictions over pieces of `horizon` samples covering
 /// `range` of the record behind `s`, each started from the smoothed measured state; and per
 /// piece its mean squared error over the range's variance (mean over DOFs).
-fn predict_pieces(
+pub(crate) fn predict_pieces(
     model: &Model,
     s: &RecordStates,
     range: std::ops::Range<usize>,

@@ -60,6 +60,7 @@ mod judged;
 pub mod noise;
 mod null;
 mod polish;
+pub mod predict;
 pub mod prepare;
 mod rank;
 mod readmit;
@@ -81,6 +82,7 @@ pub use evidence::{
 };
 pub use explain::{Explanation, RankedEffect, explain};
 pub use judge::{Judge, JudgeUse};
+pub use predict::PredictionScore;
 pub use prepare::DiagnoseOptions;
 pub use refit::{
     LadderStep, SharedTerm, add_effect, add_effect_with, error_ladder, ladder_table, refit,

@@ -11,7 +11,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 use serde_json::Value;
 use tfs::data::Record;
-use tfs::diagnose::{DiagnoseOptions, Explanation};
+use tfs::diagnose::{DiagnoseOptions, Explanation, PredictionScore};
 use tfs::identify::{IdentifyOptions, identify, plan};
 use tfs::library::{Library, Model};
 use tfs::signal::noise::SnrReference;
@@ -74,10 +74,14 @@ pub struct Round {
     pub ranked: Vec<Ranked>,
     /// Effects (`name` as `--add` takes it) the diagnosis reports as tied with the top one.
     pub tied: Vec<String>,
-    /// Held-out R-MSE of the model before the round.
+    /// Held-out R-MSE of the model before the round, under the case's held-out score
+    /// ([`CaseResult::heldout_score`]).
     pub before: Option<f64>,
-    /// Held-out R-MSE after adding the top effect (= before when nothing was added).
+    /// Held-out R-MSE after adding the top effect (= before when nothing was added), under the
+    /// same score.
     pub after: Option<f64>,
+    /// The free-run held-out R-MSE before and after (`compare`'s), whatever the case's score.
+    pub free_run: (Option<f64>, Option<f64>),
     /// Why a simulation failed, if one did.
     pub failure: Option<String>,
     /// Seconds spent in diagnose and refit.
@@ -146,11 +150,18 @@ pub struct CaseResult {
     pub start: Option<String>,
     /// Round 1 and (for pairs, or when something remains) round 2.
     pub rounds: Vec<Round>,
-    /// Held-out R-MSE after adding the hidden effect itself by name (one hidden effect).
+    /// How the held-out record is scored in this case, chosen once from the start model
+    /// ([`tfs::diagnose::PredictionScore::choose`]): the free run, or short-horizon pieces
+    /// where the input's own noise decides the free run.
+    pub heldout_score: Option<tfs::diagnose::PredictionScore>,
+    /// Held-out R-MSE after adding the hidden effect itself by name (one hidden effect), under
+    /// the case's held-out score.
     pub oracle_after: Option<f64>,
-    /// Held-out R-MSE of the start model (single-effect cases; `None` when it fails to
-    /// simulate the record).
+    /// Held-out R-MSE of the start model under the case's held-out score (single-effect cases;
+    /// `None` when it fails to simulate the record).
     pub start_heldout: Option<f64>,
+    /// The free-run held-out R-MSE of the start model and of the oracle refit.
+    pub oracle_free_run: (Option<f64>, Option<f64>),
     /// The oracle refit's equations, or why it failed (single-effect cases).
     pub oracle_model: Option<String>,
     /// Seconds: identify, whole case.
@@ -173,8 +184,10 @@ impl CaseResult {
             hidden_dofs: Vec::new(),
             start: None,
             rounds: Vec::new(),
+            heldout_score: None,
             oracle_after: None,
             start_heldout: None,
+            oracle_free_run: (None, None),
             oracle_model: None,
             identify_seconds: 0.0,
             seconds: 0.0,
@@ -273,10 +286,11 @@ fn libraries(b: &Baseline, hides: &[Hide]) -> Result<Vec<String>> {
         .collect()
 }
 
+/// One diagnosis round on `model`: what it names and the model with that effect added. Its
+/// held-out scores are filled in by [`score_round`] once the case's ruler is chosen.
 fn round(
     model: &Model,
     train: &[Record],
-    heldout: &Record,
     offsets: &tfs::report::OffsetsReport,
 ) -> Result<(Round, Option<Model>)> {
     let t0 = Instant::now();
@@ -303,9 +317,6 @@ fn round(
         .chosen
         .as_ref()
         .and_then(|n| d.ranked.iter().find(|r| &r.name == n));
-    let before = tfs::diagnose::r_mse(model, heldout);
-    let mut failure = before.as_ref().err().map(|e| format!("before: {e}"));
-    let mut after = before.as_ref().ok().copied();
     let mut refitted = None;
     if let Some(t) = top {
         let r = tfs::refit::refit(
@@ -317,13 +328,6 @@ fn round(
             offsets,
         )
         .with_context(|| format!("refit --add {}", t.name))?;
-        after = match tfs::diagnose::r_mse(&r.model, heldout) {
-            Ok(v) => Some(v),
-            Err(e) => {
-                failure = Some(format!("after: {e}"));
-                None
-            }
-        };
         refitted = Some(r.model);
     }
     Ok((
@@ -353,13 +357,43 @@ fn round(
                 .filter(|r| r.tied_with_top)
                 .map(|r| r.name.clone())
                 .collect(),
-            before: before.ok(),
-            after,
-            failure,
+            before: None,
+            after: None,
+            free_run: (None, None),
+            failure: None,
             seconds: t0.elapsed().as_secs_f64(),
         },
         refitted,
     ))
+}
+
+/// Scores round `r` on the held-out record under `score`: `before` is the model the round
+/// started from, `after` the model with its named effect (`None` when nothing was named).
+fn score_round(
+    r: &mut Round,
+    score: &PredictionScore,
+    before: &Model,
+    after: Option<&Model>,
+    heldout: &Record,
+) {
+    let opts = DiagnoseOptions::default();
+    let b = score.r_mse(before, heldout, &opts);
+    r.failure = b.as_ref().err().map(|e| format!("before: {e}"));
+    r.before = b.ok();
+    r.free_run.0 = tfs::diagnose::r_mse(before, heldout).ok();
+    let Some(m) = after else {
+        r.after = r.before;
+        r.free_run.1 = r.free_run.0;
+        return;
+    };
+    r.after = match score.r_mse(m, heldout, &opts) {
+        Ok(v) => Some(v),
+        Err(e) => {
+            r.failure = Some(format!("after: {e}"));
+            None
+        }
+    };
+    r.free_run.1 = tfs::diagnose::r_mse(m, heldout).ok();
 }
 
 /// Runs one case; failures are recorded in the result, not returned.
@@ -536,16 +570,22 @@ fn run_into(
     if let Some(keep) = keep {
         keep_records(keep, spec, &train, &heldout, &id.model)?;
     }
+    let mut models: Vec<Model> = Vec::new();
     if diagnose {
-        let (r1, m1) = round(&id.model, &train, &heldout, &id.offsets)?;
+        let (r1, m1) = round(&id.model, &train, &id.offsets)?;
         out.rounds.push(r1);
-        if let Some(m1) = m1
-            && spec.group == Group::Pair
-        {
-            let (r2, _) = round(&m1, &train, &heldout, &id.offsets)?;
-            out.rounds.push(r2);
+        if let Some(m1) = m1 {
+            if spec.group == Group::Pair {
+                let (r2, m2) = round(&m1, &train, &id.offsets)?;
+                out.rounds.push(r2);
+                models.push(m1);
+                models.extend(m2);
+            } else {
+                models.push(m1);
+            }
         }
     }
+    let mut oracle = None;
     if spec.group == Group::Single && !hides.is_empty() {
         let h = &hides[0];
         let name = if b.dofs.len() > 1 {
@@ -553,10 +593,8 @@ fn run_into(
         } else {
             h.effect.clone()
         };
-        out.start_heldout = tfs::diagnose::r_mse(&id.model, &heldout).ok();
         match tfs::refit::refit(&id.model, &[name], &train, false, Vec::new(), &id.offsets) {
             Ok(r) => {
-                out.oracle_after = tfs::diagnose::r_mse(&r.model, &heldout).ok();
                 let anchor = r.model.history.last().and_then(|h| {
                     h.details["variants"][0]["anchor"]
                         .as_str()
@@ -570,10 +608,34 @@ fn run_into(
                     train(r.ladder.len().saturating_sub(1)),
                     r.model.equation_string()
                 ));
+                oracle = Some(r.model);
             }
             Err(e) => out.oracle_model = Some(format!("failed: {e:#}")),
         }
     }
+    // One ruler for every model compared on the held-out record, chosen once per case from
+    // the start model and the models it is compared with.
+    let opts = DiagnoseOptions::default();
+    let others: Vec<&Model> = models.iter().chain(oracle.as_ref()).collect();
+    let score = PredictionScore::choose(&id.model, &others, &heldout, &opts)
+        .unwrap_or_else(|_| PredictionScore::free_run());
+    let mut from = &id.model;
+    for (k, r) in out.rounds.iter_mut().enumerate() {
+        let after = r.top.is_some().then(|| &models[k]);
+        score_round(r, &score, from, after, &heldout);
+        if let Some(m) = after {
+            from = m;
+        }
+    }
+    if spec.group == Group::Single && !hides.is_empty() {
+        out.start_heldout = score.r_mse(&id.model, &heldout, &opts).ok();
+        out.oracle_free_run.0 = tfs::diagnose::r_mse(&id.model, &heldout).ok();
+        if let Some(m) = &oracle {
+            out.oracle_after = score.r_mse(m, &heldout, &opts).ok();
+            out.oracle_free_run.1 = tfs::diagnose::r_mse(m, &heldout).ok();
+        }
+    }
+    out.heldout_score = Some(score);
     Ok(())
 }
 

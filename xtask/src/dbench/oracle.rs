@@ -53,11 +53,31 @@ pub fn table(cases: &[CaseResult], losses: bool) -> String {
             f4(100.0 * b as f64 / n.max(1) as f64)
         );
     }
+    let short: Vec<&CaseResult> = cases
+        .iter()
+        .filter(|c| oracle_better(c).is_some())
+        .filter(|c| {
+            c.heldout_score
+                .as_ref()
+                .is_some_and(|s| s.horizon.is_some())
+        })
+        .collect();
+    if !short.is_empty() {
+        let free = short
+            .iter()
+            .filter(|c| matches!(c.oracle_free_run, (Some(s), Some(o)) if o < s))
+            .count();
+        let _ = writeln!(
+            s,
+            "  {} of these cases are scored by short-horizon pieces (the input's noise decides the start model's free run there); by the free run, the oracle is better on {free} of them",
+            short.len()
+        );
+    }
     if losses {
         for c in cases.iter().filter(|c| oracle_better(c) == Some(false)) {
             let _ = writeln!(
                 s,
-                "  not better: case {} {} {} {} size {}: start {} -> oracle {}  [{}]",
+                "  not better: case {} {} {} {} size {}: start {} -> oracle {} ({})  [{}]",
                 c.spec.id,
                 c.spec.kind.key(),
                 noise_key(c.spec.snr),
@@ -65,6 +85,9 @@ pub fn table(cases: &[CaseResult], losses: bool) -> String {
                 f4(c.realised.first().copied().unwrap_or(f64::NAN)),
                 c.start_heldout.map_or("failed".into(), f4),
                 c.oracle_after.map_or("failed".into(), f4),
+                c.heldout_score
+                    .as_ref()
+                    .map_or("free run".into(), |s| s.label()),
                 c.oracle_model.as_deref().unwrap_or("-"),
             );
         }

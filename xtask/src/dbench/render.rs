@@ -133,7 +133,7 @@ impl Summary<'_> {
         );
         let _ = writeln!(
             s,
-            "Every effect of the standard catalogue is hidden in truths the tool has never seen; each case draws its baseline's parameters and excitations, the effect's parameters and element, its size (the RMS of its force over the RMS of the acceleration, log-uniform over {}–{} in strata) and the noise draw (white, on every measured channel, its level relative to the channel's {}). Three training records and a held-out one; `identify` with the start library (without the effect), `diagnose`, `refit --add <top effect>`, all through the `tfs` library. Top-1 counts the first significant effect (on an admissible DOF for chains) over cases whose realised size is at least the diagnosis's minimum size ({}); the held-out drop is the held-out free-run R-MSE before over after adding the top effect (1× when nothing was added); the oracle drop adds the hidden effect itself. The unrepresentable part of an effect is the RMS of what the best least-squares fit of its force by the start library's columns (clean training states, one set of coefficients over the three records, as `identify` fits them) leaves, over the RMS acceleration: what any model from the start library must miss. The detection threshold (\"90 % part\") is the smallest unrepresentable part above which at least 90 % of the cases are found first.\n",
+            "Every effect of the standard catalogue is hidden in truths the tool has never seen; each case draws its baseline's parameters and excitations, the effect's parameters and element, its size (the RMS of its force over the RMS of the acceleration, log-uniform over {}–{} in strata) and the noise draw (white, on every measured channel, its level relative to the channel's {}). Three training records and a held-out one; `identify` with the start library (without the effect), `diagnose`, `refit --add <top effect>`, all through the `tfs` library. Top-1 counts the first significant effect (on an admissible DOF for chains) over cases whose realised size is at least the diagnosis's minimum size ({}); the held-out drop is the held-out prediction R-MSE before over after adding the top effect (1× when nothing was added), each case's models scored by one ruler chosen from its start model: the free run under the measured input, or, where a fresh draw of the input's own noise moves the start model's free run about as far as its error (chaotic snap-through), pieces as long as its predictions from the measured state keep their skill; the oracle drop adds the hidden effect itself. The unrepresentable part of an effect is the RMS of what the best least-squares fit of its force by the start library's columns (clean training states, one set of coefficients over the three records, as `identify` fits them) leaves, over the RMS acceleration: what any model from the start library must miss. The detection threshold (\"90 % part\") is the smallest unrepresentable part above which at least 90 % of the cases are found first.\n",
             pct(super::SIZES.0),
             pct(super::SIZES.1),
             match args.snr_reference {
@@ -615,6 +615,7 @@ impl Summary<'_> {
                 "status",
                 "named_first",
                 "correct",
+                "heldout_score",
                 "heldout_before",
                 "heldout_after",
                 "oracle_after",
@@ -659,6 +660,9 @@ impl Summary<'_> {
                     } else {
                         String::new()
                     },
+                    c.heldout_score
+                        .as_ref()
+                        .map_or(String::new(), |s| s.label()),
                     opt(r1.and_then(|r| r.before)),
                     opt(r1.and_then(|r| r.after)),
                     opt(c.oracle_after),

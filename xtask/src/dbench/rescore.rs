@@ -67,6 +67,8 @@ fn case(v: &Value) -> Result<CaseResult> {
     c.start = opt_string(&v["start"]);
     c.oracle_after = v["oracle_after"].as_f64();
     c.start_heldout = v["start_heldout"].as_f64();
+    c.heldout_score = serde_json::from_value(v["heldout_score"].clone()).ok();
+    c.oracle_free_run = pair(&v["oracle_free_run"]);
     c.oracle_model = opt_string(&v["oracle_model"]);
     c.identify_seconds = v["identify_seconds"].as_f64().unwrap_or(f64::NAN);
     c.seconds = v["seconds"].as_f64().unwrap_or(f64::NAN);
@@ -86,6 +88,7 @@ fn case(v: &Value) -> Result<CaseResult> {
                     tied: strings(&r["tied"]),
                     before: r["before"].as_f64(),
                     after: r["after"].as_f64(),
+                    free_run: pair(&r["free_run"]),
                     failure: opt_string(&r["failure"]),
                     seconds: r["seconds"].as_f64().unwrap_or(f64::NAN),
                 })
@@ -93,6 +96,11 @@ fn case(v: &Value) -> Result<CaseResult> {
         })
         .unwrap_or_default();
     Ok(c)
+}
+
+/// A pair of optional numbers written as a two-element array (`[null, null]` when absent).
+fn pair(v: &Value) -> (Option<f64>, Option<f64>) {
+    (v[0].as_f64(), v[1].as_f64())
 }
 
 /// The cases, catalogue and total seconds of the run whose `results.json` is in `dir`.
@@ -135,6 +143,11 @@ mod tests {
         c.unrepresentable = vec![0.04];
         c.hidden_dofs = vec![vec!["x".into()]];
         c.oracle_after = Some(0.5);
+        c.oracle_free_run = (Some(0.9), None);
+        c.heldout_score = Some(tfs::diagnose::PredictionScore {
+            horizon: Some(40),
+            why: "w".into(),
+        });
         c.rounds.push(Round {
             top: Some("maxwell".into()),
             top_effect: Some("maxwell".into()),
@@ -145,6 +158,7 @@ mod tests {
             tied: vec!["hysteresis".into()],
             before: Some(2.0),
             after: Some(0.5),
+            free_run: (Some(1.1), Some(0.7)),
             failure: None,
             seconds: 1.0,
         });
@@ -159,6 +173,11 @@ mod tests {
         let b = &back[0];
         assert_eq!(b.spec.seed, spec.seed);
         assert_eq!(b.rounds[0].top_parameter, Some(("tau".into(), 0.01)));
+        assert_eq!(b.rounds[0].free_run, (Some(1.1), Some(0.7)));
+        assert_eq!(
+            (&b.heldout_score, b.oracle_free_run),
+            (&c.heldout_score, c.oracle_free_run)
+        );
         let (s0, s1) = (
             Summary::new(std::slice::from_ref(&c), &cat),
             Summary::new(&back, &cat),

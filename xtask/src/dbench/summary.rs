@@ -526,6 +526,7 @@ mod tests {
             tied: Vec::new(),
             before: Some(before),
             after: Some(after),
+            free_run: (Some(before), Some(after)),
             failure: None,
             seconds: 1.0,
         });
