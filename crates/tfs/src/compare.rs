@@ -1,7 +1,9 @@
 //! Scoring a model on held-out records as `tfs compare` and the Python package do: the model
 //! simulated under each record's measured input, R-MSE (on the variance, and the paper's Appendix B
 //! ratio over the mean square) and RMS error per DOF, and how far a fresh draw of the input's own
-//! noise moves the simulation.
+//! noise moves the simulation. Where that noise decides the free run (chaotic snap-through), the
+//! record is also scored by short-horizon predictions from the measured state
+//! ([`tfs_diagnose::PredictionScore`]), a ruler that can still rank models there.
 
 use serde_json::{Value, json};
 use tfs_data::Record;
@@ -31,6 +33,10 @@ pub struct RecordScore {
     pub dofs: Vec<Value>,
     /// Whether most of the error is the measured input's own noise (`None`: not estimated).
     pub error_is_input_noise: Option<bool>,
+    /// Where the input's noise decides the free run: the piece length (samples) of the
+    /// short-horizon predictions from the measured state, its length in seconds and their
+    /// R-MSE.
+    pub short_horizon: Option<(usize, f64, f64)>,
     /// The simulation.
     pub trajectory: Trajectory,
 }
@@ -40,7 +46,8 @@ impl RecordScore {
     pub fn to_json(&self) -> Value {
         json!({"path": self.record, "r_mse": self.r_mse,
             "r_mse_mean_square": self.r_mse_mean_square, "dofs": self.dofs,
-            "error_is_input_noise": self.error_is_input_noise})
+            "error_is_input_noise": self.error_is_input_noise,
+            "short_horizon": self.short_horizon.map(|(h, secs, r)| json!({"samples": h, "seconds": secs, "r_mse": r}))})
     }
 }
 
@@ -87,8 +94,21 @@ pub fn score(model: &Model, record: &Record) -> Result<RecordScore> {
             &tfs_refine::displacement_noise_var(model, record),
         )
     });
+    // A ruler the input's noise does not decide, where it decides the free run.
+    let opts = tfs_diagnose::DiagnoseOptions::default();
+    let short_horizon = tfs_diagnose::PredictionScore::choose(model, &[], record, &opts)
+        .ok()
+        .and_then(|s| {
+            let h = s.horizon?;
+            Some((
+                h,
+                h as f64 * record.dt(),
+                s.r_mse(model, record, &opts).ok()?,
+            ))
+        });
     Ok(RecordScore {
         record: src,
+        short_horizon,
         r_mse: sum / model.dofs.len() as f64,
         r_mse_mean_square: sum_b / model.dofs.len() as f64,
         dofs,

@@ -125,6 +125,8 @@ fn check(truth: &Model, library: &str, method: &str, train: &[PathBuf], test: &P
         cmp["files"][0].get("error_is_input_noise").is_some(),
         "{cmp}"
     );
+    // A model this close is ranked by its free run: no short-horizon ruler is needed.
+    assert!(cmp["files"][0]["short_horizon"].is_null(), "{cmp}");
 }
 
 #[test]

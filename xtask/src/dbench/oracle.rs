@@ -69,7 +69,7 @@ pub fn table(cases: &[CaseResult], losses: bool) -> String {
             .count();
         let _ = writeln!(
             s,
-            "  {} of these cases are scored by short-horizon pieces (the input's noise decides the start model's free run there); by the free run, the oracle is better on {free} of them",
+            "  {} of these cases are scored by short-horizon pieces (the input's noise decides a compared model's free run there); by the free run, the oracle is better on {free} of them",
             short.len()
         );
     }

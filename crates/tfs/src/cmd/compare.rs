@@ -116,6 +116,17 @@ pub fn run(args: Args) -> Result<()> {
                     f["path"].as_str().unwrap_or("")
                 );
             }
+            let sh = &f["short_horizon"];
+            if let (Some(h), Some(secs), Some(r)) = (
+                sh["samples"].as_u64(),
+                sh["seconds"].as_f64(),
+                sh["r_mse"].as_f64(),
+            ) {
+                println!(
+                    "  {}: scored instead by predictions over pieces of {h} samples ({secs:.4} s), each from the measured state: R-MSE {r:.4e}",
+                    f["path"].as_str().unwrap_or("")
+                );
+            }
         }
         if args.verbose {
             println!(
