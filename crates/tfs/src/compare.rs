@@ -53,6 +53,16 @@ impl RecordScore {
 
 /// Simulates `model` on `record` (offsets already treated) and scores it.
 pub fn score(model: &Model, record: &Record) -> Result<RecordScore> {
+    score_with(model, record, None)
+}
+
+/// [`score`], with the short-horizon pieces `horizon` samples long on every record when given
+/// (two models compared that way are scored by the same ruler); without, only where the input's
+/// noise decides the free run, their length chosen from the model.
+pub fn score_with(model: &Model, record: &Record, horizon: Option<usize>) -> Result<RecordScore> {
+    if horizon.is_some_and(|h| h < 2) {
+        invalid!("--horizon must be at least 2 samples (a piece needs a start and a step)");
+    }
     if model.dofs.is_empty() {
         invalid!("the model has no DOFs");
     }
@@ -96,16 +106,21 @@ pub fn score(model: &Model, record: &Record) -> Result<RecordScore> {
     });
     // A ruler the input's noise does not decide, where it decides the free run.
     let opts = tfs_diagnose::DiagnoseOptions::default();
-    let short_horizon = tfs_diagnose::PredictionScore::choose(model, &[], record, &opts)
-        .ok()
-        .and_then(|s| {
-            let h = s.horizon?;
-            Some((
-                h,
-                h as f64 * record.dt(),
-                s.r_mse(model, record, &opts).ok()?,
-            ))
-        });
+    let ruler = match horizon {
+        Some(h) => Ok(tfs_diagnose::PredictionScore {
+            horizon: Some(h),
+            why: "pieces of the length asked for".into(),
+        }),
+        None => tfs_diagnose::PredictionScore::choose(model, &[], record, &opts),
+    };
+    let short_horizon = ruler.ok().and_then(|s| {
+        let h = s.horizon?;
+        Some((
+            h,
+            h as f64 * record.dt(),
+            s.r_mse(model, record, &opts).ok()?,
+        ))
+    });
     Ok(RecordScore {
         record: src,
         short_horizon,

@@ -127,6 +127,27 @@ fn check(truth: &Model, library: &str, method: &str, train: &[PathBuf], test: &P
     );
     // A model this close is ranked by its free run: no short-horizon ruler is needed.
     assert!(cmp["files"][0]["short_horizon"].is_null(), "{cmp}");
+    // Asked for, the pieces of the length given score it too, and as closely.
+    let cmp = tfs(&[
+        "compare",
+        "--model",
+        &out_s,
+        &test.display().to_string(),
+        "--horizon",
+        "50",
+        "--json",
+    ]);
+    let sh = &cmp["files"][0]["short_horizon"];
+    assert_eq!(sh["samples"].as_u64(), Some(50), "{cmp}");
+    let r = sh["r_mse"].as_f64().unwrap();
+    assert!(r < 1e-3, "{method}: short-horizon R-MSE {r}");
+    let bad = Command::new(env!("CARGO_BIN_EXE_tfs"))
+        .args(["compare", "--model", &out_s, &test.display().to_string()])
+        .args(["--horizon", "1"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(!bad.status.success() && err.contains("--horizon"), "{err}");
 }
 
 #[test]

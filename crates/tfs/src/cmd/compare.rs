@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use serde_json::json;
-use tfs::compare::score;
+use tfs::compare::score_with;
 use tfs::plot::{Figure, LineChart, Series};
 use tfs::records::{measured_columns, read_model};
 
@@ -34,6 +34,11 @@ pub struct Args {
     /// the records as they are.
     #[arg(long, value_enum, default_value_t = ModelOffsets::Auto)]
     pub offsets: ModelOffsets,
+    /// Also score every record by predictions over pieces of this many samples, each started
+    /// from the measured state (default: only where the input's noise decides the free run,
+    /// with a length chosen from the model). Give two models the same value to compare them.
+    #[arg(long, value_name = "SAMPLES")]
+    pub horizon: Option<usize>,
     #[command(flatten)]
     pub data_args: DataArgs,
 }
@@ -60,7 +65,7 @@ pub fn run(args: Args) -> Result<()> {
     let pb = super::progress(records.len() as u64, "simulating");
     for (k, (path, rec)) in args.data.iter().zip(&records).enumerate() {
         pb.inc(1);
-        let scored = score(&model, rec)?;
+        let scored = score_with(&model, rec, args.horizon)?;
         if let Some(dir) = &args.plots {
             plot_record(
                 dir,
@@ -123,7 +128,7 @@ pub fn run(args: Args) -> Result<()> {
                 sh["r_mse"].as_f64(),
             ) {
                 println!(
-                    "  {}: scored instead by predictions over pieces of {h} samples ({secs:.4} s), each from the measured state: R-MSE {r:.4e}",
+                    "  {}: scored by predictions over pieces of {h} samples ({secs:.4} s), each from the measured state: R-MSE {r:.4e}",
                     f["path"].as_str().unwrap_or("")
                 );
             }
