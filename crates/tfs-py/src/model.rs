@@ -378,14 +378,17 @@ impl PyModel {
     /// `tfs compare` prints and `diagnose(...)["r_mse"]` gives), `per_dof`, `per_record`,
     /// `records` (one dict per record as `tfs compare --json` gives them); it prints as a
     /// short table. `offsets`: `"auto"`, `"keep"` or `"remove"`; `clipped`: `"error"`,
-    /// `"warn"` or `"allow"`.
-    #[pyo3(signature = (records, *, offsets="auto", clipped="error"))]
+    /// `"warn"` or `"allow"`; `horizon`: also score every record by predictions over pieces of
+    /// this many samples from the measured state (`short_horizon` of each record; as `tfs
+    /// compare --horizon`).
+    #[pyo3(signature = (records, *, offsets="auto", clipped="error", horizon=None))]
     fn compare<'py>(
         &self,
         py: Python<'py>,
         records: &Bound<'py, PyAny>,
         offsets: &str,
         clipped: &str,
+        horizon: Option<usize>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let (offsets, clipped) = (offsets_mode(offsets)?, clipped_policy(clipped)?);
         let (recs, mut warnings) = records_arg(records, "records")?;
@@ -394,7 +397,7 @@ impl PyModel {
                 let (recs, _, w) = prepare_for_model(&self.inner, recs, offsets, clipped)?;
                 let scores: Vec<Value> = recs
                     .iter()
-                    .map(|r| tfs::compare::score(&self.inner, r).map(|s| s.to_json()))
+                    .map(|r| tfs::compare::score_with(&self.inner, r, horizon).map(|s| s.to_json()))
                     .collect::<tfs::Result<_>>()?;
                 Ok((Value::Array(scores), w))
             })

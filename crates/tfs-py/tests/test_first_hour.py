@@ -69,6 +69,14 @@ def test_compare_returns_a_scalar_r_mse_that_diagnose_reports_too(model):
     assert d["r_mse"] == pytest.approx(c.r_mse, rel=1e-12)
 
 
+def test_compare_scores_short_horizon_pieces_when_asked(model):
+    (rec,) = model.compare(TEST, horizon=40)
+    assert rec["short_horizon"]["samples"] == 40
+    assert 0 <= rec["short_horizon"]["r_mse"] < 0.2, rec["short_horizon"]
+    with pytest.raises(ValueError, match="--horizon|horizon"):
+        model.compare(TEST, horizon=1)
+
+
 def test_refit_carries_its_verdict(undamped):
     better = undamped.refit(TRAIN, add=["linear-damping"])
     assert better.improved is True, better.verdict

@@ -61,7 +61,9 @@ pub fn score(model: &Model, record: &Record) -> Result<RecordScore> {
 /// noise decides the free run, their length chosen from the model.
 pub fn score_with(model: &Model, record: &Record, horizon: Option<usize>) -> Result<RecordScore> {
     if horizon.is_some_and(|h| h < 2) {
-        invalid!("--horizon must be at least 2 samples (a piece needs a start and a step)");
+        invalid!(
+            "the short-horizon piece length (`horizon`; `--horizon` on the command line) must be at least 2 samples: a piece needs a start and a step"
+        );
     }
     if model.dofs.is_empty() {
         invalid!("the model has no DOFs");
