@@ -161,3 +161,101 @@ fn compare_diagnose_and_refit_are_short_by_default() {
     assert!(lines(&r) <= 8, "{} lines:\n{r}", lines(&r));
     assert!(r.contains("lowered the mean R-MSE"), "{r}");
 }
+
+/// The README's loop, run as written (its `/tmp/` files in a temporary folder, its globs
+/// expanded): every `# held-out R-MSE X` comment is what that `compare` prints, to the digits
+/// shown, and `diagnose` names the effect its comment says.
+#[test]
+fn the_readmes_loop_prints_the_numbers_its_comments_show() {
+    let readme =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../README.md")).unwrap();
+    let start = readme
+        .find("The loop on the repository's fixtures")
+        .expect("the README's loop section");
+    let block = readme[start..]
+        .split("```sh")
+        .nth(1)
+        .and_then(|b| b.split("```").next())
+        .expect("the loop's shell block");
+    let dir = tempfile::tempdir().unwrap();
+    let root = format!("{FIXTURES}/..");
+    let mut checked = 0;
+    for line in block.lines().filter(|l| l.starts_with("tfs ")) {
+        let (cmd, comment) = line.split_once('#').unwrap_or((line, ""));
+        let tmp = format!("{}/", dir.path().display());
+        let mut args: Vec<String> = Vec::new();
+        for word in shell_words(cmd).into_iter().skip(1) {
+            let w = word.replace("/tmp/", &tmp);
+            if let Some((head, tail)) = w.split_once('*') {
+                // A glob over fixtures: the files it matches, sorted.
+                let (folder, prefix) = head.rsplit_once('/').unwrap();
+                let mut hits: Vec<String> = std::fs::read_dir(format!("{root}/{folder}"))
+                    .unwrap()
+                    .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                    .filter(|n| n.starts_with(prefix) && n.ends_with(tail))
+                    .map(|n| format!("{root}/{folder}/{n}"))
+                    .collect();
+                hits.sort();
+                args.extend(hits);
+            } else if w.starts_with("fixtures/") {
+                args.push(format!("{root}/{w}"));
+            } else {
+                args.push(w);
+            }
+        }
+        let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+        let out = ok(&refs);
+        let comment = comment.trim();
+        if let Some(v) = comment.strip_prefix("held-out R-MSE ") {
+            let row = out.lines().nth(1).unwrap_or("");
+            let got: f64 = row.split_whitespace().nth(1).unwrap().parse().unwrap();
+            let digits = v.trim_start_matches("0.").trim_start_matches('0').len();
+            assert_eq!(
+                format!("{:.*e}", digits.saturating_sub(1), got),
+                format!(
+                    "{:.*e}",
+                    digits.saturating_sub(1),
+                    v.parse::<f64>().unwrap()
+                ),
+                "`{line}` printed {row}"
+            );
+            checked += 1;
+        } else if let Some(e) = comment.strip_prefix("missing effect: ") {
+            assert!(
+                out.contains(&format!("missing effect: {e}")),
+                "`{line}`:\n{out}"
+            );
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 3, "the loop's commented commands");
+}
+
+/// A command line split as a shell splits it: on blanks outside double quotes, the quotes
+/// removed.
+fn shell_words(line: &str) -> Vec<String> {
+    let mut words = Vec::new();
+    let (mut word, mut quoted, mut any) = (String::new(), false, false);
+    for c in line.chars() {
+        match c {
+            '"' => {
+                quoted = !quoted;
+                any = true;
+            }
+            c if c.is_whitespace() && !quoted => {
+                if any {
+                    words.push(std::mem::take(&mut word));
+                    any = false;
+                }
+            }
+            c => {
+                word.push(c);
+                any = true;
+            }
+        }
+    }
+    if any {
+        words.push(word);
+    }
+    words
+}
