@@ -188,6 +188,40 @@ impl Dopri5 {
     }
 }
 
+impl Dopri5 {
+    /// A whole run, asking `keep_going` after each output time (see
+    /// [`Integrator::integrate_until`]): the trajectory so far and whether it reached the end.
+    fn run<S: SecondOrderSystem + ?Sized, F: FnMut(usize, &[f64]) -> bool>(
+        &self,
+        sys: &S,
+        input: &SampledInput,
+        x0: &[f64],
+        v0: &[f64],
+        t_out: &[f64],
+        mut keep_going: F,
+    ) -> Result<(Trajectory, bool)> {
+        self.validate()?;
+        check_args(sys, input, x0, v0, t_out)?;
+        let mut opts = *self;
+        opts.max_steps = self.budget(input, t_out);
+        let mut s = Dopri5Solver::new(opts, sys, input, t_out[0], x0, v0);
+        let mut traj = Trajectory::with_capacity(sys.dofs(), t_out.len());
+        traj.push(t_out[0], x0, v0);
+        if !keep_going(0, x0) {
+            return Ok((traj, false));
+        }
+        for (k, &tn) in t_out.iter().enumerate().skip(1) {
+            s.advance_to(tn)?;
+            traj.push(tn, s.x(), s.v());
+            if !keep_going(k, s.x()) {
+                return Ok((traj, false));
+            }
+        }
+        traj.stats = s.stats();
+        Ok((traj, true))
+    }
+}
+
 impl Integrator for Dopri5 {
     fn integrate<S: SecondOrderSystem + ?Sized>(
         &self,
@@ -197,19 +231,20 @@ impl Integrator for Dopri5 {
         v0: &[f64],
         t_out: &[f64],
     ) -> Result<Trajectory> {
-        self.validate()?;
-        check_args(sys, input, x0, v0, t_out)?;
-        let mut opts = *self;
-        opts.max_steps = self.budget(input, t_out);
-        let mut s = Dopri5Solver::new(opts, sys, input, t_out[0], x0, v0);
-        let mut traj = Trajectory::with_capacity(sys.dofs(), t_out.len());
-        traj.push(t_out[0], x0, v0);
-        for &tn in &t_out[1..] {
-            s.advance_to(tn)?;
-            traj.push(tn, s.x(), s.v());
-        }
-        traj.stats = s.stats();
-        Ok(traj)
+        Ok(self.run(sys, input, x0, v0, t_out, |_, _| true)?.0)
+    }
+
+    fn integrate_until<S: SecondOrderSystem + ?Sized, F: FnMut(usize, &[f64]) -> bool>(
+        &self,
+        sys: &S,
+        input: &SampledInput,
+        x0: &[f64],
+        v0: &[f64],
+        t_out: &[f64],
+        keep_going: F,
+    ) -> Result<Option<Trajectory>> {
+        let (traj, whole) = self.run(sys, input, x0, v0, t_out, keep_going)?;
+        Ok(whole.then_some(traj))
     }
 }
 

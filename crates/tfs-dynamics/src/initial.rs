@@ -198,14 +198,32 @@ pub fn fit_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
     // (stiff or discontinuous), whatever its start: the fit stops and returns that error at
     // once rather than spending a budget on every trial start.
     let over_budget: std::sync::Mutex<Option<DynError>> = std::sync::Mutex::new(None);
-    let residuals = |p: &[f64]| -> Option<Vec<f64>> {
+    // The scaled residuals of the run from `p`, or `None` when it fails or (`bound`, a cost)
+    // when its mean squared residual is sure to reach `bound`: the sum of squares only grows,
+    // so a trial step is given up at the first sample where one DOF's running sum does, with
+    // the same accept/reject as the whole run would get (`cost_of`'s sum runs DOF by DOF, each
+    // from the one before, so it is at least any one DOF's running sum).
+    let nr = (m * t.len()).max(1) as f64;
+    let residuals = |p: &[f64], bound: f64| -> Option<Vec<f64>> {
         match over_budget.lock() {
             Ok(e) if e.is_none() => {}
             _ => return None,
         }
         let (x, v) = to_state(p);
-        let tr = match integrator.integrate(sys, input, &x, &v, t) {
-            Ok(tr) => tr,
+        let mut sums = vec![0.0f64; m];
+        let keep_going = |k: usize, x: &[f64]| {
+            for (i, s) in sums.iter_mut().enumerate() {
+                let r = (x[i] - measured[i][k]) / sx[i];
+                *s += r * r;
+                if *s / nr >= bound {
+                    return false;
+                }
+            }
+            true
+        };
+        let tr = match integrator.integrate_until(sys, input, &x, &v, t, keep_going) {
+            Ok(Some(tr)) => tr,
+            Ok(None) => return None,
             Err(e @ DynError::TooManySteps { .. }) => {
                 if let Ok(mut slot) = over_budget.lock() {
                     slot.get_or_insert(e);
@@ -233,7 +251,7 @@ pub fn fit_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
             _ => Ok(()),
         }
     };
-    let Some(mut r) = residuals(&p) else {
+    let Some(mut r) = residuals(&p, f64::INFINITY) else {
         over(over_budget)?;
         return Ok(InitialFit {
             x0: x0.to_vec(),
@@ -256,7 +274,7 @@ pub fn fit_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
                 let mut q = p.clone();
                 let h = STEP * p[j].abs().max(1.0);
                 q[j] += h;
-                residuals(&q).map(|rq| (h, rq))
+                residuals(&q, f64::INFINITY).map(|rq| (h, rq))
             })
             .collect();
         let mut jac = DMatrix::<f64>::zeros(r.len(), np);
@@ -291,7 +309,7 @@ pub fn fit_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
             };
             let step = ch.solve(&(-&g));
             let q: Vec<f64> = p.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
-            match residuals(&q) {
+            match residuals(&q, cost) {
                 Some(rq) if cost_of(&rq) < cost => {
                     let c = cost_of(&rq);
                     let gain = (cost - c) / cost.max(f64::MIN_POSITIVE);

@@ -80,6 +80,36 @@ pub trait Integrator {
         v0: &[f64],
         t_out: &[f64],
     ) -> Result<Trajectory>;
+
+    /// [`Integrator::integrate`] that may stop early: `keep_going(k, x)` is called with the
+    /// displacements at each output time `t_out[k]` in order (`k = 0` the initial state), and
+    /// the run ends with `Ok(None)` at the first `false`. Every sample before the stop is the
+    /// one [`Integrator::integrate`] gives, bit for bit; a run that is not stopped returns its
+    /// trajectory. A caller that rejects a run once a running misfit is too large so spends
+    /// nothing on the rest of it. The default integrates the whole run, then asks.
+    ///
+    /// Errors: those of [`Integrator::integrate`] met before the stop.
+    fn integrate_until<S: SecondOrderSystem + ?Sized, F: FnMut(usize, &[f64]) -> bool>(
+        &self,
+        sys: &S,
+        input: &SampledInput,
+        x0: &[f64],
+        v0: &[f64],
+        t_out: &[f64],
+        mut keep_going: F,
+    ) -> Result<Option<Trajectory>> {
+        let tr = self.integrate(sys, input, x0, v0, t_out)?;
+        let mut x = vec![0.0; tr.dofs()];
+        for k in 0..tr.len() {
+            for (xi, col) in x.iter_mut().zip(&tr.x) {
+                *xi = col[k];
+            }
+            if !keep_going(k, &x) {
+                return Ok(None);
+            }
+        }
+        Ok(Some(tr))
+    }
 }
 
 /// Checks the arguments shared by every integrator.

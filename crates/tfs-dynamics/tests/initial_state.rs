@@ -171,3 +171,109 @@ fn a_time_column_shifted_by_a_million_seconds_simulates_the_same() {
         a.stats.steps
     );
 }
+
+/// An integrator that runs every trial to its end: Dormand–Prince without its early stop
+/// (`Integrator::integrate_until`'s default, the whole run then the question).
+struct WholeRuns(tfs_dynamics::Dopri5);
+
+impl tfs_dynamics::Integrator for WholeRuns {
+    fn integrate<S: tfs_dynamics::SecondOrderSystem + ?Sized>(
+        &self,
+        sys: &S,
+        input: &tfs_dynamics::SampledInput,
+        x0: &[f64],
+        v0: &[f64],
+        t_out: &[f64],
+    ) -> tfs_dynamics::Result<tfs_dynamics::Trajectory> {
+        self.0.integrate(sys, input, x0, v0, t_out)
+    }
+}
+
+/// The start-state fit gives up a trial step once its misfit is sure to exceed the current one,
+/// and so ends exactly where the fit that simulates every trial to its end does (the same
+/// start and cost to the bit) with fewer evaluations of the model.
+#[test]
+fn trial_steps_stop_early_with_the_same_fit() {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use tfs_dynamics::{Dopri5, FnSystem, SampledInput, fit_initial_state};
+    let (_, rec) = record(30.0, 3);
+    let n = 120;
+    let t = &rec.t()[..n];
+    let u = rec.column("u").unwrap().to_vec();
+    let input = SampledInput::new(0.0, rec.dt(), vec![u]).unwrap();
+    let evals = AtomicUsize::new(0);
+    let sys = FnSystem::new(
+        1,
+        1,
+        |_t, x: &[f64], v: &[f64], u: &[f64], a: &mut [f64]| {
+            evals.fetch_add(1, Ordering::Relaxed);
+            a[0] = x[0] - x[0] * x[0] * x[0] - 0.3 * v[0] + u[0];
+        },
+    );
+    let measured = [&rec.column("x").unwrap()[..n]];
+    // A start in the other well: some trial steps overshoot and are rejected.
+    let fit = |early: bool| {
+        evals.store(0, Ordering::Relaxed);
+        let f = if early {
+            fit_initial_state(
+                &sys,
+                &Dopri5::default(),
+                &input,
+                &measured,
+                t,
+                &[-1.0],
+                &[0.0],
+            )
+        } else {
+            let whole = WholeRuns(Dopri5::default());
+            fit_initial_state(&sys, &whole, &input, &measured, t, &[-1.0], &[0.0])
+        };
+        (f.unwrap(), evals.load(Ordering::Relaxed))
+    };
+    let (early, early_evals) = fit(true);
+    let (whole, whole_evals) = fit(false);
+    assert_eq!(early.x0[0].to_bits(), whole.x0[0].to_bits());
+    assert_eq!(early.v0[0].to_bits(), whole.v0[0].to_bits());
+    assert_eq!(early.cost.to_bits(), whole.cost.to_bits());
+    assert!(early.cost < 0.1 * early.cost_start, "{early:?}");
+    assert!(
+        early_evals < whole_evals,
+        "{early_evals} evaluations with early stops, {whole_evals} without"
+    );
+}
+
+/// `integrate_until` gives `integrate`'s samples bit for bit up to where it is told to stop.
+#[test]
+fn integrate_until_follows_integrate_to_the_stop() {
+    use tfs_dynamics::{Dopri5, FnSystem, Integrator, SampledInput};
+    let (_, rec) = record(30.0, 1);
+    let u = rec.column("u").unwrap().to_vec();
+    let input = SampledInput::new(0.0, rec.dt(), vec![u]).unwrap();
+    let sys = FnSystem::new(
+        1,
+        1,
+        |_t, x: &[f64], v: &[f64], u: &[f64], a: &mut [f64]| {
+            a[0] = x[0] - x[0] * x[0] * x[0] - 0.3 * v[0] + u[0];
+        },
+    );
+    let t = &rec.t()[..300];
+    let d = Dopri5::default();
+    let whole = d.integrate(&sys, &input, &[0.9], &[0.1], t).unwrap();
+    let all = d
+        .integrate_until(&sys, &input, &[0.9], &[0.1], t, |_, _| true)
+        .unwrap()
+        .unwrap();
+    assert_eq!(all, whole);
+    let mut seen = Vec::new();
+    let stopped = d
+        .integrate_until(&sys, &input, &[0.9], &[0.1], t, |k, x| {
+            seen.push(x[0]);
+            k < 150
+        })
+        .unwrap();
+    assert!(stopped.is_none());
+    assert_eq!(seen.len(), 151);
+    for (k, x) in seen.iter().enumerate() {
+        assert_eq!(x.to_bits(), whole.x[0][k].to_bits(), "sample {k}");
+    }
+}
