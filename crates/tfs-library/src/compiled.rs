@@ -34,6 +34,16 @@ enum Kind {
     Above(f64),
 }
 
+/// A term that is one power of a displacement, velocity or input (`coef·s^k`, most terms of a
+/// polynomial model), evaluated without the general factor loop; `Other` for the rest.
+#[derive(Debug, Clone, Copy)]
+enum Mono {
+    X(usize, u32),
+    V(usize, u32),
+    U(usize, u32),
+    Other,
+}
+
 #[derive(Debug, Clone, Copy)]
 struct CFactor {
     src: Src,
@@ -66,6 +76,8 @@ pub struct CompiledModel {
     factors: Vec<CFactor>,
     /// Per term: (coefficient, first factor, end factor).
     terms: Vec<(f64, usize, usize)>,
+    /// Per term: its form when it is one power of a plain coordinate.
+    mono: Vec<Mono>,
     /// Per equation: range into `terms`.
     equations: Vec<(usize, usize)>,
     /// Internal states, in [`Model::internal_states`] order.
@@ -119,6 +131,7 @@ impl Model {
             .collect::<Result<Vec<_>>>()?;
         let mut factors = Vec::new();
         let mut terms = Vec::new();
+        let mut mono = Vec::new();
         let mut equations = Vec::new();
         for d in &self.dofs {
             let eq = self.equation(d)?;
@@ -151,6 +164,20 @@ impl Model {
                     factors.push(CFactor { src, kind });
                 }
                 terms.push((mt.coef, f0, factors.len()));
+                mono.push(match &factors[f0..] {
+                    [
+                        CFactor {
+                            src,
+                            kind: Kind::Pow(k),
+                        },
+                    ] => match *src {
+                        Src::X(i) => Mono::X(i, *k),
+                        Src::V(i) => Mono::V(i, *k),
+                        Src::U(i) => Mono::U(i, *k),
+                        _ => Mono::Other,
+                    },
+                    _ => Mono::Other,
+                });
             }
             equations.push((t0, terms.len()));
         }
@@ -159,6 +186,7 @@ impl Model {
             input_names: self.inputs.clone(),
             factors,
             terms,
+            mono,
             equations,
             states,
         })
@@ -380,7 +408,23 @@ impl CompiledModel {
         let n = self.dof_names.len();
         for (o, &(t0, t1)) in out.iter_mut().zip(&self.equations) {
             let mut acc = 0.0;
-            for &(coef, f0, f1) in &self.terms[t0..t1] {
+            for (&(coef, f0, f1), mono) in self.terms[t0..t1].iter().zip(&self.mono[t0..t1]) {
+                // `coef · s^k` is the loop's `coef` times its one factor: the same bits.
+                match *mono {
+                    Mono::X(i, k) => {
+                        acc += coef * pow_u(x[i], k);
+                        continue;
+                    }
+                    Mono::V(i, k) => {
+                        acc += coef * pow_u(v[i], k);
+                        continue;
+                    }
+                    Mono::U(i, k) => {
+                        acc += coef * pow_u(u[i], k);
+                        continue;
+                    }
+                    Mono::Other => {}
+                }
                 let mut p = coef;
                 for f in &self.factors[f0..f1] {
                     let s = Self::value(f.src, x, v, u, n);

@@ -404,13 +404,14 @@ fn compiled_jacobian_matches_central_differences() {
 }
 
 /// `accel_lanes` gives every state of a component-major block exactly what `accel` gives it
-/// (bit for bit), for every factor kind, relative coordinates to DOFs and inputs, powers up to
+/// (bit for bit; `accel` takes a shortcut for one power of a displacement, velocity or input,
+/// `accel_lanes` the general factor loop), for every factor kind, relative coordinates to DOFs and inputs, powers up to
 /// 13 (above 3 they are computed by repeated squaring, which must equal `powi`), and block
 /// sizes that are and are not multiples of the eight-lane chunk.
 #[test]
 fn accel_lanes_equals_accel_bit_for_bit() {
     let lib1 = Library::parse(
-        "1, x1, x1^4, x1^5*x2^7, x1^13, x1'*abs(x1'), (x2-x1)^6, (x1-xb)', tanh(x1'/0.3), sign(x2), xb_acc*x1, below(x1, 0.5), above((x2-x1), -1)",
+        "1, x1, x1^4, x1^5*x2^7, x1^13, x1'*abs(x1'), (x2-x1)^6, (x1-xb)', tanh(x1'/0.3), sign(x2), xb_acc*x1, below(x1, 0.5), above((x2-x1), -1), x2', x1'^3, xb_acc, xb^2",
         &["x1", "x2"],
     )
     .unwrap();
