@@ -198,11 +198,12 @@ pub fn fit_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
     // (stiff or discontinuous), whatever its start: the fit stops and returns that error at
     // once rather than spending a budget on every trial start.
     let over_budget: std::sync::Mutex<Option<DynError>> = std::sync::Mutex::new(None);
-    // The scaled residuals of the run from `p`, or `None` when it fails or (`bound`, a cost)
-    // when its mean squared residual is sure to reach `bound`: the sum of squares only grows,
-    // so a trial step is given up at the first sample where one DOF's running sum does, with
-    // the same accept/reject as the whole run would get (`cost_of`'s sum runs DOF by DOF, each
-    // from the one before, so it is at least any one DOF's running sum).
+    // The scaled residuals of the run from `p`, or `None` when it fails or when its mean squared
+    // residual is sure to reach `bound` (a trial step's current cost; infinite for the runs that
+    // are always used whole): the sum of squares only grows, so a trial is given up at the
+    // first sample where one DOF's running sum reaches it, with the same accept/reject as the
+    // whole run would get (`cost_of`'s sum runs DOF by DOF, each from the one before, so it is
+    // at least any one DOF's running sum).
     let nr = (m * t.len()).max(1) as f64;
     let residuals = |p: &[f64], bound: f64| -> Option<Vec<f64>> {
         match over_budget.lock() {
@@ -210,18 +211,23 @@ pub fn fit_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
             _ => return None,
         }
         let (x, v) = to_state(p);
-        let mut sums = vec![0.0f64; m];
-        let keep_going = |k: usize, x: &[f64]| {
-            for (i, s) in sums.iter_mut().enumerate() {
-                let r = (x[i] - measured[i][k]) / sx[i];
-                *s += r * r;
-                if *s / nr >= bound {
-                    return false;
+        let run = if bound.is_finite() {
+            let mut sums = vec![0.0f64; m];
+            let keep_going = |k: usize, x: &[f64]| {
+                for (i, s) in sums.iter_mut().enumerate() {
+                    let r = (x[i] - measured[i][k]) / sx[i];
+                    *s += r * r;
+                    if *s / nr >= bound {
+                        return false;
+                    }
                 }
-            }
-            true
+                true
+            };
+            integrator.integrate_until(sys, input, &x, &v, t, keep_going)
+        } else {
+            integrator.integrate(sys, input, &x, &v, t).map(Some)
         };
-        let tr = match integrator.integrate_until(sys, input, &x, &v, t, keep_going) {
+        let tr = match run {
             Ok(Some(tr)) => tr,
             Ok(None) => return None,
             Err(e @ DynError::TooManySteps { .. }) => {
