@@ -36,7 +36,7 @@ impl Record {
         let source = source.into();
         let mut names = Vec::with_capacity(columns.len());
         let mut data = Vec::with_capacity(columns.len());
-        for (name, col) in columns {
+        for (name, mut col) in columns {
             if col.len() != t.len() {
                 return Err(DataError::Invalid {
                     source_name: source,
@@ -54,8 +54,13 @@ impl Record {
                 });
             }
             names.push(name);
+            // A column read row by row has up to twice its length allocated; a record keeps its
+            // columns for as long as it lives.
+            col.shrink_to_fit();
             data.push(Arc::new(col));
         }
+        let mut t = t;
+        t.shrink_to_fit();
         Ok(Self {
             source,
             t: Arc::new(t),
