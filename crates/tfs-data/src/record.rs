@@ -1,5 +1,7 @@
 //! The in-memory record: a time axis and named columns of equal length.
 
+use std::sync::Arc;
+
 use crate::{DataError, Result};
 
 /// Read access to named columns of equal length (a record, or derived state such as `x'`).
@@ -11,12 +13,17 @@ pub trait Columns {
 }
 
 /// One measurement record: a uniformly sampled time axis `t` and named data columns.
+///
+/// Columns are shared between clones and copied only when written (`set_column` replaces a
+/// column, `remove_offsets` copies one that another clone still holds): a record passed on with a
+/// column added or perturbed (a simulation's input, a noise draw) costs the new column, not a
+/// copy of every sample of the record.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Record {
     source: String,
-    t: Vec<f64>,
+    t: Arc<Vec<f64>>,
     names: Vec<String>,
-    data: Vec<Vec<f64>>,
+    data: Vec<Arc<Vec<f64>>>,
 }
 
 impl Record {
@@ -29,7 +36,7 @@ impl Record {
         let source = source.into();
         let mut names = Vec::with_capacity(columns.len());
         let mut data = Vec::with_capacity(columns.len());
-        for (name, col) in columns {
+        for (name, mut col) in columns {
             if col.len() != t.len() {
                 return Err(DataError::Invalid {
                     source_name: source,
@@ -47,11 +54,16 @@ impl Record {
                 });
             }
             names.push(name);
-            data.push(col);
+            // A column read row by row has up to twice its length allocated; a record keeps its
+            // columns for as long as it lives.
+            col.shrink_to_fit();
+            data.push(Arc::new(col));
         }
+        let mut t = t;
+        t.shrink_to_fit();
         Ok(Self {
             source,
-            t,
+            t: Arc::new(t),
             names,
             data,
         })
@@ -105,10 +117,10 @@ impl Record {
             });
         }
         match self.names.iter().position(|n| *n == name) {
-            Some(i) => self.data[i] = values,
+            Some(i) => self.data[i] = Arc::new(values),
             None => {
                 self.names.push(name);
-                self.data.push(values);
+                self.data.push(Arc::new(values));
             }
         }
         Ok(())
@@ -211,12 +223,12 @@ impl Record {
         }
         Ok(Self {
             source: self.source.clone(),
-            t: self.t[range.clone()].to_vec(),
+            t: Arc::new(self.t[range.clone()].to_vec()),
             names: self.names.clone(),
             data: self
                 .data
                 .iter()
-                .map(|c| c[range.clone()].to_vec())
+                .map(|c| Arc::new(c[range.clone()].to_vec()))
                 .collect(),
         })
     }
@@ -241,7 +253,7 @@ impl Record {
         }
         let mut out = Vec::with_capacity(idx.len());
         for i in idx {
-            let col = &mut self.data[i];
+            let col = Arc::make_mut(&mut self.data[i]);
             let mean = col.iter().sum::<f64>() / col.len() as f64;
             col.iter_mut().for_each(|v| *v -= mean);
             out.push((self.names[i].clone(), mean));

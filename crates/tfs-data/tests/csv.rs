@@ -580,3 +580,28 @@ fn missing_column_of_one_dof_names_a_chain_s_numbered_columns() {
     assert!(m.contains("the file has 'x1' instead"), "{m}");
     assert!(m.contains("chain"), "{m}");
 }
+
+/// Clones share their columns and a write copies only what it changes: a clone whose column is
+/// replaced or whose offsets are removed leaves the original's samples as they were, and the
+/// original's untouched columns are the very same allocation in the clone (no copy of the
+/// record's samples per clone).
+#[test]
+fn a_clone_shares_columns_and_writes_do_not_reach_the_original() {
+    let t = vec![0.0, 0.1, 0.2, 0.3];
+    let cols = vec![
+        ("x".to_string(), vec![1.0, 2.0, 3.0, 6.0]),
+        ("u".to_string(), vec![0.5, 0.5, 1.5, 1.5]),
+    ];
+    let r = Record::new("r", t, cols).unwrap();
+    let mut c = r.clone();
+    assert!(std::ptr::eq(r.column("x").unwrap(), c.column("x").unwrap()));
+    assert!(std::ptr::eq(r.t(), c.t()));
+    c.set_column("u", vec![9.0; 4]).unwrap();
+    c.remove_offsets(&["x"]).unwrap();
+    assert_eq!(r.column("u").unwrap(), &[0.5, 0.5, 1.5, 1.5]);
+    assert_eq!(r.column("x").unwrap(), &[1.0, 2.0, 3.0, 6.0]);
+    assert_eq!(c.column("x").unwrap(), &[-2.0, -1.0, 0.0, 3.0]);
+    assert_eq!(c.column("u").unwrap(), &[9.0; 4]);
+    assert!(std::ptr::eq(r.t(), c.t()));
+    assert_ne!(r, c);
+}

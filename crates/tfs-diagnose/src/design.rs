@@ -20,19 +20,65 @@ use crate::Result;
 use crate::effects::{EffectColumn, Variant};
 use crate::prepare::{BandKey, Layout, RecordStates};
 
-/// Design matrices of one equation: per record, usable rows × columns, and the target.
+/// The design of one equation, per record: the usable rows of every column and of the target.
+/// Columns are shared, not copied: a plain monomial or state column and the target are made
+/// once per record and kept in its [`crate::prepare::BandCache`], so a variant's design holds
+/// only the columns its effect makes (a record of 640k samples is 5 MB per column, and a scan
+/// keeps many designs at once). Read a row's entries with [`Design::at`], a block as a matrix
+/// with [`Design::block`].
 pub(crate) struct Design {
-    pub a: Vec<Mat<f64>>,
-    pub b: Vec<Vec<f64>>,
+    /// Per record, per column: its usable rows.
+    cols: Vec<Vec<Arc<Vec<f64>>>>,
+    /// Per record: the target's usable rows.
+    b: Vec<Arc<Vec<f64>>>,
 }
 
 impl Design {
     /// No records (what a scored variant keeps once it no longer needs its rows).
     pub(crate) fn empty() -> Self {
         Self {
-            a: Vec::new(),
+            cols: Vec::new(),
             b: Vec::new(),
         }
+    }
+
+    /// A design of the given columns (per record, per column) and targets (per record).
+    #[cfg(test)]
+    pub(crate) fn from_columns(cols: Vec<Vec<Vec<f64>>>, b: Vec<Vec<f64>>) -> Self {
+        Self {
+            cols: cols
+                .into_iter()
+                .map(|r| r.into_iter().map(Arc::new).collect())
+                .collect(),
+            b: b.into_iter().map(Arc::new).collect(),
+        }
+    }
+
+    /// Number of records.
+    pub(crate) fn records(&self) -> usize {
+        self.b.len()
+    }
+
+    /// Usable rows of record `r`.
+    pub(crate) fn rows(&self, r: usize) -> usize {
+        self.b[r].len()
+    }
+
+    /// Entry (row `i`, column `k`) of record `r`.
+    #[inline]
+    pub(crate) fn at(&self, r: usize, i: usize, k: usize) -> f64 {
+        self.cols[r][k][i]
+    }
+
+    /// The target's usable rows of record `r`.
+    pub(crate) fn target(&self, r: usize) -> &[f64] {
+        &self.b[r]
+    }
+
+    /// Rows `start..start + len` of record `r` as a matrix (a copy of one block).
+    pub(crate) fn block(&self, r: usize, start: usize, len: usize) -> Mat<f64> {
+        let cols = &self.cols[r];
+        Mat::from_fn(len, cols.len(), |i, j| cols[j][start + i])
     }
 }
 
@@ -60,21 +106,8 @@ pub(crate) fn design(
         let cols: Vec<Arc<Vec<f64>>> = columns
             .iter()
             .map(|c| -> Result<Arc<Vec<f64>>> {
-                let expansion = c.expansion();
-                if !needs_band_limit(&expansion) {
-                    let mut out = vec![0.0; n];
-                    for (t, w) in &expansion {
-                        let v = evaluate_term(t, &set)?;
-                        for (o, x) in out.iter_mut().zip(&v[lo..lo + n]) {
-                            *o += w * x;
-                        }
-                    }
-                    return Ok(Arc::new(out));
-                }
-                // A nonlinear column of band-limited states holds harmonics beyond the
-                // cut-off that the smoothed acceleration has lost; the same low-pass puts both
-                // sides of the equation in one band (see the module docs). A plain monomial's
-                // is made once per record ([`crate::prepare::BandCache`]).
+                // A plain monomial's column is made once per record
+                // ([`crate::prepare::BandCache`]).
                 let key = (c.computed.is_none() && c.centre.is_none() && c.term.degree().is_some())
                     .then(|| {
                         let fc = s.cutoff_hz.to_bits();
@@ -83,25 +116,55 @@ pub(crate) fn design(
                 if let Some(hit) = key.as_ref().and_then(|k| s.band_cache.get(k)) {
                     return Ok(hit);
                 }
-                let mut full = vec![0.0; s.record.len()];
-                for (t, w) in &expansion {
-                    let v = evaluate_term(t, &set)?;
-                    for (o, x) in full.iter_mut().zip(&v) {
-                        *o += w * x;
-                    }
-                }
-                let band = spectral_derivative(&full, dt, 0, Some(s.cutoff_hz))?;
-                let out = Arc::new(band[lo..lo + n].to_vec());
+                let out = Arc::new(column_rows(c, &set, s, (lo, n))?);
                 if let Some(k) = key {
                     s.band_cache.put(k, out.clone());
                 }
                 Ok(out)
             })
             .collect::<Result<_>>()?;
-        a.push(Mat::from_fn(n, columns.len(), |i, j| cols[j][i]));
-        b.push(s.acc[dof_idx][lo..lo + n].to_vec());
+        a.push(cols);
+        b.push(s.target(dof_idx, lo, n));
     }
-    Ok(Design { a, b })
+    Ok(Design { cols: a, b })
+}
+
+/// The usable rows `lo..lo + n` of column `c` on the states `s` (their columns, with the
+/// computed ones in `set`).
+fn column_rows(
+    c: &EffectColumn,
+    set: &ColumnSet<'_>,
+    s: &RecordStates,
+    (lo, n): (usize, usize),
+) -> Result<Vec<f64>> {
+    let expansion = c.expansion();
+    if !needs_band_limit(&expansion) {
+        let mut out = vec![0.0; n];
+        for (t, w) in &expansion {
+            let v = evaluate_term(t, set)?;
+            for (o, x) in out.iter_mut().zip(&v[lo..lo + n]) {
+                *o += w * x;
+            }
+        }
+        return Ok(out);
+    }
+    // A nonlinear column of band-limited states holds harmonics beyond the cut-off that the
+    // smoothed acceleration has lost; the same low-pass puts both sides of the equation in one
+    // band (see the module docs).
+    let mut full = vec![0.0; s.record.len()];
+    for (t, w) in &expansion {
+        let v = evaluate_term(t, set)?;
+        for (o, x) in full.iter_mut().zip(&v) {
+            *o += w * x;
+        }
+    }
+    let mut band = spectral_derivative(&full, s.record.dt(), 0, Some(s.cutoff_hz))?;
+    drop(full);
+    // The usable rows in place: no second record-length copy.
+    band.truncate(lo + n);
+    band.drain(..lo);
+    band.shrink_to_fit();
+    Ok(band)
 }
 
 /// True when [`design`] low-passes a column (given as its weighted expansion): a power, product,
@@ -128,11 +191,9 @@ pub(crate) fn compress_blocks(d: &Design, layout: &Layout) -> Result<Vec<Compres
         .blocks
         .iter()
         .map(|bl| {
-            let a = d.a[bl.record].as_ref().subrows(bl.start, bl.len);
-            Ok(Compressed::from_rows(
-                a,
-                &d.b[bl.record][bl.start..bl.start + bl.len],
-            )?)
+            let a = d.block(bl.record, bl.start, bl.len);
+            let b = &d.target(bl.record)[bl.start..bl.start + bl.len];
+            Ok(Compressed::from_rows(a.as_ref(), b)?)
         })
         .collect()
 }
@@ -349,9 +410,10 @@ mod tests {
         (model, states)
     }
 
-    /// The band-limited monomials of a design are made once per record and read back to the
-    /// bit: a second design (another variant over the same terms) equals one made on fresh
-    /// states, column by column, and a centred column (an effect's parameter) is made anew.
+    /// The monomial columns of a design (band-limited or not) and its target are made once per
+    /// record and read back to the bit: a second design (another variant over the same terms)
+    /// shares them, equals one made on fresh states column by column, and a centred column (an
+    /// effect's parameter) is made anew.
     #[test]
     fn band_limited_monomials_are_made_once_and_read_back_exactly() {
         let (_, states) = swept_states();
@@ -363,23 +425,37 @@ mod tests {
         let first = design(&states, 0, &cols).unwrap();
         // x^2 and x^3 are band-limited monomials; x and xb_acc are not band-limited.
         let kept = |s: &RecordStates| format!("{:?}", s.band_cache);
-        assert_eq!(kept(&states[0]), "BandCache(2 columns)");
+        assert_eq!(kept(&states[0]), "BandCache(4 columns, 1 targets)");
         let mut more = cols.clone();
         more.push(EffectColumn::centred(term("x^3"), "x", 0.25));
         let second = design(&states, 0, &more).unwrap();
-        assert_eq!(kept(&states[0]), "BandCache(2 columns)");
+        assert_eq!(kept(&states[0]), "BandCache(4 columns, 1 targets)");
+        for j in 0..cols.len() {
+            assert!(
+                Arc::ptr_eq(&first.cols[0][j], &second.cols[0][j]),
+                "column {j}"
+            );
+        }
+        assert!(Arc::ptr_eq(&first.b[0], &second.b[0]));
         let fresh: Vec<RecordStates> = states.to_vec();
-        assert_eq!(kept(&fresh[0]), "BandCache(0 columns)");
+        assert_eq!(kept(&fresh[0]), "BandCache(0 columns, 0 targets)");
         let anew = design(&fresh, 0, &more).unwrap();
-        let bits = |m: &Mat<f64>, j: usize| -> Vec<u64> {
-            (0..m.nrows()).map(|i| m[(i, j)].to_bits()).collect()
+        let bits = |d: &Design, j: usize| -> Vec<u64> {
+            (0..d.rows(0)).map(|i| d.at(0, i, j).to_bits()).collect()
         };
         for j in 0..cols.len() {
-            assert_eq!(bits(&first.a[0], j), bits(&anew.a[0], j), "column {j}");
-            assert_eq!(bits(&second.a[0], j), bits(&anew.a[0], j), "column {j}");
+            assert_eq!(bits(&first, j), bits(&anew, j), "column {j}");
+            assert_eq!(bits(&second, j), bits(&anew, j), "column {j}");
         }
-        assert_eq!(bits(&second.a[0], 4), bits(&anew.a[0], 4));
-        assert_eq!(first.b, anew.b);
+        assert_eq!(bits(&second, 4), bits(&anew, 4));
+        assert_eq!(first.target(0), anew.target(0));
+        // A block is the rows of the design, to the bit.
+        let blk = second.block(0, 7, 20);
+        for j in 0..more.len() {
+            for i in 0..20 {
+                assert_eq!(blk[(i, j)].to_bits(), second.at(0, 7 + i, j).to_bits());
+            }
+        }
     }
 
     fn term(s: &str) -> Term {

@@ -101,30 +101,87 @@ pub(crate) fn calibrate(
     let mut dofs: Vec<usize> = jobs.iter().map(|j| j.dof_idx).collect();
     dofs.sort_unstable();
     dofs.dedup();
-    let synthetic: Vec<Option<Synthetic>> = (0..opts.null_draws)
+    // Each draw is made, read and dropped in its own task, so only the draws being worked on
+    // hold records (a draw is a set of synthetic records with their smoothed states: the null
+    // of a 640k-sample record kept eight at once held about 500 MB). A draw keeps the start
+    // model's held-out residual per DOF (the ceiling's) and the drops of the candidates it
+    // already settles as re-scanned ([`Pending`]); the others' are made on a second visit.
+    let pending: Vec<Pending> = jobs.iter().map(Pending::of).collect();
+    let first: Vec<Option<Visit>> = (0..opts.null_draws)
         .into_par_iter()
-        .map(|i| synthesize(model, &sources, opts, &dofs, i))
+        .map(|i| {
+            let syn = synthesize(model, &sources, opts, &dofs, i)?;
+            let residuals = syn.residuals();
+            let drops = jobs
+                .iter()
+                .zip(&pending)
+                .map(|(job, p)| {
+                    p.rescanned_on(residuals[job.dof_idx])
+                        .then(|| rescan_job(model, &syn, catalogue, opts, job.dof_idx, &job.effect))
+                        .flatten()
+                })
+                .collect();
+            Some(Visit { residuals, drops })
+        })
         .collect();
     // The ceiling: a candidate whose measured absolute drop is larger than the whole held-out
     // residual the start model leaves on every synthetic draw of its equation fits something
     // the equation error's bias and the noise cannot hold, so re-scanning it is not needed.
-    let ceilings: Vec<Option<Ceiling>> = jobs.iter().map(|j| ceiling(&synthetic, j)).collect();
+    let ceilings: Vec<Option<Ceiling>> = jobs.iter().map(|j| ceiling(&first, j)).collect();
     let rescan: Vec<bool> = ceilings
         .iter()
         .map(|c| !c.as_ref().is_some_and(Ceiling::clears))
         .collect();
+    // The second visit: the draws where a candidate that is re-scanned after all was left
+    // undecided, made again (the same seeds, so the same records) and scanned for those.
+    let again = |v: &Visit| -> Vec<usize> {
+        (0..jobs.len())
+            .filter(|&j| {
+                let r = v.residuals[jobs[j].dof_idx];
+                rescan[j] && r.is_some() && !pending[j].rescanned_on(r)
+            })
+            .collect()
+    };
+    let second: Vec<Vec<(usize, Option<f64>)>> = first
+        .par_iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let Some(v) = v else { return Vec::new() };
+            let todo = again(v);
+            if todo.is_empty() {
+                return Vec::new();
+            }
+            let Some(syn) = synthesize(model, &sources, opts, &dofs, i) else {
+                return Vec::new();
+            };
+            todo.into_iter()
+                .map(|j| {
+                    let job = &jobs[j];
+                    (
+                        j,
+                        rescan_job(model, &syn, catalogue, opts, job.dof_idx, &job.effect),
+                    )
+                })
+                .collect()
+        })
+        .collect();
     let draws: Vec<Vec<Option<f64>>> = if rescan.iter().any(|&r| r) {
-        synthetic
-            .par_iter()
-            .map(|syn| match syn {
-                Some(syn) => jobs
-                    .iter()
-                    .zip(&rescan)
-                    .map(|(job, &r)| {
-                        r.then(|| rescan_job(model, syn, catalogue, opts, job.dof_idx, &job.effect))
-                            .flatten()
-                    })
-                    .collect(),
+        first
+            .into_iter()
+            .zip(second)
+            .map(|(v, later)| match v {
+                Some(v) => {
+                    let mut row: Vec<Option<f64>> = v
+                        .drops
+                        .into_iter()
+                        .zip(&rescan)
+                        .map(|(d, &r)| d.filter(|_| r))
+                        .collect();
+                    for (j, d) in later {
+                        row[j] = d;
+                    }
+                    row
+                }
                 None => Vec::new(),
             })
             .collect()
@@ -389,19 +446,18 @@ impl Ceiling {
     }
 }
 
-/// The ceiling of candidate `job`; `None` when its measured drop is not a finite fraction in
-/// (0, 1) or a draw's residual is not finite.
-fn ceiling(synthetic: &[Option<Synthetic>], job: &NullJob) -> Option<Ceiling> {
+/// The ceiling of candidate `job` over the draws `visits`; `None` when its measured drop is not
+/// a finite fraction in (0, 1) or a draw's residual is not finite.
+fn ceiling(visits: &[Option<Visit>], job: &NullJob) -> Option<Ceiling> {
     let (delta, after, idx) = (job.delta, job.after, job.dof_idx);
     if !(delta.is_finite() && delta > 0.0 && delta < 1.0 && after.is_finite()) {
         return None;
     }
     let measured = after / (1.0 - delta);
-    let residuals: Vec<f64> = synthetic
+    let residuals: Vec<f64> = visits
         .iter()
         .flatten()
-        .filter_map(|s| s.setups.get(idx)?.as_ref())
-        .map(|d| d.base_cv.heldout.iter().sum::<f64>())
+        .filter_map(|v| v.residuals.get(idx).copied().flatten())
         .collect();
     if residuals.iter().any(|r| !r.is_finite()) {
         return None;
@@ -412,6 +468,54 @@ fn ceiling(synthetic: &[Option<Synthetic>], job: &NullJob) -> Option<Ceiling> {
         largest: residuals.iter().copied().fold(0.0, f64::max),
         draws: residuals.len(),
     })
+}
+
+/// What one draw leaves once it is dropped: the start model's held-out residual per DOF of the
+/// model (`None` where its equation was not set up on the draw) and, per candidate, its drop
+/// where the draw already settled that it is re-scanned.
+struct Visit {
+    residuals: Vec<Option<f64>>,
+    drops: Vec<Option<f64>>,
+}
+
+impl Synthetic {
+    /// The start model's held-out residual (sum over blocks) per DOF of the model.
+    fn residuals(&self) -> Vec<Option<f64>> {
+        self.setups
+            .iter()
+            .map(|d| d.as_ref().map(|d| d.base_cv.heldout.iter().sum::<f64>()))
+            .collect()
+    }
+}
+
+/// A candidate before the draws are seen: whether the ceiling could clear it at all, and the
+/// measured drop a draw's residual must stay below for it to.
+struct Pending {
+    /// `None` when the ceiling cannot clear the candidate (its measured drop is not a finite
+    /// fraction in (0, 1)), else its absolute drop ([`Ceiling::drop`]).
+    drop: Option<f64>,
+}
+
+impl Pending {
+    fn of(job: &NullJob) -> Self {
+        let (delta, after) = (job.delta, job.after);
+        let drop = (delta.is_finite() && delta > 0.0 && delta < 1.0 && after.is_finite())
+            .then(|| after / (1.0 - delta) - after);
+        Self { drop }
+    }
+
+    /// Whether a draw on which the start model's residual of the candidate's equation is
+    /// `residual` settles that the candidate is re-scanned (so it is scanned on the draw at
+    /// once): the ceiling cannot clear it, or the residual is not finite or not below its drop
+    /// (the largest residual over the draws is then not either). A draw without the equation
+    /// (`None`) scores nothing.
+    fn rescanned_on(&self, residual: Option<f64>) -> bool {
+        match (self.drop, residual) {
+            (_, None) => false,
+            (None, Some(_)) => true,
+            (Some(drop), Some(r)) => !r.is_finite() || drop <= r,
+        }
+    }
 }
 
 /// Draw `i`'s synthetic record `r`: the start model's simulation of source `s` under its
@@ -503,6 +607,60 @@ fn job_delta(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A draw settles a candidate as re-scanned only when the ceiling over all draws cannot
+    /// clear it, whatever the other draws hold: checked against `ceiling` on every pairing of
+    /// candidates (clearable, too small, not a fraction) and residuals (below and above the
+    /// drop, not finite, no equation).
+    #[test]
+    fn a_draw_settles_a_rescan_only_where_the_ceiling_cannot_clear() {
+        let job = |delta: f64, after: f64| NullJob {
+            dof_idx: 0,
+            effect: "e".into(),
+            delta,
+            after,
+        };
+        // Measured residual 1.0, after 0.2: drop 0.8.
+        let jobs = [
+            job(0.8, 0.2),
+            job(1.5, 0.2),
+            job(0.5, f64::NAN),
+            job(0.1, 0.9),
+        ];
+        let residuals = [
+            Some(0.1),
+            Some(0.5),
+            Some(0.9),
+            Some(2.0),
+            Some(f64::INFINITY),
+            None,
+        ];
+        let visit = |r: Option<f64>| {
+            Some(Visit {
+                residuals: vec![r],
+                drops: vec![None],
+            })
+        };
+        for j in &jobs {
+            let p = Pending::of(j);
+            for &r in &residuals {
+                if !p.rescanned_on(r) {
+                    continue;
+                }
+                // Whatever the other draws are, the ceiling does not clear the candidate.
+                for &other in &residuals {
+                    let visits = [visit(r), visit(other), visit(Some(0.0))];
+                    let c = ceiling(&visits, j);
+                    assert!(!c.is_some_and(|c| c.clears()), "{r:?} {other:?}");
+                }
+            }
+        }
+        // And a draw below the drop leaves a clearable candidate open.
+        assert!(!Pending::of(&jobs[0]).rescanned_on(Some(0.5)));
+        assert!(Pending::of(&jobs[0]).rescanned_on(Some(0.9)));
+        assert!(Pending::of(&jobs[1]).rescanned_on(Some(0.1)));
+        assert!(!Pending::of(&jobs[0]).rescanned_on(None));
+    }
 
     #[test]
     fn the_prediction_test_separates_a_gain_from_the_null_spread() {

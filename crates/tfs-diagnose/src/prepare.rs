@@ -185,15 +185,24 @@ pub struct RecordStates {
     pub(crate) band_cache: BandCache,
 }
 
-/// The usable rows of the band-limited design columns of one record's plain monomials
-/// (`x^3`, `x^2·x'`), made once per record: every variant's design holds the start
-/// equation's terms, and band-limiting a column is a forward and an inverse transform of the
-/// whole record. Only monomials are kept (at most the library's own terms; an effect's
-/// parameter scan makes a new column per value and is not kept). Each column is keyed by its
-/// term and the rows, cut-off and record length it was made with; a copy of the states starts
-/// with an empty cache, and [`RecordStates::set`] empties it.
+/// The usable rows of the design columns of one record's plain monomials and states (`x^3`,
+/// `x^2·x'`, `x'`, an input), and of its targets (the smoothed accelerations), made once per
+/// record and shared by every variant's design: every variant's design holds the start
+/// equation's terms, band-limiting a column is a forward and an inverse transform of the whole
+/// record, and a copy per design would hold the record's rows once per variant alive. Only
+/// monomials are kept (at most the library's own terms; an effect's parameter scan makes a new
+/// column per value and is not kept). Each column is keyed by its term and the rows, cut-off and
+/// record length it was made with; a copy of the states starts with an empty cache, and
+/// [`RecordStates::set`] empties it.
 #[derive(Default)]
-pub(crate) struct BandCache(std::sync::Mutex<Vec<(BandKey, std::sync::Arc<Vec<f64>>)>>);
+pub(crate) struct BandCache {
+    columns: std::sync::Mutex<Vec<(BandKey, std::sync::Arc<Vec<f64>>)>>,
+    /// Per (DOF, first usable row, usable rows): the smoothed acceleration's usable rows.
+    targets: std::sync::Mutex<Vec<(TargetKey, std::sync::Arc<Vec<f64>>)>>,
+}
+
+/// A cached target: its DOF, first usable row and usable rows.
+type TargetKey = (usize, usize, usize);
 
 /// What a cached column was made from: its term, first usable row, usable rows, the cut-off's
 /// bits and the record's length.
@@ -209,13 +218,13 @@ pub(crate) struct BandKey(
 impl BandCache {
     /// The cached column of `key`, if made.
     pub(crate) fn get(&self, key: &BandKey) -> Option<std::sync::Arc<Vec<f64>>> {
-        let slots = self.0.lock().ok()?;
+        let slots = self.columns.lock().ok()?;
         slots.iter().find(|(k, _)| k == key).map(|(_, v)| v.clone())
     }
 
     /// Keeps `values` as the column of `key` (the first kept stays when two threads made it).
     pub(crate) fn put(&self, key: BandKey, values: std::sync::Arc<Vec<f64>>) {
-        if let Ok(mut slots) = self.0.lock()
+        if let Ok(mut slots) = self.columns.lock()
             && !slots.iter().any(|(k, _)| *k == key)
         {
             slots.push((key, values));
@@ -224,7 +233,10 @@ impl BandCache {
 
     /// Forgets every column.
     fn clear(&mut self) {
-        if let Ok(slots) = self.0.get_mut() {
+        if let Ok(slots) = self.columns.get_mut() {
+            slots.clear();
+        }
+        if let Ok(slots) = self.targets.get_mut() {
             slots.clear();
         }
     }
@@ -238,8 +250,9 @@ impl Clone for BandCache {
 
 impl std::fmt::Debug for BandCache {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let n = self.0.lock().map_or(0, |s| s.len());
-        write!(f, "BandCache({n} columns)")
+        let n = self.columns.lock().map_or(0, |s| s.len());
+        let t = self.targets.lock().map_or(0, |s| s.len());
+        write!(f, "BandCache({n} columns, {t} targets)")
     }
 }
 
@@ -335,6 +348,27 @@ impl RecordStates {
             Some(slot) => slot.1 = values,
             None => self.cols.push((name, values)),
         }
+    }
+
+    /// Rows `lo..lo + n` of the smoothed acceleration of DOF `dof`, made once
+    /// ([`BandCache`]).
+    pub(crate) fn target(&self, dof: usize, lo: usize, n: usize) -> std::sync::Arc<Vec<f64>> {
+        let key = (dof, lo, n);
+        let slots = &self.band_cache.targets;
+        if let Some(hit) = slots
+            .lock()
+            .ok()
+            .and_then(|s| s.iter().find(|(k, _)| *k == key).map(|(_, v)| v.clone()))
+        {
+            return hit;
+        }
+        let out = std::sync::Arc::new(self.acc[dof][lo..lo + n].to_vec());
+        if let Ok(mut s) = slots.lock()
+            && !s.iter().any(|(k, _)| *k == key)
+        {
+            s.push((key, out.clone()));
+        }
+        out
     }
 
     /// Number of usable rows (record length minus both margins).

@@ -122,14 +122,14 @@ pub fn refit_shared(
         }
         let des = design(&states, d, cols)?;
         for bl in &layout.blocks {
-            let a = des.a[bl.record].as_ref().subrows(bl.start, bl.len);
+            let a = des.block(bl.record, bl.start, bl.len);
             let mut joint = Mat::<f64>::zeros(bl.len, unknowns);
             for (c, &(u, f)) in map[d].iter().enumerate() {
                 for i in 0..bl.len {
                     joint[(i, u)] += f * a[(i, c)];
                 }
             }
-            let b = &des.b[bl.record][bl.start..bl.start + bl.len];
+            let b = &des.target(bl.record)[bl.start..bl.start + bl.len];
             blocks.push(Compressed::from_rows(joint.as_ref(), b)?);
         }
     }

@@ -67,11 +67,18 @@ pub struct Localisation {
 type Probe = Box<dyn Fn(f64, f64, f64) -> f64>;
 
 fn corr(a: &[f64], b: &[f64]) -> f64 {
+    corr_with(a, |k| b[k])
+}
+
+/// [`corr`] of `a` with the column whose row `k` is `b(k)` (never stored: a record of 640k
+/// samples is 5 MB per column).
+fn corr_with(a: &[f64], b: impl Fn(usize) -> f64) -> f64 {
     let n = a.len() as f64;
     let ma = a.iter().sum::<f64>() / n;
-    let mb = b.iter().sum::<f64>() / n;
+    let mb = (0..a.len()).map(&b).sum::<f64>() / n;
     let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-    for (x, y) in a.iter().zip(b) {
+    for (k, x) in a.iter().enumerate() {
+        let y = b(k);
         sab += (x - ma) * (y - mb);
         saa += (x - ma).powi(2);
         sbb += (y - mb).powi(2);
@@ -107,9 +114,8 @@ fn localise_dof(
     opts: &DiagnoseOptions,
 ) -> Result<Localisation> {
     let dof = &model.dofs[idx];
-    let (mut xs, mut vs, mut rs, mut accs, mut us) = (vec![], vec![], vec![], vec![], vec![]);
+    let (mut xs, mut vs, mut rs, mut us) = (vec![], vec![], vec![], vec![]);
     let laws = history_laws(dof, states)?;
-    let mut hist: Vec<Vec<f64>> = vec![Vec::new(); laws.len()];
     let mut spectrum = Vec::new();
     let mut windows = Vec::new();
     for s in states {
@@ -128,7 +134,6 @@ fn localise_dof(
         let v = s.column(&format!("{dof}'")).unwrap_or(&[]);
         xs.extend_from_slice(&x[lo..hi]);
         vs.extend_from_slice(&v[lo..hi]);
-        accs.extend_from_slice(&s.acc[idx][lo..hi]);
         let u = model
             .inputs
             .iter()
@@ -137,9 +142,6 @@ fn localise_dof(
             .unwrap_or_else(|| vec![0.0; hi - lo]);
         us.extend(u);
         let dt = s.record.dt();
-        for ((_, law), h) in laws.iter().zip(&mut hist) {
-            h.extend_from_slice(&law.integrate(v, dt)[lo..hi]);
-        }
         spectrum.push(amplitude_spectrum(&r, dt)?);
         let w = opts.windows.min(r.len() / 2).max(1);
         for k in 0..w {
@@ -153,7 +155,16 @@ fn localise_dof(
         }
         rs.extend(r);
     }
-    let acc_rms = rms(&accs).max(f64::MIN_POSITIVE);
+    // The RMS of the accelerations' usable rows of every record, in record order.
+    let used = |s: &RecordStates| s.margin..s.margin + s.usable();
+    let acc_n: usize = states.iter().map(|s| used(s).len()).sum();
+    let acc_rms = if acc_n == 0 {
+        0.0
+    } else {
+        let squares = states.iter().flat_map(|s| &s.acc[idx][used(s)]);
+        (squares.map(|a| a * a).sum::<f64>() / acc_n as f64).sqrt()
+    }
+    .max(f64::MIN_POSITIVE);
     let relative_rms = rms(&rs) / acc_rms;
     let relative_mean = rs.iter().sum::<f64>() / rs.len().max(1) as f64 / acc_rms;
     let xm = xs.iter().sum::<f64>() / xs.len().max(1) as f64;
@@ -168,22 +179,27 @@ fn localise_dof(
         ("x^3", Box::new(move |x, _v, _u| (x - xm).powi(3))),
         ("input", Box::new(|_x, _v, u| u)),
     ];
+    // The probes' columns are evaluated where they are read, never stored.
+    let present = |k: usize, j: usize| (probes[j].1)(xs[k], vs[k], us[k]);
     let mut correlations: Vec<(String, f64)> = probes
         .iter()
-        .map(|(name, f)| {
-            let p: Vec<f64> = (0..rs.len()).map(|k| f(xs[k], vs[k], us[k])).collect();
-            (name.to_string(), corr(&rs, &p))
-        })
+        .enumerate()
+        .map(|(j, (name, _))| (name.to_string(), corr_with(&rs, |k| present(k, j))))
         .collect();
     correlations.push((
         "offset".into(),
         relative_mean / relative_rms.max(f64::MIN_POSITIVE),
     ));
-    let present: Vec<Vec<f64>> = probes
-        .iter()
-        .map(|(_, f)| (0..rs.len()).map(|k| f(xs[k], vs[k], us[k])).collect())
-        .collect();
-    let history = partial_correlations(&rs, &present, &hist)
+    // One history probe at a time: the law integrated along each record's smoothed velocity.
+    let hist = |law: &StateLaw| -> Vec<f64> {
+        let mut h = Vec::with_capacity(rs.len());
+        for s in states {
+            let v = s.column(&format!("{dof}'")).unwrap_or(&[]);
+            h.extend_from_slice(&law.integrate(v, s.record.dt())[used(s)]);
+        }
+        h
+    };
+    let history = partial_correlations(&rs, (&present, probes.len()), &laws, hist)
         .into_iter()
         .zip(&laws)
         .map(|(c, (name, _))| (name.clone(), c))
@@ -356,32 +372,57 @@ fn history_laws(dof: &str, states: &[RecordStates]) -> Result<Vec<(String, State
     Ok(out)
 }
 
-/// Partial correlations of `r` with each column of `hist`, both residualised on the columns
-/// of `present` and a constant by least squares (0 where a column has nothing left).
-fn partial_correlations(r: &[f64], present: &[Vec<f64>], hist: &[Vec<f64>]) -> Vec<f64> {
+/// Partial correlations of `r` with the history column `hist(law)` of each of `laws`, both
+/// residualised on the `present` columns (`present.0(k, j)` is row `k` of column `j`, of
+/// `present.1` columns) and a constant by least squares (0 where a column has nothing left).
+/// Only `r`, its residual and one history column with its residual are held at a time.
+fn partial_correlations<L>(
+    r: &[f64],
+    present: (&dyn Fn(usize, usize) -> f64, usize),
+    laws: &[(String, L)],
+    hist: impl Fn(&L) -> Vec<f64>,
+) -> Vec<f64> {
     let n = r.len();
-    if n == 0 || hist.is_empty() {
-        return vec![0.0; hist.len()];
+    if n == 0 || laws.is_empty() {
+        return vec![0.0; laws.len()];
     }
+    let (column, p) = present;
     // Columns scaled to unit RMS so the factorisation sees comparable magnitudes.
-    let cols: Vec<Vec<f64>> = std::iter::once(vec![1.0; n])
-        .chain(present.iter().map(|c| {
-            let s = rms(c);
-            if s > 0.0 && s.is_finite() {
-                c.iter().map(|v| v / s).collect()
-            } else {
-                vec![0.0; n]
-            }
-        }))
+    let scales: Vec<Option<f64>> = (0..p)
+        .map(|j| {
+            let squares = (0..n).map(|k| {
+                let v = column(k, j);
+                v * v
+            });
+            let s = (squares.sum::<f64>() / n as f64).sqrt();
+            (s > 0.0 && s.is_finite()).then_some(s)
+        })
         .collect();
-    let a = faer::Mat::<f64>::from_fn(n, cols.len(), |i, j| cols[j][i]);
+    // Row `i`, column `j` of the design: a constant, then the scaled present columns.
+    let a = |i: usize, j: usize| -> f64 {
+        match j {
+            0 => 1.0,
+            _ => scales[j - 1].map_or(0.0, |s| column(i, j - 1) / s),
+        }
+    };
+    let cols = p + 1;
     // The least-squares residual by the project's own compression, whose sums run in a fixed
     // order (a dense QR of the tall matrix splits its work by the thread count, which moved
-    // these correlations in their last digits between 1, 2 and 7 threads). A fit that fails
-    // (non-finite data) leaves `y` as it is.
+    // these correlations in their last digits between 1, 2 and 7 threads); its rows are
+    // written a chunk at a time, never the whole design. A fit that fails (non-finite data)
+    // leaves `y` as it is.
     let resid = |y: &[f64]| -> Vec<f64> {
+        let fill = |start: usize, mut chunk: faer::MatMut<'_, f64>| {
+            for i in 0..chunk.nrows() {
+                for j in 0..cols {
+                    chunk[(i, j)] = a(start + i, j);
+                }
+                chunk[(i, cols)] = y[start + i];
+            }
+            Ok::<(), tfs_regress::RegressError>(())
+        };
         let Ok(fit) =
-            Compressed::from_rows(a.as_ref(), y).and_then(|p| LeastSquares.fit_compressed(&p))
+            Compressed::from_chunks(cols, n, fill).and_then(|p| LeastSquares.fit_compressed(&p))
         else {
             return y.to_vec();
         };
@@ -391,13 +432,15 @@ fn partial_correlations(r: &[f64], present: &[Vec<f64>], hist: &[Vec<f64>]) -> V
                     .coef
                     .iter()
                     .enumerate()
-                    .map(|(k, c)| a[(i, k)] * c)
+                    .map(|(k, c)| a(i, k) * c)
                     .sum::<f64>()
             })
             .collect()
     };
     let rr = resid(r);
-    hist.iter().map(|h| corr(&rr, &resid(h))).collect()
+    laws.iter()
+        .map(|(_, law)| corr(&rr, &resid(&hist(law))))
+        .collect()
 }
 
 /// Plain words from the probe correlations, the history probes, the symmetry shares and the

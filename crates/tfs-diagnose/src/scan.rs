@@ -20,7 +20,6 @@
 //! Blocks are long enough — four cut-off periods or more — to be nearly independent. The
 //! combined p-value is Bonferroni-corrected over every variant of every effect tested.
 
-use faer::Mat;
 use tfs_library::{Model, Term};
 use tfs_regress::Compressed;
 
@@ -91,7 +90,9 @@ pub(crate) fn setup_dof(
     let base_design = design(states, idx, &base_cols)?;
     let base_blocks = compress_blocks(&base_design, layout)?;
     let base_cv = cross_validate(&base_blocks, layout)?;
-    let all_acc: Vec<f64> = base_design.b.iter().flatten().copied().collect();
+    let all_acc: Vec<f64> = (0..base_design.records())
+        .flat_map(|r| base_design.target(r).iter().copied())
+        .collect();
     let scales = DataScales::measure(model, idx, &base_terms, states)?;
     Ok(DofSetup {
         idx,
@@ -195,15 +196,15 @@ pub(crate) fn analyse(
     let mut rows = 0usize;
     // Row by row in a fixed order (a library matrix-vector product splits its sums by the
     // thread count, which moved `share` in its last digits between 1, 2 and 7 threads).
-    let dot = |a: &Mat<f64>, i: usize, c: &[f64]| -> f64 {
-        c.iter().enumerate().map(|(k, ck)| a[(i, k)] * ck).sum()
+    let dot = |a: &Design, r: usize, i: usize, c: &[f64]| -> f64 {
+        c.iter().enumerate().map(|(k, ck)| a.at(r, i, k) * ck).sum()
     };
     for r in 0..states.len() {
-        let (ac, a0) = (&s.design.a[r], &base_design.a[r]);
-        for i in 0..ac.nrows() {
-            diff2 += (dot(ac, i, &coef_c) - dot(a0, i, &coef_0)).powi(2);
+        let (ac, a0) = (&s.design, base_design);
+        for i in 0..ac.rows(r) {
+            diff2 += (dot(ac, r, i, &coef_c) - dot(a0, r, i, &coef_0)).powi(2);
         }
-        rows += ac.nrows();
+        rows += ac.rows(r);
     }
     let share = (diff2 / rows.max(1) as f64).sqrt() / d.acc_rms.max(f64::MIN_POSITIVE);
     let (coef, interval) = main_coefficient(&s, &coef_c, opts)?;

@@ -64,10 +64,10 @@ pub(crate) fn block_wald_p_value(d: &Design, layout: &Layout, coef: &[f64], j: u
     let mut scale = vec![0.0f64; p];
     let mut rows = 0usize;
     for bl in &layout.blocks {
-        let a = &d.a[bl.record];
+        let r = bl.record;
         for i in bl.start..bl.start + bl.len {
             for (k, s) in scale.iter_mut().enumerate() {
-                *s += a[(i, k)] * a[(i, k)];
+                *s += d.at(r, i, k) * d.at(r, i, k);
             }
         }
         rows += bl.len;
@@ -81,17 +81,18 @@ pub(crate) fn block_wald_p_value(d: &Design, layout: &Layout, coef: &[f64], j: u
     let mut ata = Mat::<f64>::zeros(p, p);
     let mut scores = Vec::with_capacity(nb);
     for bl in &layout.blocks {
-        let a = &d.a[bl.record];
-        let b = &d.b[bl.record];
+        let rec = bl.record;
+        let a = |i: usize, k: usize| d.at(rec, i, k);
+        let b = d.target(rec);
         let mut g = vec![0.0; p];
-        for i in bl.start..bl.start + bl.len {
-            let fitted: f64 = (0..p).map(|k| a[(i, k)] * coef[k]).sum();
-            let r = b[i] - fitted;
+        for (i, bi) in b.iter().enumerate().skip(bl.start).take(bl.len) {
+            let fitted: f64 = (0..p).map(|k| a(i, k) * coef[k]).sum();
+            let r = bi - fitted;
             for k in 0..p {
-                let ak = a[(i, k)] / scale[k];
+                let ak = a(i, k) / scale[k];
                 g[k] += ak * r;
                 for l in 0..=k {
-                    ata[(k, l)] += ak * a[(i, l)] / scale[l];
+                    ata[(k, l)] += ak * a(i, l) / scale[l];
                 }
             }
         }
@@ -265,7 +266,7 @@ mod tests {
             }
         }
         let rhs: Vec<f64> = (0..n).map(|i| beta * z[i] + 2.0 * w[i] + e[i]).collect();
-        let a = Mat::from_fn(n, 2, |i, j| if j == 0 { z[i] } else { 1e5 * w[i] });
+        let a = vec![z, w.iter().map(|w| 1e5 * w).collect()];
         let layout = Layout {
             blocks: (0..nb)
                 .map(|b| Block {
@@ -278,10 +279,7 @@ mod tests {
             folds: 4,
             by_record: false,
         };
-        let d = Design {
-            a: vec![a],
-            b: vec![rhs],
-        };
+        let d = Design::from_columns(vec![a], vec![rhs]);
         let blocks = compress_blocks(&d, &layout).unwrap();
         let coef = full_fit(&blocks).unwrap();
         (d, layout, coef)

@@ -276,27 +276,26 @@ fn spline_second_derivatives(y: &[f64], h: f64) -> Vec<f64> {
         let c = r(1) / 6.0;
         return vec![c; 3];
     }
-    // Unknowns M_1..M_{n-2}: p = n - 2 of them.
+    // Unknowns M_1..M_{n-2}: p = n - 2 of them. The off-diagonals are 1 but for the first
+    // row's upper and the last row's lower entry (0); the solution is written into `m[1..=p]`,
+    // so the solve holds two vectors besides `m` (an input of 640k samples is 5 MB each).
     let p = n - 2;
+    let lower = |j: usize| if j == p - 1 { 0.0 } else { 1.0 }; // multiplies M_{j-1} in row j
+    let upper = |j: usize| if j == 0 { 0.0 } else { 1.0 }; // multiplies M_{j+1} in row j
     let mut diag = vec![4.0; p];
-    let mut lower = vec![1.0; p]; // lower[j] multiplies M_{j-1} in row j
-    let mut upper = vec![1.0; p]; // upper[j] multiplies M_{j+1} in row j
     let mut rhs: Vec<f64> = (1..=p).map(r).collect();
     diag[0] = 6.0;
-    upper[0] = 0.0;
     diag[p - 1] = 6.0;
-    lower[p - 1] = 0.0;
     for j in 1..p {
-        let w = lower[j] / diag[j - 1];
-        diag[j] -= w * upper[j - 1];
+        let w = lower(j) / diag[j - 1];
+        diag[j] -= w * upper(j - 1);
         rhs[j] -= w * rhs[j - 1];
     }
-    let mut sol = vec![0.0; p];
+    let sol = &mut m[1..=p];
     sol[p - 1] = rhs[p - 1] / diag[p - 1];
     for j in (0..p - 1).rev() {
-        sol[j] = (rhs[j] - upper[j] * sol[j + 1]) / diag[j];
+        sol[j] = (rhs[j] - upper(j) * sol[j + 1]) / diag[j];
     }
-    m[1..=p].copy_from_slice(&sol);
     m[0] = 2.0 * m[1] - m[2];
     m[n - 1] = 2.0 * m[n - 2] - m[n - 3];
     m

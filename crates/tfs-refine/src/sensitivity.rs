@@ -79,10 +79,11 @@ pub fn input_noise_spread_from(
             })
         })
         .collect();
-    let mut perturbed_any = false;
-    let mut draws = Vec::with_capacity(DRAWS as usize);
-    for draw in 0..DRAWS {
+    // One draw: the record with each input's noise added (its other columns shared, not
+    // copied), and whether any input could be perturbed.
+    let draw_record = |draw: u64| -> Result<(Record, bool)> {
         let mut r = record.clone();
+        let mut perturbed = false;
         for (ci, (name, band)) in model.inputs.iter().zip(&bands).enumerate() {
             let (Some(col), Some(band)) = (record.column(name), band) else {
                 continue;
@@ -93,34 +94,54 @@ pub fn input_noise_spread_from(
             };
             let v: Vec<f64> = col.iter().zip(&noise.x).map(|(a, b)| a + b).collect();
             r.set_column(name, v)?;
-            perturbed_any = true;
+            perturbed = true;
         }
-        if !perturbed_any {
-            return Ok(None);
-        }
-        draws.push(r);
+        Ok((r, perturbed))
+    };
+    // Without a perturbable input in the first draw there is no spread to measure.
+    let (first, perturbed) = draw_record(0)?;
+    if !perturbed {
+        return Ok(None);
     }
-    // The draws are simulated side by side and summed in draw order (the same sums on any
-    // number of threads).
-    let runs: Vec<_> = draws
-        .par_iter()
-        .map(|r| simulate_model_on_record(model, r, opts))
-        .collect();
-    let mut sums = vec![0.0; model.dofs.len()];
-    for run in runs {
-        match run {
-            Ok(tr) => {
-                for (i, s) in sums.iter_mut().enumerate() {
+    // The draws are simulated side by side, each run reduced to its per-DOF mean squared
+    // difference from `base` as soon as it ends (no trajectory outlives its draw), and summed in
+    // draw order (the same sums on any number of threads).
+    let mean_squares = |r: &Record| -> Option<Vec<f64>> {
+        let tr = simulate_model_on_record(model, r, opts).ok()?;
+        Some(
+            (0..model.dofs.len())
+                .map(|i| {
                     let n = tr.x[i].len().max(1) as f64;
-                    *s += tr.x[i]
+                    tr.x[i]
                         .iter()
                         .zip(&base.x[i])
                         .map(|(a, b)| (a - b) * (a - b))
                         .sum::<f64>()
-                        / n;
+                        / n
+                })
+                .collect(),
+        )
+    };
+    let runs: Vec<Option<Vec<f64>>> = (0..DRAWS)
+        .into_par_iter()
+        .map(|draw| {
+            let r = match draw {
+                0 => first.clone(),
+                _ => draw_record(draw)?.0,
+            };
+            Ok(mean_squares(&r))
+        })
+        .collect::<Result<_>>()?;
+    drop(first);
+    let mut sums = vec![0.0; model.dofs.len()];
+    for run in runs {
+        match run {
+            Some(ms) => {
+                for (s, m) in sums.iter_mut().zip(ms) {
+                    *s += m;
                 }
             }
-            Err(_) => return Ok(Some(vec![f64::INFINITY; model.dofs.len()])),
+            None => return Ok(Some(vec![f64::INFINITY; model.dofs.len()])),
         }
     }
     Ok(Some(
