@@ -12,6 +12,7 @@ use tfs_regress::Compressed;
 use crate::anchor::Anchor;
 use crate::design::{compress_blocks, design, full_fit, partner_columns, with_equation};
 use crate::effects::{Catalogue, EffectColumn};
+use crate::predict::PredictionScore;
 use crate::prepare::{DiagnoseOptions, Layout, RecordStates, check_records};
 use crate::{DiagnoseError, Result};
 
@@ -386,7 +387,10 @@ struct Planned {
 /// fit `records` best ([`sim_key`]: fewest failed records, then the lowest geometric-mean
 /// R-MSE; ties go to the more held anchor). With `opts.refine_added`, the kept fit is then
 /// re-estimated by simulation error ([`refined`]) and that fit replaces it when it predicts
-/// the records better by the same key. See [`crate::anchor`].
+/// the records better by the same key; and a record on which the input's own noise decides
+/// `model`'s free run is scored, for every fit alike, by short-horizon predictions from its
+/// measured state ([`PredictionScore::choose`]): there a free run's R-MSE says which well
+/// the noise put the run in, not which fit is closer. See [`crate::anchor`].
 fn choose_anchor(
     model: &Model,
     plans: &[Planned],
@@ -418,10 +422,22 @@ fn choose_anchor(
             fits.push((label, m, with_rest));
         }
     }
+    // One ruler per record, chosen from the start model (the free run unless refining).
+    let rulers: Vec<PredictionScore> = if opts.refine_added {
+        records
+            .par_iter()
+            .map(|r| {
+                PredictionScore::choose(model, &[], r, opts)
+                    .unwrap_or_else(|_| PredictionScore::free_run())
+            })
+            .collect()
+    } else {
+        vec![PredictionScore::free_run(); records.len()]
+    };
     // Side by side; the choice is made in anchor order, as a serial loop would.
     let mut each: Vec<Vec<f64>> = fits
         .par_iter()
-        .map(|(_, m, _)| r_mse_each(m, records))
+        .map(|(_, m, _)| r_mse_each(m, records, &rulers, opts))
         .collect();
     let mut pick = 0;
     for (k, e) in each.iter().enumerate() {
@@ -430,7 +446,7 @@ fn choose_anchor(
         }
     }
     if opts.refine_added
-        && let Some((m, e)) = refined(&fits[pick].1, records)
+        && let Some((m, e)) = refined(&fits[pick].1, records, &rulers, opts)
     {
         let w = fits[pick].2;
         let label = if w {
@@ -450,12 +466,25 @@ fn choose_anchor(
         .map(|((a, _, _), e)| (a.clone(), e.clone()))
         .collect();
     let (anchor, model, whole) = fits.swap_remove(pick);
+    // The history holds free-run R-MSEs: a record scored by pieces is simulated again for it.
+    let each = each
+        .swap_remove(pick)
+        .into_iter()
+        .zip(&rulers)
+        .map(|(v, r)| {
+            if r.horizon.is_none() {
+                v
+            } else {
+                f64::INFINITY
+            }
+        })
+        .collect();
     Ok(Anchored {
         model,
         anchor,
         whole,
         scores,
-        each: each.swap_remove(pick),
+        each,
     })
 }
 
@@ -488,30 +517,42 @@ fn better(a: (usize, f64), b: (usize, f64)) -> bool {
 /// `model`'s coefficients re-estimated by simulation error on `records`
 /// ([`tfs_refine::refine`]: multiple shooting from the records' own states, records whose
 /// free-run error the input's noise dominates left out), with its R-MSE on each record; `None`
-/// when refinement cannot run on this model or returns it unchanged.
-fn refined(model: &Model, records: &[Record]) -> Option<(Model, Vec<f64>)> {
+/// when refinement cannot run on this model or returns it unchanged. Each record is scored by
+/// its ruler in `rulers`.
+fn refined(
+    model: &Model,
+    records: &[Record],
+    rulers: &[PredictionScore],
+    opts: &DiagnoseOptions,
+) -> Option<(Model, Vec<f64>)> {
     let train: Vec<Record> = records
         .iter()
         .map(|r| crate::simulate::augment_record(model, r, &DiagnoseOptions::default()))
         .collect::<Result<_>>()
         .ok()?;
-    let opts = tfs_refine::RefineOptions::default();
-    let out = tfs_refine::refine(model, &train, &opts).ok()?;
+    let out = tfs_refine::refine(model, &train, &tfs_refine::RefineOptions::default()).ok()?;
     if out.model.equations == model.equations {
         return None;
     }
     // The refinement's own history step is not the ladder's: the added effect's step is.
     let mut m = out.model;
     m.history = model.history.clone();
-    let each = r_mse_each(&m, records);
+    let each = r_mse_each(&m, records, rulers, opts);
     Some((m, each))
 }
 
-/// R-MSE of `model` on each of `records` (infinite where a simulation fails).
-fn r_mse_each(model: &Model, records: &[Record]) -> Vec<f64> {
+/// R-MSE of `model` on each of `records`, each under its ruler in `rulers` (infinite where a
+/// simulation fails).
+fn r_mse_each(
+    model: &Model,
+    records: &[Record],
+    rulers: &[PredictionScore],
+    opts: &DiagnoseOptions,
+) -> Vec<f64> {
     records
         .iter()
-        .map(|r| match crate::simulate::r_mse(model, r) {
+        .zip(rulers)
+        .map(|(r, ruler)| match ruler.r_mse(model, r, opts) {
             Ok(v) if v.is_finite() => v,
             _ => f64::INFINITY,
         })
@@ -524,8 +565,8 @@ fn try_scores(model: &Model, records: &[Record]) -> (Vec<RecordScore>, Vec<Strin
 }
 
 /// [`try_scores`] where the finite entries of `known` (one per record, when given) are the
-/// model's R-MSE on those records already ([`r_mse_each`]: the same simulation), so only the
-/// others are simulated.
+/// model's free-run R-MSE on those records already ([`r_mse_each`] under the free run: the same
+/// simulation), so only the others are simulated.
 fn try_scores_known(
     model: &Model,
     records: &[Record],
