@@ -57,6 +57,13 @@ impl PredictionScore {
         if !dominated {
             return Ok(Self::free_run());
         }
+        Self::pieces(reference, record, opts)
+    }
+
+    /// Short-horizon pieces for `record`, as long as `reference`'s predictions from measured
+    /// states keep their skill (at most two dominant periods, at least one cut-off period of
+    /// the smoothing), whether or not the free run could rank models there.
+    pub fn pieces(reference: &Model, record: &Record, opts: &DiagnoseOptions) -> Result<Self> {
         let states = RecordStates::new(reference, record, opts)?;
         let dt = record.dt();
         let mut period: f64 = 0.0;

@@ -113,7 +113,11 @@ pub fn score_with(model: &Model, record: &Record, horizon: Option<usize>) -> Res
             horizon: Some(h),
             why: "pieces of the length asked for".into(),
         }),
-        None => tfs_diagnose::PredictionScore::choose(model, &[], record, &opts),
+        // The same verdict as the line above it: pieces where the input's noise decides.
+        None if dominated == Some(true) => {
+            tfs_diagnose::PredictionScore::pieces(model, record, &opts)
+        }
+        None => Ok(tfs_diagnose::PredictionScore::free_run()),
     };
     let short_horizon = ruler.ok().and_then(|s| {
         let h = s.horizon?;

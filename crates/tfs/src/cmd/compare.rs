@@ -115,22 +115,28 @@ pub fn run(args: Args) -> Result<()> {
                     d["dof"].as_str().unwrap_or("")
                 );
             }
-            if f["error_is_input_noise"].as_bool() == Some(true) {
-                println!(
-                    "  {}: most of this error is the measured input's own noise (a fresh draw of it moves the simulation about as far): it cannot rank models",
-                    f["path"].as_str().unwrap_or("")
-                );
-            }
+            let path = f["path"].as_str().unwrap_or("");
             let sh = &f["short_horizon"];
-            if let (Some(h), Some(secs), Some(r)) = (
+            let pieces = match (
                 sh["samples"].as_u64(),
                 sh["seconds"].as_f64(),
                 sh["r_mse"].as_f64(),
             ) {
-                println!(
-                    "  {}: scored by predictions over pieces of {h} samples ({secs:.4} s), each from the measured state: R-MSE {r:.4e}",
-                    f["path"].as_str().unwrap_or("")
-                );
+                (Some(h), Some(secs), Some(r)) => Some(format!(
+                    "over pieces of {h} samples ({secs:.4} s), each from the measured state: R-MSE {r:.4e}"
+                )),
+                _ => None,
+            };
+            let noise = f["error_is_input_noise"].as_bool() == Some(true);
+            match (noise, pieces) {
+                (true, Some(p)) => println!(
+                    "  {path}: most of this error is the measured input's own noise (a fresh draw of it moves the simulation about as far), so the free run cannot rank models; {p}"
+                ),
+                (true, None) => println!(
+                    "  {path}: most of this error is the measured input's own noise (a fresh draw of it moves the simulation about as far): it cannot rank models"
+                ),
+                (false, Some(p)) => println!("  {path}: {p}"),
+                (false, None) => {}
             }
         }
         if args.verbose {
