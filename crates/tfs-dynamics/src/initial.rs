@@ -134,8 +134,11 @@ pub fn fit_horizon(measured: &[&[f64]], periods: f64) -> usize {
 /// Fits the initial displacements and velocities of the first `measured.len()` DOFs of `sys` so
 /// that its simulation under `input` matches `measured` at the times `t` (one slice per DOF, each
 /// at least `t.len()` long): Levenberg–Marquardt on residuals scaled by each DOF's standard
-/// deviation, Jacobian by forward differences, starting from `(x0, v0)` (all DOFs; the others stay
-/// as given). A start that blows up has cost `+∞` and is returned unchanged.
+/// deviation, Jacobian by forward differences, Marquardt's damping ladder and NL2SOL's secant
+/// estimate of the Hessian's second-order part (the residuals of a wrong model are as large as
+/// the motion), starting from `(x0, v0)` (all DOFs; the others stay as given). It ends where a
+/// step's fall, actual or predicted, is below a share of 1e-10 of the cost. A start that blows
+/// up has cost `+∞` and is returned unchanged.
 ///
 /// Errors: `measured` longer than the system's DOFs, or a slice shorter than `t`; a run that
 /// exhausts the integrator's step budget ([`DynError::TooManySteps`]: the model is too stiff or
@@ -247,7 +250,7 @@ pub fn fit_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
         r.iter().all(|v| v.is_finite()).then_some(r)
     };
     let cost_of = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>() / r.len().max(1) as f64;
-    let mut p: Vec<f64> = (0..m)
+    let p: Vec<f64> = (0..m)
         .map(|i| x0[i] / sx[i])
         .chain((0..m).map(|i| v0[i] / sv[i]))
         .collect();
@@ -257,7 +260,7 @@ pub fn fit_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
             _ => Ok(()),
         }
     };
-    let Some(mut r) = residuals(&p, f64::INFINITY) else {
+    let Some(r) = residuals(&p, f64::INFINITY) else {
         over(over_budget)?;
         return Ok(InitialFit {
             x0: x0.to_vec(),
@@ -267,9 +270,33 @@ pub fn fit_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
         });
     };
     let cost_start = cost_of(&r);
-    let mut cost = cost_start;
-    let np = 2 * m;
+    let (p, cost) = minimise(p, r, &residuals);
+    over(over_budget)?;
+    let (x, v) = to_state(&p);
+    Ok(InitialFit {
+        x0: x,
+        v0: v,
+        cost_start,
+        cost,
+    })
+}
+
+/// Levenberg–Marquardt on the scaled unknowns `p` of [`fit_initial_state`], from the
+/// residuals `r` of `p`: `residuals(q, bound)` simulates from `q` (`None` when the run fails or
+/// its mean squared residual is sure to reach `bound`). Jacobians by forward differences,
+/// Marquardt's damping ladder (÷3 after an accepted step, ×4 after a rejected one) on the
+/// model Hessian of [`Secant`]; it ends where no step could remove [`END_FALL`] of the cost,
+/// or after 50 iterations. Returns the last point and its mean squared residual.
+fn minimise<R>(mut p: Vec<f64>, mut r: Vec<f64>, residuals: &R) -> (Vec<f64>, f64)
+where
+    R: Fn(&[f64], f64) -> Option<Vec<f64>> + Sync,
+{
+    let nr = r.len().max(1) as f64;
+    let cost_of = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>() / nr;
+    let mut cost = cost_of(&r);
+    let np = p.len();
     let mut mu = 1e-3;
+    let mut secant = Secant::new(np);
     const STEP: f64 = 1e-6;
     for _ in 0..50 {
         // Forward-difference Jacobian in the scaled parameters: its columns' simulations side
@@ -283,47 +310,49 @@ pub fn fit_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
                 residuals(&q, f64::INFINITY).map(|rq| (h, rq))
             })
             .collect();
+        let Some(columns) = columns.into_iter().collect::<Option<Vec<_>>>() else {
+            break;
+        };
         let mut jac = DMatrix::<f64>::zeros(r.len(), np);
-        let mut ok = true;
-        for (j, column) in columns.into_iter().enumerate() {
-            match column {
-                Some((h, rq)) => {
-                    for (k, (a, b)) in rq.iter().zip(&r).enumerate() {
-                        jac[(k, j)] = (a - b) / h;
-                    }
-                }
-                None => {
-                    ok = false;
-                    break;
-                }
+        for (j, (h, rq)) in columns.into_iter().enumerate() {
+            for (k, (a, b)) in rq.iter().zip(&r).enumerate() {
+                jac[(k, j)] = (a - b) / h;
             }
         }
-        if !ok {
-            break;
-        }
+        let rv = DVector::from_column_slice(&r);
+        let g = jac.transpose() * &rv;
         let jtj = jac.transpose() * &jac;
-        let g = jac.transpose() * DVector::from_column_slice(&r);
+        let hessian = secant.model(&p, &jac, &rv, &g, &jtj);
+        let d: Vec<f64> = (0..np).map(|j| jtj[(j, j)].max(1e-12)).collect();
         let mut accepted = false;
         while mu < 1e12 {
-            let mut a = jtj.clone();
+            let mut a = hessian.clone();
             for j in 0..np {
-                a[(j, j)] += mu * jtj[(j, j)].max(1e-12);
+                a[(j, j)] += mu * d[j];
             }
             let Some(ch) = a.cholesky() else {
                 mu *= 4.0;
                 continue;
             };
             let step = ch.solve(&(-&g));
+            // The fall of the mean squared misfit that the model predicts for this step,
+            // (μ·hᵀDh − hᵀg)/N, shrinks as μ grows: once it is below the end's share of the
+            // cost, no higher rung could pass the end either, and the fit is at its minimum.
+            let predicted =
+                (mu * (0..np).map(|j| d[j] * step[j] * step[j]).sum::<f64>() - step.dot(&g)) / nr;
+            if predicted.is_nan() || predicted <= END_FALL * cost {
+                break;
+            }
             let q: Vec<f64> = p.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
             match residuals(&q, cost) {
                 Some(rq) if cost_of(&rq) < cost => {
                     let c = cost_of(&rq);
-                    let gain = (cost - c) / cost.max(f64::MIN_POSITIVE);
+                    mu = (mu / 3.0).max(1e-12);
+                    secant.accepted(&p, jac, g, jtj, 0.5 * nr * (cost - c));
+                    accepted = (cost - c) / cost.max(f64::MIN_POSITIVE) > END_FALL;
                     p = q;
                     r = rq;
                     cost = c;
-                    mu = (mu / 3.0).max(1e-12);
-                    accepted = gain > 1e-10;
                     break;
                 }
                 _ => mu *= 4.0,
@@ -333,14 +362,98 @@ pub fn fit_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
             break;
         }
     }
-    over(over_budget)?;
-    let (x, v) = to_state(&p);
-    Ok(InitialFit {
-        x0: x,
-        v0: v,
-        cost_start,
-        cost,
-    })
+    (p, cost)
+}
+
+/// The smallest share of the cost an iteration of [`fit_initial_state`] must remove for the
+/// fit to go on (docs/DECISIONS.md, "Simulation").
+const END_FALL: f64 = 1e-10;
+
+/// The part of the misfit's Hessian that Gauss–Newton leaves out, `S ≈ Σ rᵢ ∇²rᵢ`, estimated
+/// from the gradients along the accepted steps by the structured secant update of Dennis, Gay
+/// and Welsch (NL2SOL), sized down where the residuals are small; as in NL2SOL, each step uses
+/// `JᵀJ + S` only when that model predicted the last step's fall better than `JᵀJ` did. A
+/// start-state fit of a wrong model has residuals of the size of the motion, where `JᵀJ`
+/// alone misjudges the curvature and the steps overshoot.
+struct Secant {
+    s: DMatrix<f64>,
+    augmented: bool,
+    last: Option<LastStep>,
+}
+
+/// What [`Secant`] keeps of the point an accepted step left: the point, its Jacobian,
+/// gradient and `JᵀJ`, and the step's actual fall of `½‖r‖²`.
+struct LastStep {
+    p: Vec<f64>,
+    jac: DMatrix<f64>,
+    g: DVector<f64>,
+    jtj: DMatrix<f64>,
+    fall: f64,
+}
+
+impl Secant {
+    fn new(np: usize) -> Self {
+        Self {
+            s: DMatrix::zeros(np, np),
+            augmented: false,
+            last: None,
+        }
+    }
+
+    /// The model Hessian at `p` (Jacobian `jac`, residuals `r`, gradient `g`, `jtj`), after
+    /// updating `S` with the step that led here.
+    fn model(
+        &mut self,
+        p: &[f64],
+        jac: &DMatrix<f64>,
+        r: &DVector<f64>,
+        g: &DVector<f64>,
+        jtj: &DMatrix<f64>,
+    ) -> DMatrix<f64> {
+        if let Some(last) = self.last.take() {
+            let step = DVector::from_iterator(p.len(), p.iter().zip(&last.p).map(|(a, b)| a - b));
+            let quad = |m: &DMatrix<f64>| step.dot(&(m * &step));
+            let linear = -last.g.dot(&step);
+            let gauss_newton = linear - 0.5 * quad(&last.jtj);
+            let with_s = gauss_newton - 0.5 * quad(&self.s);
+            self.augmented = (with_s - last.fall).abs() < (gauss_newton - last.fall).abs();
+            let y = g - &last.g;
+            let y_sharp = (jac - &last.jac).transpose() * r;
+            let ys = y.dot(&step);
+            if ys > 0.0 {
+                let sss = quad(&self.s);
+                if sss != 0.0 {
+                    self.s *= (step.dot(&y_sharp).abs() / sss.abs()).min(1.0);
+                }
+                let w = &y_sharp - &self.s * &step;
+                self.s += (&w * y.transpose() + &y * w.transpose()) / ys
+                    - (&y * y.transpose()) * (w.dot(&step) / (ys * ys));
+            }
+        }
+        if self.augmented {
+            jtj + &self.s
+        } else {
+            jtj.clone()
+        }
+    }
+
+    /// Records an accepted step from `p`, taken with these derivatives, and its actual fall.
+    fn accepted(
+        &mut self,
+        p: &[f64],
+        jac: DMatrix<f64>,
+        g: DVector<f64>,
+        jtj: DMatrix<f64>,
+        fall: f64,
+    ) {
+        self.last = Some(LastStep {
+            p: p.to_vec(),
+            jac,
+            g,
+            jtj,
+            fall,
+        });
+    }
 }
 
 /// The initial state of a simulation of `sys` on measured displacements (`measured`, the first
