@@ -7,7 +7,8 @@ use rayon::prelude::*;
 use std::sync::Mutex;
 use tfs_data::{Columns, Record};
 use tfs_library::{ColumnSet, Library};
-use tfs_signal::band::{band_guarded, reconstruct_guarded};
+use tfs_signal::band::{band_guarded, reconstruct_guarded, reconstruct_keeping};
+use tfs_signal::spectra::Spectra;
 use tfs_signal::{Band, Smoothed};
 
 use crate::error::{CriteriaError, Result, invalid};
@@ -137,6 +138,31 @@ pub(crate) struct Prepared<'a> {
     pub smooth: Vec<Smoothed>,
     /// The bands of its input columns, found on first use.
     pub input_bands: InputBands,
+    /// The mirror spectra each DOF's band search transformed (see [`KEEP_SPECTRA_UP_TO`]), for
+    /// Criterion 1's cause, which reconstructs the DOFs again at their best cut-offs
+    /// ([`Prepared::take_spectra`]); empty when not kept.
+    pub spectra: Mutex<Vec<Spectra>>,
+}
+
+/// Records up to this many samples keep the mirror spectra of their DOFs' band searches until
+/// Criterion 1 has run (a few MB for the peers records; a second search on them transforms
+/// nothing again). Longer ones do not: their spectra would be tens of MB each, held through the
+/// whole fit for a cause that is needed only below κ0.
+const KEEP_SPECTRA_UP_TO: usize = 1 << 18;
+
+impl Prepared<'_> {
+    /// The kept spectra of every DOF (empty ones where none were kept), handed over and no
+    /// longer held here.
+    pub(crate) fn take_spectra(&self, dofs: usize) -> Vec<Spectra> {
+        let mut v = std::mem::take(&mut *self.spectra.lock().unwrap_or_else(|e| e.into_inner()));
+        v.resize_with(dofs, Spectra::new);
+        v
+    }
+
+    /// Drops the kept spectra (once no Criterion 1 can need them).
+    pub(crate) fn release_spectra(&self) {
+        drop(self.take_spectra(0));
+    }
 }
 
 /// The bands of a record's input columns, each found once on first use (by
@@ -175,15 +201,20 @@ pub(crate) fn prepare<'a>(
     guard_octaves: f64,
 ) -> Result<Prepared<'a>> {
     let dt = check_record(rec, dofs)?;
+    let keep = rec.len() <= KEEP_SPECTRA_UP_TO;
+    let mut spectra = Vec::new();
     let smooth = dofs
         .iter()
         .map(|d| {
-            reconstruct_guarded(
-                rec.column(d).expect("checked"),
-                dt,
-                cutoff_hz,
-                guard_octaves,
-            )
+            let x = rec.column(d).expect("checked");
+            if keep {
+                let mut kept = Spectra::new();
+                let s = reconstruct_keeping(x, dt, (cutoff_hz, guard_octaves), &mut kept);
+                spectra.push(kept);
+                s
+            } else {
+                reconstruct_guarded(x, dt, cutoff_hz, guard_octaves)
+            }
         })
         .collect();
     Ok(Prepared {
@@ -191,6 +222,7 @@ pub(crate) fn prepare<'a>(
         dt,
         smooth,
         input_bands: InputBands::default(),
+        spectra: Mutex::new(spectra),
     })
 }
 

@@ -4,8 +4,8 @@
 
 use crate::Complex;
 use crate::ends::{EndTrend, end_slopes};
-use crate::fft::{Work, fast_even_len, inverse_with, plan_forward, plan_inverse, with_work};
-use crate::floor::{NoiseFloor, choose_cutoff_on, cutoff_cost_on};
+use crate::fft::{Work, inverse_with, plan_inverse, with_work};
+use crate::spectra::{Spectra, Spectrum, mirror_spectrum, spectrum};
 
 /// The band chosen for one signal's reconstruction.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -99,35 +99,6 @@ pub struct Smoothed {
     pub a: Vec<f64>,
     /// The band used.
     pub band: Band,
-}
-
-/// Mirror-extended spectrum of `x`: the even extension `x, reversed x` (length 2N, continuous at
-/// both ends), lengthened to the fast FFT length `M = fast_even_len(2N)` by holding the end values
-/// `x_{N−1}` and `x_0` for `(M − 2N)/2` samples at each join (the extension stays even). For
-/// record lengths like 50,005 samples, 2N has large prime factors and the transform is ~3× slower;
-/// the hold adds well under 1 % to the length and touches only the reconstruction's last and
-/// first few samples. Returns the spectrum (bins 0..=M/2) and M.
-fn mirror_spectrum(x: &[f64]) -> (Vec<Complex<f64>>, usize) {
-    let n = x.len();
-    let m = fast_even_len(2 * n);
-    let pad = (m - 2 * n) / 2;
-    let fft = plan_forward(m);
-    let mut spec = fft.make_output_vec();
-    with_work(|w| {
-        let buf = &mut w.real;
-        buf.resize(m, 0.0);
-        buf[..n].copy_from_slice(x);
-        buf[n..n + pad].fill(x[n - 1]);
-        for i in 0..n {
-            buf[n + pad + n - 1 - i] = x[i];
-        }
-        buf[2 * n + pad..].fill(x[0]);
-        w.scratch
-            .resize(fft.get_scratch_len(), Complex::new(0.0, 0.0));
-        fft.process_with_scratch(buf, &mut spec, &mut w.scratch)
-            .expect("buffer sizes come from the plan");
-    });
-    (spec, m)
 }
 
 /// `x` (sampled at `dt`) with every mirror-spectrum bin above `cutoff_hz` removed: the
@@ -230,14 +201,37 @@ pub fn reconstruct_guarded(
     cutoff_hz: Option<f64>,
     guard_octaves: f64,
 ) -> Smoothed {
+    reconstruct_chosen(x, dt, choose_band(x, dt, cutoff_hz, guard_octaves, None))
+}
+
+/// [`reconstruct_guarded`] that keeps the mirror spectra its band search transforms in `kept`,
+/// or reads them from there when they were kept by an earlier search on the same `x` (see
+/// [`Spectra`]): a second reconstruction of one signal at another cut-off then costs its inverse
+/// transforms only. The result is [`reconstruct_guarded`]'s, to the bit.
+pub fn reconstruct_keeping(
+    x: &[f64],
+    dt: f64,
+    (cutoff_hz, guard_octaves): (Option<f64>, f64),
+    kept: &mut Spectra,
+) -> Smoothed {
+    reconstruct_chosen(
+        x,
+        dt,
+        choose_band(x, dt, cutoff_hz, guard_octaves, Some(kept)),
+    )
+}
+
+/// The reconstruction of `x` in the band `chosen` found for it.
+fn reconstruct_chosen(x: &[f64], dt: f64, chosen: Chosen) -> Smoothed {
     let n = x.len();
     let Chosen {
         trend,
         sp,
         kc,
         band,
-    } = choose_band(x, dt, cutoff_hz, guard_octaves);
-    let [mut xs, mut v, mut a] = inverse_at(&sp.spec[..=kc], band.bin_hz, sp.nn, (n, 1), true);
+    } = chosen;
+    let [mut xs, mut v, mut a] =
+        inverse_at(&sp.core.spec[..=kc], band.bin_hz, sp.core.nn, (n, 1), true);
     if let Some(tr) = trend {
         for i in 0..n {
             let (h, h1, h2) = tr.at(i as f64 * dt);
@@ -253,7 +247,7 @@ pub fn reconstruct_guarded(
 /// without the reconstruction itself: for a channel whose noise floor is wanted but whose
 /// band-limited samples are not (an input column in Criterion 1's noise estimate).
 pub fn band_guarded(x: &[f64], dt: f64, cutoff_hz: Option<f64>, guard_octaves: f64) -> Band {
-    choose_band(x, dt, cutoff_hz, guard_octaves).band
+    choose_band(x, dt, cutoff_hz, guard_octaves, None).band
 }
 
 /// What [`choose_band`] found: the end trend removed before the transform (if any), the
@@ -266,11 +260,22 @@ struct Chosen {
 }
 
 /// The band of [`reconstruct_guarded`]: the end-trend search, the cut-off and its guard band,
-/// and the noise estimates of the band.
-fn choose_band(x: &[f64], dt: f64, cutoff_hz: Option<f64>, guard_octaves: f64) -> Chosen {
+/// and the noise estimates of the band; the spectra transformed on the way are read from and
+/// kept in `kept` when given.
+fn choose_band(
+    x: &[f64],
+    dt: f64,
+    cutoff_hz: Option<f64>,
+    guard_octaves: f64,
+    mut kept: Option<&mut Spectra>,
+) -> Chosen {
     let n = x.len();
-    let plain = Spectrum::of(x, cutoff_hz, dt);
+    if let Some(k) = kept.as_deref_mut() {
+        k.bind(x, dt);
+    }
+    let plain = spectrum(x, dt, None, cutoff_hz, kept.as_deref_mut());
     let total: f64 = plain
+        .core
         .power
         .iter()
         .skip(1)
@@ -284,12 +289,12 @@ fn choose_band(x: &[f64], dt: f64, cutoff_hz: Option<f64>, guard_octaves: f64) -
     // lower estimated error than the record itself.
     let mut chosen: Option<(EndTrend, Spectrum)> = None;
     let mut best_cost = plain.cost;
-    let mut m = (plain.nn / (4 * plain.kc.max(1))).max(4);
+    let mut m = (plain.core.nn / (4 * plain.kc.max(1))).max(4);
     let mut worse = 0;
     while m <= (n / 4).max(4) && worse < 2 {
         let (s0, s1) = end_slopes(x, dt, m);
         let trend = EndTrend::new(s0, s1, n, dt);
-        let spec = Spectrum::of(&trend.remove(x, dt), cutoff_hz, dt);
+        let spec = spectrum(x, dt, Some(trend), cutoff_hz, kept.as_deref_mut());
         if spec.cost < best_cost {
             best_cost = spec.cost;
             chosen = Some((trend, spec));
@@ -303,17 +308,18 @@ fn choose_band(x: &[f64], dt: f64, cutoff_hz: Option<f64>, guard_octaves: f64) -
         Some((t, s)) => (Some(t), s),
         None => (None, plain),
     };
-    let df = 1.0 / (sp.nn as f64 * dt);
+    let (core, nn) = (&sp.core, sp.core.nn);
+    let df = 1.0 / (nn as f64 * dt);
     let floor_sum = |ks: std::ops::RangeInclusive<usize>| {
-        let s: f64 = ks.map(|k| sp.fl[k]).sum();
+        let s: f64 = ks.map(|k| core.fl[k]).sum();
         if s.is_finite() { s } else { 0.0 }
     };
     let (kc, floor, noise_sum) = (sp.kc, sp.floor, sp.noise_sum);
     let mse_cutoff_hz = kc as f64 * df;
-    let last = sp.spec.len() - 1;
+    let last = core.spec.len() - 1;
     let (kc, floor, noise_sum) = if cutoff_hz.is_none() && guard_octaves > 0.0 {
         let k2 = ((kc as f64 * guard_octaves.exp2()).round() as usize).clamp(kc, last);
-        let at_k2 = sp.fl[k2];
+        let at_k2 = core.fl[k2];
         let floor = if at_k2.is_finite() { at_k2 } else { floor };
         (k2, floor, noise_sum + floor_sum(kc + 1..=k2))
     } else {
@@ -321,78 +327,24 @@ fn choose_band(x: &[f64], dt: f64, cutoff_hz: Option<f64>, guard_octaves: f64) -
     };
     let share = (noise_sum / total).min(1.0);
     // Parseval on the 2N-point extension: variance = 2·Σ_{1≤k≤kc} N̂_k / (2N)².
-    let noise_var = 2.0 * noise_sum / (sp.nn as f64 * sp.nn as f64);
+    let noise_var = 2.0 * noise_sum / (nn as f64 * nn as f64);
     let band = Band {
         cutoff_hz: kc as f64 * df,
         mse_cutoff_hz,
         noise_floor: floor,
         in_band_noise_share: share,
         noise_var,
-        floor_log_a: sp.floor_model.log_a,
-        floor_beta: sp.floor_model.beta,
+        floor_log_a: core.floor_model.log_a,
+        floor_beta: core.floor_model.beta,
         bin_hz: df,
-        mirror_len: sp.nn,
-        floor_is_signal_tail: sp.floor_model.is_signal_tail(),
+        mirror_len: nn,
+        floor_is_signal_tail: core.floor_model.is_signal_tail(),
     };
     Chosen {
         trend,
         sp,
         kc,
         band,
-    }
-}
-
-/// One signal's mirror spectrum with its noise floor and the cut-off chosen on it (or given).
-struct Spectrum {
-    /// Bins 0..=M/2 of the mirror extension.
-    spec: Vec<Complex<f64>>,
-    /// Their power.
-    power: Vec<f64>,
-    /// The extension's length M.
-    nn: usize,
-    /// The fitted noise floor.
-    floor_model: NoiseFloor,
-    /// Its value at every bin ([`NoiseFloor::values`]).
-    fl: Vec<f64>,
-    /// The cut-off bin (before any guard band).
-    kc: usize,
-    /// The floor at the cut-off.
-    floor: f64,
-    /// The floor summed over bins 1..=kc.
-    noise_sum: f64,
-    /// The estimated reconstruction error at that cut-off ([`cutoff_cost`](crate::floor::cutoff_cost)).
-    cost: f64,
-}
-
-impl Spectrum {
-    /// The spectrum of `x` (sampled at `dt`) cut by [`choose_cutoff`](crate::floor::choose_cutoff), or at `cutoff_hz`.
-    fn of(x: &[f64], cutoff_hz: Option<f64>, dt: f64) -> Self {
-        let (spec, nn) = mirror_spectrum(x);
-        let df = 1.0 / (nn as f64 * dt);
-        let power: Vec<f64> = spec.iter().map(|c| c.norm_sqr()).collect();
-        let floor_model = NoiseFloor::fit(&power);
-        let fl = floor_model.values(power.len());
-        let (kc, floor, noise_sum) = match cutoff_hz {
-            Some(f) => {
-                let (_, floor, _) = choose_cutoff_on(&power, &floor_model, &fl, 0);
-                let kc = ((f / df).round() as usize).min(spec.len() - 1);
-                let s: f64 = (1..=kc).map(|k| fl[k]).sum();
-                (kc, floor, if s.is_finite() { s } else { 0.0 })
-            }
-            None => choose_cutoff_on(&power, &floor_model, &fl, 1),
-        };
-        let cost = cutoff_cost_on(&power, &fl, kc);
-        Self {
-            spec,
-            power,
-            nn,
-            floor_model,
-            fl,
-            kc,
-            floor,
-            noise_sum,
-            cost,
-        }
     }
 }
 
@@ -484,6 +436,7 @@ fn gcd(mut a: usize, mut b: usize) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fft::fast_even_len;
 
     /// The band-limited derivatives of a smooth signal in white noise are close to the truth.
     #[test]

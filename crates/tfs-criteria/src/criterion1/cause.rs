@@ -16,7 +16,7 @@ use serde::Serialize;
 use tfs_library::{Factor, Library, Var};
 use tfs_regress::{Compressed, lstsq_support};
 
-use crate::blocks::{Prepared, time_domain_blocks};
+use crate::blocks::{InputBands, Prepared, time_domain_blocks};
 use crate::error::Result;
 
 /// The residual counts as noise when it is at most this many times the RMS the noise estimate
@@ -469,30 +469,55 @@ pub(crate) fn low_kappa_cause(
     let (h, order) = sg;
     let w1 = tfs_signal::savitzky_golay_weights(h, order, 1, h)?;
     let w2 = tfs_signal::savitzky_golay_weights(h, order, 2, h)?;
-    let (residual_share, noise_share, _) = shares(
-        td,
-        nonconst,
-        preps,
-        (dofs, d, lib),
-        Filters::SavitzkyGolay([&w1, &w2]),
-    )?;
-    // The records reconstructed at the cut-off that best reconstructs each DOF (no guard band):
-    // where the least noise is let in for the signal kept.
-    let plain: Vec<Prepared<'_>> = preps
-        .iter()
-        .map(|p| Prepared {
-            rec: p.rec,
-            dt: p.dt,
-            input_bands: p.input_bands.snapshot(),
-            smooth: p
-                .smooth
-                .iter()
-                .zip(dofs)
-                .map(|(s, name)| {
-                    let x = p.rec.column(name).expect("checked when prepared");
-                    tfs_signal::band::reconstruct(x, p.dt, Some(s.band.mse_cutoff_hz))
+    // Criterion 1's own block, and the records reconstructed at the cut-off that best
+    // reconstructs each DOF (no guard band): where the least noise is let in for the signal kept.
+    // Independent, so both at once; the reconstructions read the spectra each DOF's own band
+    // search kept, which hold every spectrum this search needs when it tries the same end trends.
+    let (block, plain) = rayon::join(
+        || {
+            shares(
+                td,
+                nonconst,
+                preps,
+                (dofs, d, lib),
+                Filters::SavitzkyGolay([&w1, &w2]),
+            )
+        },
+        || -> Vec<Prepared<'_>> {
+            preps
+                .par_iter()
+                .with_max_len(1)
+                .map(|p| {
+                    let kept = p.take_spectra(dofs.len());
+                    Prepared {
+                        rec: p.rec,
+                        dt: p.dt,
+                        input_bands: InputBands::default(),
+                        spectra: Default::default(),
+                        smooth: p
+                            .smooth
+                            .iter()
+                            .zip(dofs)
+                            .zip(kept)
+                            .map(|((s, name), mut kept)| {
+                                let x = p.rec.column(name).expect("checked when prepared");
+                                let cut = (Some(s.band.mse_cutoff_hz), 0.0);
+                                tfs_signal::band::reconstruct_keeping(x, p.dt, cut, &mut kept)
+                            })
+                            .collect(),
+                    }
                 })
-                .collect(),
+                .collect()
+        },
+    );
+    let (residual_share, noise_share, _) = block?;
+    // The input columns' bands the block's shares found (the same records).
+    let plain: Vec<Prepared<'_>> = plain
+        .into_iter()
+        .zip(preps)
+        .map(|(q, p)| Prepared {
+            input_bands: p.input_bands.snapshot(),
+            ..q
         })
         .collect();
     let bl = time_domain_blocks(&plain, dofs, d, lib)?;
