@@ -43,24 +43,31 @@ pub(crate) fn choose_cutoff_on(
     // to it (from `start` up): two running sums, each in its own order, walked in one loop so
     // that neither waits for the other.
     let start = min_bin.min(k - 1);
-    let mut tail = vec![0.0; k + 1];
-    let mut heads = vec![0.0; k];
     let mut head: f64 = (0..start).map(floor).sum();
-    for (i, h) in heads.iter_mut().enumerate() {
-        let j = k - 1 - i;
-        tail[j] = tail[j + 1] + (p[j] - floor(j)).max(0.0);
-        if i >= start {
-            head += floor(i);
-            *h = head;
+    // The sums go to this thread's buffers, kept between calls: a spectrum's worth of fresh,
+    // zeroed memory per call cost more than the sums themselves. Every entry read is written
+    // first (`heads` from `start` up).
+    let best = SUMS.with_borrow_mut(|(tail, heads)| {
+        tail.resize(k + 1, 0.0);
+        heads.resize(k, 0.0);
+        tail[k] = 0.0;
+        for (i, h) in heads[..k].iter_mut().enumerate() {
+            let j = k - 1 - i;
+            tail[j] = tail[j + 1] + (p[j] - floor(j)).max(0.0);
+            if i >= start {
+                head += floor(i);
+                *h = head;
+            }
         }
-    }
-    let mut best = (start, f64::INFINITY, 0.0);
-    for kc in start..k {
-        let cost = heads[kc] + tail[kc + 1];
-        if cost < best.1 {
-            best = (kc, cost, heads[kc] - floor(0));
+        let mut best = (start, f64::INFINITY, 0.0);
+        for kc in start..k {
+            let cost = heads[kc] + tail[kc + 1];
+            if cost < best.1 {
+                best = (kc, cost, heads[kc] - floor(0));
+            }
         }
-    }
+        best
+    });
     // Harmonics: a nonlinear response has energy at multiples of the drive band that may be
     // worth less than the noise between them in total, yet each rises clearly above the local
     // floor. Extend the cut-off to the last block of `m` bins whose mean power exceeds the floor
@@ -89,6 +96,12 @@ pub(crate) fn choose_cutoff_on(
         a0 += m;
     }
     (kc, floor(kc), noise.max(0.0))
+}
+
+thread_local! {
+    /// The running sums of [`choose_cutoff_on`] (signal above, noise below each bin).
+    static SUMS: std::cell::RefCell<(Vec<f64>, Vec<f64>)> =
+        const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
 }
 
 /// Bins per block of the harmonic search of [`choose_cutoff`].
