@@ -287,7 +287,7 @@ fn search(ctx: &DofContext<'_>, reg: &Regression) -> Result<Search> {
         reg.const_j,
         &|train, held| Ok(fit_select(train, held, opt.fit.threshold, opt.fit.n_thresholds)?.0),
     )?;
-    let eligible = resamplable(&ctx.grid, &transforms, opt, &reg.keep);
+    let eligible = resamplable(&ctx.grid, &transforms, opt);
     Ok(Search {
         qs,
         transforms,
