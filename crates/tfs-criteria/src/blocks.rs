@@ -298,18 +298,19 @@ impl Columns for OwnedColumns {
     }
 }
 
-/// Time-domain library matrix and target on the band-limited reconstruction (ends trimmed, every
-/// `stride`-th sample). Only the sampled rows are evaluated.
+/// Time-domain library matrix and target on the band-limited reconstruction (ends trimmed by
+/// [`td_trim`], every [`td_stride`]-th sample). Only the sampled rows are evaluated. The
+/// reconstructions `p.smooth` hold every `q`-th sample (1: all); `q` must divide the trim and the
+/// stride (see [`td_step`]).
 pub(crate) fn time_domain(
     p: &Prepared<'_>,
     dofs: &[String],
     dof: usize,
     lib: &Library,
-    trim: usize,
-    stride: usize,
+    q: usize,
 ) -> Result<(Mat<f64>, Vec<f64>)> {
-    let cs = smoothed_columns(p, dofs)?;
     let n = p.rec.len();
+    let (trim, stride) = (td_trim(n), td_stride(n));
     if n <= 2 * trim + lib.len() + 2 {
         return Err(CriteriaError::Invalid(format!(
             "record '{}' is too short ({n} samples) for a library of {} terms",
@@ -317,19 +318,48 @@ pub(crate) fn time_domain(
             lib.len()
         )));
     }
-    let stride = stride.max(1);
+    debug_assert!(q >= 1 && trim % q == 0 && stride % q == 0);
+    let rows = (n - 2 * trim).div_ceil(stride);
+    // The rows of a record column, and of a reconstruction sampled every q-th sample.
     let sub =
         |v: &[f64]| -> Vec<f64> { v[trim..n - trim].iter().step_by(stride).copied().collect() };
-    let rows = (n - 2 * trim).div_ceil(stride);
-    // Columns the library needs; a missing one is left out so the evaluation names it.
+    let sub_q = |v: &[f64]| -> Vec<f64> {
+        v[trim / q..]
+            .iter()
+            .step_by(stride / q)
+            .take(rows)
+            .copied()
+            .collect()
+    };
+    // The DOFs and their velocities from the reconstruction, the rest from the record, as
+    // [`smoothed_columns`] has them; a missing column is left out so the evaluation names it.
+    let column = |c: &str| -> Option<Vec<f64>> {
+        for (name, s) in dofs.iter().zip(&p.smooth) {
+            if c == name {
+                return Some(sub_q(&s.x));
+            }
+            if c.strip_suffix('\'') == Some(name.as_str()) {
+                return Some(sub_q(&s.v));
+            }
+        }
+        p.rec.column(c).map(sub)
+    };
     let cols = lib
         .required_columns()
         .into_iter()
-        .filter_map(|c| cs.column(&c).map(|v| (c.clone(), sub(v))))
+        .filter_map(|c| column(&c).map(|v| (c, v)))
         .collect();
     let a = lib.evaluate(&OwnedColumns { rows, cols })?;
-    let y = sub(&p.smooth[dof].a);
+    let y = sub_q(&p.smooth[dof].a);
     Ok((a, y))
+}
+
+/// The sampling step a record of `len` samples can be reconstructed at for its time-domain
+/// block ([`time_domain`]): the stride when it divides the trim (the block's rows are then
+/// every stride-th sample from 0), else 1.
+pub(crate) fn td_step(len: usize) -> usize {
+    let (trim, stride) = (td_trim(len), td_stride(len));
+    if trim % stride == 0 { stride } else { 1 }
 }
 
 /// Ends trimmed from a record's time-domain block (2 %, at least 4 samples: the reconstruction's
@@ -355,16 +385,7 @@ pub(crate) fn time_domain_blocks(
     preps
         .par_iter()
         .with_max_len(1)
-        .map(|p| {
-            time_domain(
-                p,
-                dofs,
-                d,
-                lib,
-                td_trim(p.rec.len()),
-                td_stride(p.rec.len()),
-            )
-        })
+        .map(|p| time_domain(p, dofs, d, lib, 1))
         .collect()
 }
 

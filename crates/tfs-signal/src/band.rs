@@ -201,7 +201,7 @@ pub fn reconstruct_guarded(
     cutoff_hz: Option<f64>,
     guard_octaves: f64,
 ) -> Smoothed {
-    reconstruct_chosen(x, dt, choose_band(x, dt, cutoff_hz, guard_octaves, None))
+    reconstruct_chosen(x, dt, choose_band(x, dt, cutoff_hz, guard_octaves, None), 1)
 }
 
 /// [`reconstruct_guarded`] that keeps the mirror spectra its band search transforms in `kept`,
@@ -214,15 +214,27 @@ pub fn reconstruct_keeping(
     (cutoff_hz, guard_octaves): (Option<f64>, f64),
     kept: &mut Spectra,
 ) -> Smoothed {
-    reconstruct_chosen(
-        x,
-        dt,
-        choose_band(x, dt, cutoff_hz, guard_octaves, Some(kept)),
-    )
+    let chosen = choose_band(x, dt, cutoff_hz, guard_octaves, Some(kept));
+    reconstruct_chosen(x, dt, chosen, 1)
 }
 
-/// The reconstruction of `x` in the band `chosen` found for it.
-fn reconstruct_chosen(x: &[f64], dt: f64, chosen: Chosen) -> Smoothed {
+/// [`reconstruct_keeping`] at every `q`-th sample only: `Smoothed::x`, `v` and `a` hold the
+/// samples `0, q, 2q, …` below `x.len()`, from an inverse transform `q` times shorter where the
+/// band fits below its Nyquist bin (see `inverse_at`): the full reconstruction's values there,
+/// to rounding. The band is [`reconstruct_keeping`]'s to the bit. `q = 0` counts as 1.
+pub fn reconstruct_every(
+    x: &[f64],
+    dt: f64,
+    (cutoff_hz, guard_octaves): (Option<f64>, f64),
+    kept: &mut Spectra,
+    q: usize,
+) -> Smoothed {
+    let chosen = choose_band(x, dt, cutoff_hz, guard_octaves, Some(kept));
+    reconstruct_chosen(x, dt, chosen, q.max(1))
+}
+
+/// The reconstruction of `x` in the band `chosen` found for it, at every `q`-th sample.
+fn reconstruct_chosen(x: &[f64], dt: f64, chosen: Chosen, q: usize) -> Smoothed {
     let n = x.len();
     let Chosen {
         trend,
@@ -231,13 +243,13 @@ fn reconstruct_chosen(x: &[f64], dt: f64, chosen: Chosen) -> Smoothed {
         band,
     } = chosen;
     let [mut xs, mut v, mut a] =
-        inverse_at(&sp.core.spec[..=kc], band.bin_hz, sp.core.nn, (n, 1), true);
+        inverse_at(&sp.core.spec[..=kc], band.bin_hz, sp.core.nn, (n, q), true);
     if let Some(tr) = trend {
-        for i in 0..n {
+        for (m, i) in (0..n).step_by(q).enumerate() {
             let (h, h1, h2) = tr.at(i as f64 * dt);
-            xs[i] += h;
-            v[i] += h1;
-            a[i] += h2;
+            xs[m] += h;
+            v[m] += h1;
+            a[m] += h2;
         }
     }
     Smoothed { x: xs, v, a, band }

@@ -214,7 +214,7 @@ pub(crate) fn spectrum(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::band::{reconstruct, reconstruct_guarded, reconstruct_keeping};
+    use crate::band::{reconstruct, reconstruct_every, reconstruct_guarded, reconstruct_keeping};
     use crate::{Smoothed, noise};
 
     fn bits(s: &Smoothed) -> (Vec<u64>, Vec<u64>, Vec<u64>) {
@@ -261,6 +261,29 @@ mod tests {
             y[n / 2] += 1e-3;
             let other = reconstruct_keeping(&y, dt, (None, 0.5), &mut kept);
             assert_eq!(bits(&other), bits(&reconstruct_guarded(&y, dt, None, 0.5)));
+        }
+    }
+
+    /// A reconstruction at every q-th sample is the full one's samples there (to rounding),
+    /// trend included, in the same band to the bit, for steps that share factors with the
+    /// transform length and one that does not.
+    #[test]
+    fn reconstruction_every_qth_sample_is_the_full_one_there() {
+        let dt = 0.005;
+        let x = record(12_000, dt, 5);
+        let full = reconstruct_guarded(&x, dt, Some(3.0), 0.0);
+        let scale = |v: &[f64]| v.iter().fold(0.0f64, |m, a| m.max(a.abs()));
+        for q in [1usize, 3, 4, 6, 7] {
+            let mut kept = Spectra::new();
+            let every = reconstruct_every(&x, dt, (Some(3.0), 0.0), &mut kept, q);
+            assert_eq!(every.band, full.band, "q = {q}");
+            for (got, want) in [(&every.x, &full.x), (&every.v, &full.v), (&every.a, &full.a)] {
+                assert_eq!(got.len(), x.len().div_ceil(q), "q = {q}");
+                let tol = 1e-12 * scale(want);
+                for (m, (g, w)) in got.iter().zip(want.iter().step_by(q)).enumerate() {
+                    assert!((g - w).abs() <= tol, "q = {q}, sample {m}: {g} vs {w}");
+                }
+            }
         }
     }
 }
