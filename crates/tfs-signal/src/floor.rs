@@ -81,10 +81,14 @@ pub(crate) fn choose_cutoff_on(
     let blocks = ((k / 2).saturating_sub(kc + 1) / m).max(1);
     let z = Normal::standard().inverse_cdf(1.0 - HARMONIC_LEVEL / blocks as f64);
     let block_var = 2.0 / m as f64;
-    let mut a0 = kc + 1;
+    let first = kc + 1;
+    // Every block's power and floor sums (each in its own order), taken before the scan.
+    let sums = block_sums(p, fl, first, m, (k / 2).saturating_sub(first) / m);
+    let mut a0 = first;
     while a0 + m <= k / 2 {
-        let mean = p[a0..a0 + m].iter().sum::<f64>() / m as f64;
-        let fl = (a0..a0 + m).map(floor).sum::<f64>() / m as f64;
+        let (sp, sf) = sums[(a0 - first) / m];
+        let mean = sp / m as f64;
+        let fl = sf / m as f64;
         let se = ff.log_se(a0 + m / 2);
         let need = HARMONIC_EXCESS.ln() + z * (block_var + se * se).sqrt();
         if mean > 0.0 && fl > 0.0 && (mean / fl).ln() > need {
@@ -96,6 +100,36 @@ pub(crate) fn choose_cutoff_on(
         a0 += m;
     }
     (kc, floor(kc), noise.max(0.0))
+}
+
+/// The sums of `p` and of `fl` over each of `count` blocks of `m` bins from bin `first`, each
+/// summed from its first bin up as `Iterator::sum` does (the same value to the bit); four blocks
+/// go side by side, so that their sums do not wait for one another.
+fn block_sums(p: &[f64], fl: &[f64], first: usize, m: usize, count: usize) -> Vec<(f64, f64)> {
+    const SIDE: usize = 4;
+    let mut out = Vec::with_capacity(count);
+    let mut b = 0;
+    while b + SIDE <= count {
+        let base: [usize; SIDE] = std::array::from_fn(|l| first + (b + l) * m);
+        let mut sp: [f64; SIDE] = std::array::from_fn(|l| p[base[l]]);
+        let mut sf: [f64; SIDE] = std::array::from_fn(|l| fl[base[l]]);
+        for i in 1..m {
+            for l in 0..SIDE {
+                sp[l] += p[base[l] + i];
+                sf[l] += fl[base[l] + i];
+            }
+        }
+        out.extend(sp.into_iter().zip(sf));
+        b += SIDE;
+    }
+    for b in b..count {
+        let a0 = first + b * m;
+        out.push((
+            p[a0..a0 + m].iter().sum::<f64>(),
+            fl[a0..a0 + m].iter().sum::<f64>(),
+        ));
+    }
+    out
 }
 
 thread_local! {

@@ -277,7 +277,11 @@ mod tests {
             let mut kept = Spectra::new();
             let every = reconstruct_every(&x, dt, (Some(3.0), 0.0), &mut kept, q);
             assert_eq!(every.band, full.band, "q = {q}");
-            for (got, want) in [(&every.x, &full.x), (&every.v, &full.v), (&every.a, &full.a)] {
+            for (got, want) in [
+                (&every.x, &full.x),
+                (&every.v, &full.v),
+                (&every.a, &full.a),
+            ] {
                 assert_eq!(got.len(), x.len().div_ceil(q), "q = {q}");
                 let tol = 1e-12 * scale(want);
                 for (m, (g, w)) in got.iter().zip(want.iter().step_by(q)).enumerate() {
