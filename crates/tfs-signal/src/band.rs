@@ -332,7 +332,7 @@ fn choose_band(
         let s: f64 = ks.map(|k| core.fl[k]).sum();
         if s.is_finite() { s } else { 0.0 }
     };
-    let (kc, floor, noise_sum) = (sp.kc, sp.floor, sp.noise_sum);
+    let (kc, floor, noise_sum) = (sp.kc, sp.floor(), sp.noise_sum);
     let mse_cutoff_hz = kc as f64 * df;
     let last = core.spec.len() - 1;
     let (kc, floor, noise_sum) = if cutoff_hz.is_none() && guard_octaves > 0.0 {

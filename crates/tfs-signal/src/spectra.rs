@@ -97,8 +97,9 @@ pub(crate) struct Spectrum {
     pub core: Arc<Core>,
     /// The cut-off bin (before any guard band).
     pub kc: usize,
-    /// The floor at the cut-off.
-    pub floor: f64,
+    /// The floor at the cut-off the spectrum chose (`None` for a given cut-off: see
+    /// [`Spectrum::floor`]).
+    floor: Option<f64>,
     /// The floor summed over bins 1..=kc.
     pub noise_sum: f64,
     /// The estimated reconstruction error at that cut-off ([`cutoff_cost`](crate::floor::cutoff_cost)).
@@ -106,6 +107,16 @@ pub(crate) struct Spectrum {
 }
 
 impl Spectrum {
+    /// The floor at the cut-off the spectrum's own search chooses (with the harmonic search
+    /// from bin 0 when the cut-off was given: computed only for the spectrum a band search
+    /// keeps, not for every candidate).
+    pub fn floor(&self) -> f64 {
+        self.floor.unwrap_or_else(|| {
+            let c = &self.core;
+            choose_cutoff_on(&c.power, &c.floor_model, &c.fl, 0).1
+        })
+    }
+
     /// The spectrum `core` (of a signal sampled at `dt`) cut by
     /// [`choose_cutoff`](crate::floor::choose_cutoff), or at `cutoff_hz`.
     fn cut(core: Arc<Core>, cutoff_hz: Option<f64>, dt: f64) -> Self {
@@ -113,12 +124,14 @@ impl Spectrum {
         let (power, fl) = (&core.power, &core.fl);
         let (kc, floor, noise_sum) = match cutoff_hz {
             Some(f) => {
-                let (_, floor, _) = choose_cutoff_on(power, &core.floor_model, fl, 0);
                 let kc = ((f / df).round() as usize).min(core.spec.len() - 1);
                 let s: f64 = (1..=kc).map(|k| fl[k]).sum();
-                (kc, floor, if s.is_finite() { s } else { 0.0 })
+                (kc, None, if s.is_finite() { s } else { 0.0 })
             }
-            None => choose_cutoff_on(power, &core.floor_model, fl, 1),
+            None => {
+                let (kc, floor, noise) = choose_cutoff_on(power, &core.floor_model, fl, 1);
+                (kc, Some(floor), noise)
+            }
         };
         let cost = cutoff_cost_on(power, fl, kc);
         Self {
