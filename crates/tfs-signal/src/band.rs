@@ -122,10 +122,22 @@ pub fn low_pass(x: &[f64], dt: f64, cutoff_hz: f64) -> Vec<f64> {
     })
 }
 
+/// [`low_pass`] at every `q`-th sample only (`0, q, 2q, …` below `x.len()`), from an inverse
+/// transform `q` times shorter where the band fits below its Nyquist bin (see `inverse_at`): the
+/// full low-passed signal's samples there, to rounding. For a signal low-passed to be
+/// decimated. `q = 0` counts as 1.
+pub fn low_pass_every(x: &[f64], dt: f64, cutoff_hz: f64, q: usize) -> Vec<f64> {
+    let (spec, nn) = mirror_spectrum(x);
+    let df = 1.0 / (nn as f64 * dt);
+    let kc = ((cutoff_hz / df).round().max(0.0) as usize).min(spec.len() - 1);
+    let [out, _, _] = inverse_at(&spec[..=kc], df, nn, (x.len(), q.max(1)), 1);
+    out
+}
+
 /// Samples `0, q, 2q, …` below `n` of the inverse transform (length `nn`, normalised by `1/nn`)
 /// of the half spectrum whose bins `0..coef.len()` are `coef` and every other bin zero, and of
 /// its first and second time derivatives (each bin times `iω` and `−ω²`, bin spacing `df` Hz),
-/// with the thread's work buffers. The second derivative is left empty unless `with_acc`.
+/// with the thread's work buffers: the first `orders` of the three (the rest left empty).
 ///
 /// Sample `t = q·m` is `(1/nn)·Σ_k c_k e^{2πi·k·q·m/nn}` (over the Hermitian spectrum). With
 /// `g = gcd(q, nn)` that is the same sum on the `nn/g`-point grid at index `(q/g)·m mod nn/g`,
@@ -136,7 +148,7 @@ fn inverse_at(
     df: f64,
     nn: usize,
     (n, q): (usize, usize),
-    with_acc: bool,
+    orders: usize,
 ) -> [Vec<f64>; 3] {
     let kc = coef.len() - 1;
     let g = gcd(q, nn);
@@ -144,7 +156,6 @@ fn inverse_at(
     let step = q * len / nn;
     let count = n.div_ceil(q);
     let inv = plan_inverse(len);
-    let orders = if with_acc { 3 } else { 2 };
     let mut outs = [Vec::new(), Vec::new(), Vec::new()];
     with_work(|work| {
         let Work {
@@ -243,7 +254,7 @@ fn reconstruct_chosen(x: &[f64], dt: f64, chosen: Chosen, q: usize) -> Smoothed 
         band,
     } = chosen;
     let [mut xs, mut v, mut a] =
-        inverse_at(&sp.core.spec[..=kc], band.bin_hz, sp.core.nn, (n, q), true);
+        inverse_at(&sp.core.spec[..=kc], band.bin_hz, sp.core.nn, (n, q), 3);
     if let Some(tr) = trend {
         for (m, i) in (0..n).step_by(q).enumerate() {
             let (h, h1, h2) = tr.at(i as f64 * dt);
@@ -433,7 +444,8 @@ impl NoiseSpectrum {
         if n > nn || q == 0 {
             return None;
         }
-        let [x, v, a] = inverse_at(&self.coef, self.band.bin_hz, nn, (n, q), with_acc);
+        let orders = if with_acc { 3 } else { 2 };
+        let [x, v, a] = inverse_at(&self.coef, self.band.bin_hz, nn, (n, q), orders);
         Some(Smoothed {
             x,
             v,

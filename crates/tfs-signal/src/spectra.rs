@@ -401,4 +401,29 @@ mod tests {
             assert!(moved > 1e-6 * scale, "{moved}");
         }
     }
+
+    /// A signal low-passed at every q-th sample is the fully low-passed signal's samples there.
+    #[test]
+    fn low_pass_every_qth_sample_is_the_full_low_pass_there() {
+        use crate::band::{low_pass, low_pass_every};
+        let dt = 0.005;
+        let x = record(9000, dt, 4);
+        for (q, cut) in [
+            (1usize, 20.0),
+            (3, 0.8 * 0.5 / (3.0 * dt)),
+            (5, 30.0),
+            (7, 10.0),
+        ] {
+            let full = low_pass(&x, dt, cut);
+            let every = low_pass_every(&x, dt, cut, q);
+            assert_eq!(every.len(), x.len().div_ceil(q));
+            let scale = full.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            for (m, (g, w)) in every.iter().zip(full.iter().step_by(q)).enumerate() {
+                assert!(
+                    (g - w).abs() <= 1e-12 * scale,
+                    "q = {q}, sample {m}: {g} vs {w}"
+                );
+            }
+        }
+    }
 }
