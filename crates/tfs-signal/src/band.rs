@@ -317,13 +317,7 @@ fn choose_band(
     while m <= (n / 4).max(4) && worse < 2 {
         let (s0, s1) = end_slopes(x, dt, m);
         let trend = EndTrend::new(s0, s1, n, dt);
-        let spec = spectrum(
-            x,
-            dt,
-            Some((trend, &plain.core)),
-            cutoff_hz,
-            kept.as_deref_mut(),
-        );
+        let spec = spectrum(x, dt, Some(trend), cutoff_hz, kept.as_deref_mut());
         if spec.cost < best_cost {
             best_cost = spec.cost;
             chosen = Some((trend, spec));

@@ -95,14 +95,6 @@ impl EndTrend {
         (self.s0 * t + 0.5 * c * t * t, self.s0 + c * t, c)
     }
 
-    /// The trend as `b·t + c·t²`: `(b, c) = (s₀, (s₁ − s₀)/(2T))` (both 0 over an empty span).
-    pub fn coefficients(&self) -> (f64, f64) {
-        if self.span <= 0.0 {
-            return (0.0, 0.0);
-        }
-        (self.s0, 0.5 * ((self.s1 - self.s0) / self.span))
-    }
-
     /// `x − h` sampled at `dt`.
     pub fn remove(&self, x: &[f64], dt: f64) -> Vec<f64> {
         x.iter()

@@ -59,25 +59,6 @@ impl Core {
     /// The mirror spectrum of `x` and its floor.
     fn of(x: &[f64]) -> Self {
         let (spec, nn) = mirror_spectrum(x);
-        Self::floored(spec, nn)
-    }
-
-    /// The mirror spectrum of a record less an end trend, from the record's own spectrum
-    /// `plain` and the spectra of the trend's shapes (the extension and the transform are
-    /// linear): `X − s₀·T₁ − (c/2)·T₂`, with its floor.
-    fn less_trend(plain: &Core, trend: &EndTrend, basis: &TrendBasis) -> Self {
-        let (b, c) = trend.coefficients();
-        let spec = plain
-            .spec
-            .iter()
-            .zip(basis.t1.iter().zip(&basis.t2))
-            .map(|(&x, (&t1, &t2))| x - t1 * b - t2 * c)
-            .collect();
-        Self::floored(spec, plain.nn)
-    }
-
-    /// A spectrum `spec` of the `nn`-point extension with its power and fitted floor.
-    fn floored(spec: Vec<Complex<f64>>, nn: usize) -> Self {
         let power: Vec<f64> = spec.iter().map(|c| c.norm_sqr()).collect();
         let floor_model = NoiseFloor::fit(&power);
         let fl = floor_model.values(power.len());
@@ -222,69 +203,20 @@ fn fingerprint(x: &[f64]) -> u64 {
     lanes.iter().fold(h, |acc, &l| mix(acc, f64::from_bits(l)))
 }
 
-/// The mirror spectra of the two shapes of an end trend, `t` and `t²` (`t = i·dt`), for
-/// records of one length and step: every trend of [`EndTrend`] is `s₀·t + (c/2)·t²`.
-struct TrendBasis {
-    t1: Vec<Complex<f64>>,
-    t2: Vec<Complex<f64>>,
-}
-
-/// The trend bases of the record lengths and steps seen last, at most [`BASES_KEPT`] of them
-/// and none over [`BASIS_MAX_LEN`] samples: each costs two transforms to make and is read by
-/// every end-trend candidate of every channel of a record.
-static BASES: std::sync::Mutex<Vec<(BasisKey, Arc<TrendBasis>)>> =
-    std::sync::Mutex::new(Vec::new());
-
-/// A record length and the bits of its time step.
-type BasisKey = (usize, u64);
-
-/// How many trend bases [`BASES`] keeps.
-const BASES_KEPT: usize = 8;
-
-/// The longest record whose trend basis [`BASES`] keeps (2 × 16 bytes a sample).
-const BASIS_MAX_LEN: usize = 1 << 18;
-
-/// The trend basis of records of `n` samples at `dt`.
-fn trend_basis(n: usize, dt: f64) -> Arc<TrendBasis> {
-    let key = (n, dt.to_bits());
-    let lock = || BASES.lock().unwrap_or_else(|e| e.into_inner());
-    if let Some((_, b)) = lock().iter().find(|(k, _)| *k == key) {
-        return Arc::clone(b);
-    }
-    let t: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
-    let t2: Vec<f64> = t.iter().map(|v| v * v).collect();
-    let b = Arc::new(TrendBasis {
-        t1: mirror_spectrum(&t).0,
-        t2: mirror_spectrum(&t2).0,
-    });
-    if n <= BASIS_MAX_LEN {
-        let mut v = lock();
-        if !v.iter().any(|(k, _)| *k == key) {
-            if v.len() >= BASES_KEPT {
-                v.remove(0);
-            }
-            v.push((key, Arc::clone(&b)));
-        }
-    }
-    b
-}
-
-/// The spectrum of `x` less `trend` (sampled at `dt`; `plain` is the spectrum of `x` itself
-/// when a trend is given) cut at `cutoff_hz` or at the chosen cut-off, read from `kept` when it
-/// holds it (and kept there when it is computed); `kept` must be bound to `x`
-/// ([`Spectra::bind`]).
+/// The spectrum of `x` less `trend` (sampled at `dt`) cut at `cutoff_hz` or at the chosen
+/// cut-off, read from `kept` when it holds it (and kept there when it is computed); `kept` must
+/// be bound to `x` ([`Spectra::bind`]).
 pub(crate) fn spectrum(
     x: &[f64],
     dt: f64,
-    trend: Option<(EndTrend, &Core)>,
+    trend: Option<EndTrend>,
     cutoff_hz: Option<f64>,
     kept: Option<&mut Spectra>,
 ) -> Spectrum {
     let make = || match trend {
-        Some((t, plain)) => Core::less_trend(plain, &t, &trend_basis(x.len(), dt)),
+        Some(t) => Core::of(&t.remove(x, dt)),
         None => Core::of(x),
     };
-    let trend = trend.map(|(t, _)| t);
     let core = match kept {
         Some(k) => k.get_or_make(trend, make),
         None => Arc::new(make()),
@@ -369,36 +301,6 @@ mod tests {
                     assert!((g - w).abs() <= tol, "q = {q}, sample {m}: {g} vs {w}");
                 }
             }
-        }
-    }
-
-    /// A remainder's spectrum from the record's own and the trend basis is the direct transform
-    /// of the record less the trend, to rounding, for padded and unpadded lengths.
-    #[test]
-    fn trend_spectrum_by_linearity_is_the_direct_transform() {
-        let dt = 0.005;
-        for n in [6000usize, 6007] {
-            let x = record(n, dt, 2);
-            let (s0, s1) = crate::ends::end_slopes(&x, dt, 40);
-            let trend = EndTrend::new(s0, s1, n, dt);
-            let plain = Core::of(&x);
-            let got = Core::less_trend(&plain, &trend, &trend_basis(n, dt));
-            let want = Core::of(&trend.remove(&x, dt));
-            assert_eq!(got.nn, want.nn);
-            let scale = want.spec.iter().fold(0.0f64, |m, c| m.max(c.norm()));
-            for (k, (g, w)) in got.spec.iter().zip(&want.spec).enumerate() {
-                assert!(
-                    (g - w).norm() <= 1e-12 * scale,
-                    "n = {n}, bin {k}: {g} vs {w}"
-                );
-            }
-            // The trend is not nothing: it moves the spectrum far beyond that tolerance.
-            let moved = plain
-                .spec
-                .iter()
-                .zip(&want.spec)
-                .fold(0.0f64, |m, (a, b)| m.max((a - b).norm()));
-            assert!(moved > 1e-6 * scale, "{moved}");
         }
     }
 
