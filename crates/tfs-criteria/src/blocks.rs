@@ -7,7 +7,8 @@ use rayon::prelude::*;
 use std::sync::Mutex;
 use tfs_data::{Columns, Record};
 use tfs_library::{ColumnSet, Library};
-use tfs_signal::band::{band_guarded, reconstruct_guarded};
+use tfs_signal::band::{band_guarded, reconstruct_guarded, reconstruct_keeping};
+use tfs_signal::spectra::Spectra;
 use tfs_signal::{Band, Smoothed};
 
 use crate::error::{CriteriaError, Result, invalid};
@@ -137,6 +138,31 @@ pub(crate) struct Prepared<'a> {
     pub smooth: Vec<Smoothed>,
     /// The bands of its input columns, found on first use.
     pub input_bands: InputBands,
+    /// The mirror spectra each DOF's band search transformed (see [`KEEP_SPECTRA_UP_TO`]), for
+    /// Criterion 1's cause, which reconstructs the DOFs again at their best cut-offs
+    /// ([`Prepared::take_spectra`]); empty when not kept.
+    pub spectra: Mutex<Vec<Spectra>>,
+}
+
+/// Records up to this many samples keep the mirror spectra of their DOFs' band searches until
+/// Criterion 1 has run (a few MB for the peers records; a second search on them transforms
+/// nothing again). Longer ones do not: their spectra would be tens of MB each, held through the
+/// whole fit for a cause that is needed only below κ0.
+const KEEP_SPECTRA_UP_TO: usize = 1 << 18;
+
+impl Prepared<'_> {
+    /// The kept spectra of every DOF (empty ones where none were kept), handed over and no
+    /// longer held here.
+    pub(crate) fn take_spectra(&self, dofs: usize) -> Vec<Spectra> {
+        let mut v = std::mem::take(&mut *self.spectra.lock().unwrap_or_else(|e| e.into_inner()));
+        v.resize_with(dofs, Spectra::new);
+        v
+    }
+
+    /// Drops the kept spectra (once no Criterion 1 can need them).
+    pub(crate) fn release_spectra(&self) {
+        drop(self.take_spectra(0));
+    }
 }
 
 /// The bands of a record's input columns, each found once on first use (by
@@ -175,15 +201,20 @@ pub(crate) fn prepare<'a>(
     guard_octaves: f64,
 ) -> Result<Prepared<'a>> {
     let dt = check_record(rec, dofs)?;
+    let keep = rec.len() <= KEEP_SPECTRA_UP_TO;
+    let mut spectra = Vec::new();
     let smooth = dofs
         .iter()
         .map(|d| {
-            reconstruct_guarded(
-                rec.column(d).expect("checked"),
-                dt,
-                cutoff_hz,
-                guard_octaves,
-            )
+            let x = rec.column(d).expect("checked");
+            if keep {
+                let mut kept = Spectra::new();
+                let s = reconstruct_keeping(x, dt, (cutoff_hz, guard_octaves), &mut kept);
+                spectra.push(kept);
+                s
+            } else {
+                reconstruct_guarded(x, dt, cutoff_hz, guard_octaves)
+            }
         })
         .collect();
     Ok(Prepared {
@@ -191,6 +222,7 @@ pub(crate) fn prepare<'a>(
         dt,
         smooth,
         input_bands: InputBands::default(),
+        spectra: Mutex::new(spectra),
     })
 }
 
@@ -266,18 +298,19 @@ impl Columns for OwnedColumns {
     }
 }
 
-/// Time-domain library matrix and target on the band-limited reconstruction (ends trimmed, every
-/// `stride`-th sample). Only the sampled rows are evaluated.
+/// Time-domain library matrix and target on the band-limited reconstruction (ends trimmed by
+/// [`td_trim`], every [`td_stride`]-th sample). Only the sampled rows are evaluated. The
+/// reconstructions `p.smooth` hold every `q`-th sample (1: all); `q` must divide the trim and the
+/// stride (see [`td_step`]).
 pub(crate) fn time_domain(
     p: &Prepared<'_>,
     dofs: &[String],
     dof: usize,
     lib: &Library,
-    trim: usize,
-    stride: usize,
+    q: usize,
 ) -> Result<(Mat<f64>, Vec<f64>)> {
-    let cs = smoothed_columns(p, dofs)?;
     let n = p.rec.len();
+    let (trim, stride) = (td_trim(n), td_stride(n));
     if n <= 2 * trim + lib.len() + 2 {
         return Err(CriteriaError::Invalid(format!(
             "record '{}' is too short ({n} samples) for a library of {} terms",
@@ -285,19 +318,48 @@ pub(crate) fn time_domain(
             lib.len()
         )));
     }
-    let stride = stride.max(1);
+    debug_assert!(q >= 1 && trim % q == 0 && stride % q == 0);
+    let rows = (n - 2 * trim).div_ceil(stride);
+    // The rows of a record column, and of a reconstruction sampled every q-th sample.
     let sub =
         |v: &[f64]| -> Vec<f64> { v[trim..n - trim].iter().step_by(stride).copied().collect() };
-    let rows = (n - 2 * trim).div_ceil(stride);
-    // Columns the library needs; a missing one is left out so the evaluation names it.
+    let sub_q = |v: &[f64]| -> Vec<f64> {
+        v[trim / q..]
+            .iter()
+            .step_by(stride / q)
+            .take(rows)
+            .copied()
+            .collect()
+    };
+    // The DOFs and their velocities from the reconstruction, the rest from the record, as
+    // [`smoothed_columns`] has them; a missing column is left out so the evaluation names it.
+    let column = |c: &str| -> Option<Vec<f64>> {
+        for (name, s) in dofs.iter().zip(&p.smooth) {
+            if c == name {
+                return Some(sub_q(&s.x));
+            }
+            if c.strip_suffix('\'') == Some(name.as_str()) {
+                return Some(sub_q(&s.v));
+            }
+        }
+        p.rec.column(c).map(sub)
+    };
     let cols = lib
         .required_columns()
         .into_iter()
-        .filter_map(|c| cs.column(&c).map(|v| (c.clone(), sub(v))))
+        .filter_map(|c| column(&c).map(|v| (c, v)))
         .collect();
     let a = lib.evaluate(&OwnedColumns { rows, cols })?;
-    let y = sub(&p.smooth[dof].a);
+    let y = sub_q(&p.smooth[dof].a);
     Ok((a, y))
+}
+
+/// The sampling step a record of `len` samples can be reconstructed at for its time-domain
+/// block ([`time_domain`]): the stride when it divides the trim (the block's rows are then
+/// every stride-th sample from 0), else 1.
+pub(crate) fn td_step(len: usize) -> usize {
+    let (trim, stride) = (td_trim(len), td_stride(len));
+    if trim % stride == 0 { stride } else { 1 }
 }
 
 /// Ends trimmed from a record's time-domain block (2 %, at least 4 samples: the reconstruction's
@@ -323,16 +385,7 @@ pub(crate) fn time_domain_blocks(
     preps
         .par_iter()
         .with_max_len(1)
-        .map(|p| {
-            time_domain(
-                p,
-                dofs,
-                d,
-                lib,
-                td_trim(p.rec.len()),
-                td_stride(p.rec.len()),
-            )
-        })
+        .map(|p| time_domain(p, dofs, d, lib, 1))
         .collect()
 }
 

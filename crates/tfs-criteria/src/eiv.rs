@@ -325,6 +325,7 @@ impl DrawJob<'_> {
                     dt: p.dt,
                     smooth: shifted(sign),
                     input_bands: Default::default(),
+                    spectra: Default::default(),
                 },
                 dofs,
                 dof,

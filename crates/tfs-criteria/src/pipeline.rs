@@ -287,7 +287,7 @@ fn search(ctx: &DofContext<'_>, reg: &Regression) -> Result<Search> {
         reg.const_j,
         &|train, held| Ok(fit_select(train, held, opt.fit.threshold, opt.fit.n_thresholds)?.0),
     )?;
-    let eligible = resamplable(&ctx.grid, &transforms, opt, &reg.keep);
+    let eligible = resamplable(&ctx.grid, &transforms, opt);
     Ok(Search {
         qs,
         transforms,
@@ -367,6 +367,10 @@ fn fit_dof(
         (a?, Some(b?))
     };
     let (c1_out, c1_ms) = c1_out;
+    if d + 1 == spec.dofs.len() {
+        // No Criterion 1 after the last DOF's needs the spectra the band searches kept.
+        pass.preps.iter().for_each(|p| p.release_spectra());
+    }
     timing.push((format!("{dof}: criterion 1"), c1_ms));
     // ---- Criterion 2.
     let t0 = Instant::now();

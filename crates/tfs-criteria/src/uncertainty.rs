@@ -335,21 +335,9 @@ pub(crate) fn bin_clusters(
         if a.nrows() == 0 {
             continue;
         }
-        let f0 = t.freq.iter().cloned().fold(f64::INFINITY, f64::min);
-        let step = t
-            .freq
-            .windows(2)
-            .map(|p| p[1] - p[0])
-            .filter(|d| *d > 0.0)
-            .fold(f64::INFINITY, f64::min);
         let mut i = 0;
-        for (b, &fb) in f.iter().enumerate() {
-            let bin = if step.is_finite() && step > 0.0 {
-                ((fb - f0) / step).round() as usize
-            } else {
-                b
-            };
-            let nrow = if fb > 0.0 { 2 } else { 1 };
+        for (fb, bin) in f.iter().zip(cluster_bins(t, &f)) {
+            let nrow = if *fb > 0.0 { 2 } else { 1 };
             let entry = clusters.entry((r, w / 2, bin / CLUSTER_BINS)).or_default();
             for _ in 0..nrow {
                 entry.push(((0..k).map(|c| a[(i, c)]).collect(), y[i]));
@@ -358,6 +346,39 @@ pub(crate) fn bin_clusters(
         }
     }
     clusters
+}
+
+/// How many clusters [`bin_clusters`] forms from `rows` at `delta` (the same keys, without
+/// building the rows).
+pub(crate) fn cluster_count(rows: &[(usize, usize, &WindowTransform)], delta: f64) -> usize {
+    let mut keys = std::collections::BTreeSet::new();
+    for &(r, w, t) in rows {
+        let f = crate::criterion3::rows::kept_freqs(t, delta);
+        for bin in cluster_bins(t, &f) {
+            keys.insert((r, w / 2, bin / CLUSTER_BINS));
+        }
+    }
+    keys.len()
+}
+
+/// The bin index of each kept frequency `f` of the window transform `t` on its own grid of
+/// stored bins (from the lowest stored frequency, in steps of the smallest spacing), or its
+/// position among `f` when the grid has no spacing.
+fn cluster_bins<'f>(t: &WindowTransform, f: &'f [f64]) -> impl Iterator<Item = usize> + 'f {
+    let f0 = t.freq.iter().cloned().fold(f64::INFINITY, f64::min);
+    let step = t
+        .freq
+        .windows(2)
+        .map(|p| p[1] - p[0])
+        .filter(|d| *d > 0.0)
+        .fold(f64::INFINITY, f64::min);
+    f.iter().enumerate().map(move |(b, &fb)| {
+        if step.is_finite() && step > 0.0 {
+            ((fb - f0) / step).round() as usize
+        } else {
+            b
+        }
+    })
 }
 
 /// What [`uncertainty_stage`] found: per regression column its interval and inclusion
@@ -573,6 +594,41 @@ fn interval_note(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The cluster count is the number of clusters formed, for every δ, over windows whose
+    /// stored bins span several clusters, one with a single bin (no spacing) and one that
+    /// keeps nothing.
+    #[test]
+    fn cluster_count_is_the_number_of_clusters_formed() {
+        use crate::criterion3::rows::WindowTransform;
+        use tfs_signal::Complex;
+        let window = |bins: usize, f0: f64, seed: usize| {
+            let amp: Vec<f64> = (0..bins)
+                .map(|b| ((b * 7 + seed * 3) % 11) as f64 / 10.0)
+                .collect();
+            let max = amp.iter().cloned().fold(0.0, f64::max);
+            WindowTransform {
+                freq: (0..bins).map(|b| f0 + 0.05 * b as f64).collect(),
+                rel_amp: amp.iter().map(|a| a / max.max(1e-300)).collect(),
+                lhs: amp.iter().map(|&a| Complex::new(a, 0.5 * a)).collect(),
+                cols: vec![(0..bins).map(|b| Complex::new(b as f64, 1.0)).collect(); 2],
+                weight: vec![1.0; bins],
+            }
+        };
+        let ws = [
+            window(3 * CLUSTER_BINS + 5, 0.0, 1),
+            window(2 * CLUSTER_BINS, 0.4, 2),
+            window(1, 1.0, 3),
+            window(CLUSTER_BINS, 0.2, 0),
+        ];
+        let rows: Vec<(usize, usize, &WindowTransform)> =
+            ws.iter().enumerate().map(|(i, w)| (i / 2, i, w)).collect();
+        for delta in [0.0, 0.3, 0.75, 1.0, 1.5] {
+            let formed = bin_clusters(&rows, delta, &[0, 1]).len();
+            assert_eq!(cluster_count(&rows, delta), formed, "δ = {delta}");
+        }
+        assert!(bin_clusters(&rows, 0.0, &[0, 1]).len() > 4);
+    }
 
     /// Student's t quantiles (tabulated values) and the term test's Bonferroni level: with one
     /// candidate the test is the 95 % interval itself; with 36 it asks for about 3.2·SE on

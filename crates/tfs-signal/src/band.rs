@@ -4,8 +4,8 @@
 
 use crate::Complex;
 use crate::ends::{EndTrend, end_slopes};
-use crate::fft::{Work, fast_even_len, inverse_with, plan_forward, plan_inverse, with_work};
-use crate::floor::{NoiseFloor, choose_cutoff_on, cutoff_cost_on};
+use crate::fft::{Work, inverse_with, plan_inverse, with_work};
+use crate::spectra::{Spectra, Spectrum, mirror_spectrum, spectrum};
 
 /// The band chosen for one signal's reconstruction.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -101,35 +101,6 @@ pub struct Smoothed {
     pub band: Band,
 }
 
-/// Mirror-extended spectrum of `x`: the even extension `x, reversed x` (length 2N, continuous at
-/// both ends), lengthened to the fast FFT length `M = fast_even_len(2N)` by holding the end values
-/// `x_{N−1}` and `x_0` for `(M − 2N)/2` samples at each join (the extension stays even). For
-/// record lengths like 50,005 samples, 2N has large prime factors and the transform is ~3× slower;
-/// the hold adds well under 1 % to the length and touches only the reconstruction's last and
-/// first few samples. Returns the spectrum (bins 0..=M/2) and M.
-fn mirror_spectrum(x: &[f64]) -> (Vec<Complex<f64>>, usize) {
-    let n = x.len();
-    let m = fast_even_len(2 * n);
-    let pad = (m - 2 * n) / 2;
-    let fft = plan_forward(m);
-    let mut spec = fft.make_output_vec();
-    with_work(|w| {
-        let buf = &mut w.real;
-        buf.resize(m, 0.0);
-        buf[..n].copy_from_slice(x);
-        buf[n..n + pad].fill(x[n - 1]);
-        for i in 0..n {
-            buf[n + pad + n - 1 - i] = x[i];
-        }
-        buf[2 * n + pad..].fill(x[0]);
-        w.scratch
-            .resize(fft.get_scratch_len(), Complex::new(0.0, 0.0));
-        fft.process_with_scratch(buf, &mut spec, &mut w.scratch)
-            .expect("buffer sizes come from the plan");
-    });
-    (spec, m)
-}
-
 /// `x` (sampled at `dt`) with every mirror-spectrum bin above `cutoff_hz` removed: the
 /// reconstruction of [`reconstruct`] with a given cut-off, without derivatives or noise estimates.
 pub fn low_pass(x: &[f64], dt: f64, cutoff_hz: f64) -> Vec<f64> {
@@ -151,10 +122,22 @@ pub fn low_pass(x: &[f64], dt: f64, cutoff_hz: f64) -> Vec<f64> {
     })
 }
 
+/// [`low_pass`] at every `q`-th sample only (`0, q, 2q, …` below `x.len()`), from an inverse
+/// transform `q` times shorter where the band fits below its Nyquist bin (see `inverse_at`): the
+/// full low-passed signal's samples there, to rounding. For a signal low-passed to be
+/// decimated. `q = 0` counts as 1.
+pub fn low_pass_every(x: &[f64], dt: f64, cutoff_hz: f64, q: usize) -> Vec<f64> {
+    let (spec, nn) = mirror_spectrum(x);
+    let df = 1.0 / (nn as f64 * dt);
+    let kc = ((cutoff_hz / df).round().max(0.0) as usize).min(spec.len() - 1);
+    let [out, _, _] = inverse_at(&spec[..=kc], df, nn, (x.len(), q.max(1)), 1);
+    out
+}
+
 /// Samples `0, q, 2q, …` below `n` of the inverse transform (length `nn`, normalised by `1/nn`)
 /// of the half spectrum whose bins `0..coef.len()` are `coef` and every other bin zero, and of
 /// its first and second time derivatives (each bin times `iω` and `−ω²`, bin spacing `df` Hz),
-/// with the thread's work buffers. The second derivative is left empty unless `with_acc`.
+/// with the thread's work buffers: the first `orders` of the three (the rest left empty).
 ///
 /// Sample `t = q·m` is `(1/nn)·Σ_k c_k e^{2πi·k·q·m/nn}` (over the Hermitian spectrum). With
 /// `g = gcd(q, nn)` that is the same sum on the `nn/g`-point grid at index `(q/g)·m mod nn/g`,
@@ -165,7 +148,7 @@ fn inverse_at(
     df: f64,
     nn: usize,
     (n, q): (usize, usize),
-    with_acc: bool,
+    orders: usize,
 ) -> [Vec<f64>; 3] {
     let kc = coef.len() - 1;
     let g = gcd(q, nn);
@@ -173,7 +156,6 @@ fn inverse_at(
     let step = q * len / nn;
     let count = n.div_ceil(q);
     let inv = plan_inverse(len);
-    let orders = if with_acc { 3 } else { 2 };
     let mut outs = [Vec::new(), Vec::new(), Vec::new()];
     with_work(|work| {
         let Work {
@@ -230,20 +212,55 @@ pub fn reconstruct_guarded(
     cutoff_hz: Option<f64>,
     guard_octaves: f64,
 ) -> Smoothed {
+    reconstruct_chosen(x, dt, choose_band(x, dt, cutoff_hz, guard_octaves, None), 1)
+}
+
+/// [`reconstruct_guarded`] that keeps the mirror spectra its band search transforms in `kept`,
+/// or reads them from there when they were kept by an earlier search on the same `x` (see
+/// [`Spectra`]): a second reconstruction of one signal at another cut-off then costs its inverse
+/// transforms only. The result is [`reconstruct_guarded`]'s, to the bit.
+pub fn reconstruct_keeping(
+    x: &[f64],
+    dt: f64,
+    (cutoff_hz, guard_octaves): (Option<f64>, f64),
+    kept: &mut Spectra,
+) -> Smoothed {
+    let chosen = choose_band(x, dt, cutoff_hz, guard_octaves, Some(kept));
+    reconstruct_chosen(x, dt, chosen, 1)
+}
+
+/// [`reconstruct_keeping`] at every `q`-th sample only: `Smoothed::x`, `v` and `a` hold the
+/// samples `0, q, 2q, …` below `x.len()`, from an inverse transform `q` times shorter where the
+/// band fits below its Nyquist bin (see `inverse_at`): the full reconstruction's values there,
+/// to rounding. The band is [`reconstruct_keeping`]'s to the bit. `q = 0` counts as 1.
+pub fn reconstruct_every(
+    x: &[f64],
+    dt: f64,
+    (cutoff_hz, guard_octaves): (Option<f64>, f64),
+    kept: &mut Spectra,
+    q: usize,
+) -> Smoothed {
+    let chosen = choose_band(x, dt, cutoff_hz, guard_octaves, Some(kept));
+    reconstruct_chosen(x, dt, chosen, q.max(1))
+}
+
+/// The reconstruction of `x` in the band `chosen` found for it, at every `q`-th sample.
+fn reconstruct_chosen(x: &[f64], dt: f64, chosen: Chosen, q: usize) -> Smoothed {
     let n = x.len();
     let Chosen {
         trend,
         sp,
         kc,
         band,
-    } = choose_band(x, dt, cutoff_hz, guard_octaves);
-    let [mut xs, mut v, mut a] = inverse_at(&sp.spec[..=kc], band.bin_hz, sp.nn, (n, 1), true);
+    } = chosen;
+    let [mut xs, mut v, mut a] =
+        inverse_at(&sp.core.spec[..=kc], band.bin_hz, sp.core.nn, (n, q), 3);
     if let Some(tr) = trend {
-        for i in 0..n {
+        for (m, i) in (0..n).step_by(q).enumerate() {
             let (h, h1, h2) = tr.at(i as f64 * dt);
-            xs[i] += h;
-            v[i] += h1;
-            a[i] += h2;
+            xs[m] += h;
+            v[m] += h1;
+            a[m] += h2;
         }
     }
     Smoothed { x: xs, v, a, band }
@@ -253,7 +270,7 @@ pub fn reconstruct_guarded(
 /// without the reconstruction itself: for a channel whose noise floor is wanted but whose
 /// band-limited samples are not (an input column in Criterion 1's noise estimate).
 pub fn band_guarded(x: &[f64], dt: f64, cutoff_hz: Option<f64>, guard_octaves: f64) -> Band {
-    choose_band(x, dt, cutoff_hz, guard_octaves).band
+    choose_band(x, dt, cutoff_hz, guard_octaves, None).band
 }
 
 /// What [`choose_band`] found: the end trend removed before the transform (if any), the
@@ -266,11 +283,22 @@ struct Chosen {
 }
 
 /// The band of [`reconstruct_guarded`]: the end-trend search, the cut-off and its guard band,
-/// and the noise estimates of the band.
-fn choose_band(x: &[f64], dt: f64, cutoff_hz: Option<f64>, guard_octaves: f64) -> Chosen {
+/// and the noise estimates of the band; the spectra transformed on the way are read from and
+/// kept in `kept` when given.
+fn choose_band(
+    x: &[f64],
+    dt: f64,
+    cutoff_hz: Option<f64>,
+    guard_octaves: f64,
+    mut kept: Option<&mut Spectra>,
+) -> Chosen {
     let n = x.len();
-    let plain = Spectrum::of(x, cutoff_hz, dt);
+    if let Some(k) = kept.as_deref_mut() {
+        k.bind(x, dt);
+    }
+    let plain = spectrum(x, dt, None, cutoff_hz, kept.as_deref_mut());
     let total: f64 = plain
+        .core
         .power
         .iter()
         .skip(1)
@@ -284,12 +312,12 @@ fn choose_band(x: &[f64], dt: f64, cutoff_hz: Option<f64>, guard_octaves: f64) -
     // lower estimated error than the record itself.
     let mut chosen: Option<(EndTrend, Spectrum)> = None;
     let mut best_cost = plain.cost;
-    let mut m = (plain.nn / (4 * plain.kc.max(1))).max(4);
+    let mut m = (plain.core.nn / (4 * plain.kc.max(1))).max(4);
     let mut worse = 0;
     while m <= (n / 4).max(4) && worse < 2 {
         let (s0, s1) = end_slopes(x, dt, m);
         let trend = EndTrend::new(s0, s1, n, dt);
-        let spec = Spectrum::of(&trend.remove(x, dt), cutoff_hz, dt);
+        let spec = spectrum(x, dt, Some(trend), cutoff_hz, kept.as_deref_mut());
         if spec.cost < best_cost {
             best_cost = spec.cost;
             chosen = Some((trend, spec));
@@ -303,17 +331,18 @@ fn choose_band(x: &[f64], dt: f64, cutoff_hz: Option<f64>, guard_octaves: f64) -
         Some((t, s)) => (Some(t), s),
         None => (None, plain),
     };
-    let df = 1.0 / (sp.nn as f64 * dt);
+    let (core, nn) = (&sp.core, sp.core.nn);
+    let df = 1.0 / (nn as f64 * dt);
     let floor_sum = |ks: std::ops::RangeInclusive<usize>| {
-        let s: f64 = ks.map(|k| sp.fl[k]).sum();
+        let s: f64 = ks.map(|k| core.fl[k]).sum();
         if s.is_finite() { s } else { 0.0 }
     };
-    let (kc, floor, noise_sum) = (sp.kc, sp.floor, sp.noise_sum);
+    let (kc, floor, noise_sum) = (sp.kc, sp.floor(), sp.noise_sum);
     let mse_cutoff_hz = kc as f64 * df;
-    let last = sp.spec.len() - 1;
+    let last = core.spec.len() - 1;
     let (kc, floor, noise_sum) = if cutoff_hz.is_none() && guard_octaves > 0.0 {
         let k2 = ((kc as f64 * guard_octaves.exp2()).round() as usize).clamp(kc, last);
-        let at_k2 = sp.fl[k2];
+        let at_k2 = core.fl[k2];
         let floor = if at_k2.is_finite() { at_k2 } else { floor };
         (k2, floor, noise_sum + floor_sum(kc + 1..=k2))
     } else {
@@ -321,78 +350,24 @@ fn choose_band(x: &[f64], dt: f64, cutoff_hz: Option<f64>, guard_octaves: f64) -
     };
     let share = (noise_sum / total).min(1.0);
     // Parseval on the 2N-point extension: variance = 2·Σ_{1≤k≤kc} N̂_k / (2N)².
-    let noise_var = 2.0 * noise_sum / (sp.nn as f64 * sp.nn as f64);
+    let noise_var = 2.0 * noise_sum / (nn as f64 * nn as f64);
     let band = Band {
         cutoff_hz: kc as f64 * df,
         mse_cutoff_hz,
         noise_floor: floor,
         in_band_noise_share: share,
         noise_var,
-        floor_log_a: sp.floor_model.log_a,
-        floor_beta: sp.floor_model.beta,
+        floor_log_a: core.floor_model.log_a,
+        floor_beta: core.floor_model.beta,
         bin_hz: df,
-        mirror_len: sp.nn,
-        floor_is_signal_tail: sp.floor_model.is_signal_tail(),
+        mirror_len: nn,
+        floor_is_signal_tail: core.floor_model.is_signal_tail(),
     };
     Chosen {
         trend,
         sp,
         kc,
         band,
-    }
-}
-
-/// One signal's mirror spectrum with its noise floor and the cut-off chosen on it (or given).
-struct Spectrum {
-    /// Bins 0..=M/2 of the mirror extension.
-    spec: Vec<Complex<f64>>,
-    /// Their power.
-    power: Vec<f64>,
-    /// The extension's length M.
-    nn: usize,
-    /// The fitted noise floor.
-    floor_model: NoiseFloor,
-    /// Its value at every bin ([`NoiseFloor::values`]).
-    fl: Vec<f64>,
-    /// The cut-off bin (before any guard band).
-    kc: usize,
-    /// The floor at the cut-off.
-    floor: f64,
-    /// The floor summed over bins 1..=kc.
-    noise_sum: f64,
-    /// The estimated reconstruction error at that cut-off ([`cutoff_cost`](crate::floor::cutoff_cost)).
-    cost: f64,
-}
-
-impl Spectrum {
-    /// The spectrum of `x` (sampled at `dt`) cut by [`choose_cutoff`](crate::floor::choose_cutoff), or at `cutoff_hz`.
-    fn of(x: &[f64], cutoff_hz: Option<f64>, dt: f64) -> Self {
-        let (spec, nn) = mirror_spectrum(x);
-        let df = 1.0 / (nn as f64 * dt);
-        let power: Vec<f64> = spec.iter().map(|c| c.norm_sqr()).collect();
-        let floor_model = NoiseFloor::fit(&power);
-        let fl = floor_model.values(power.len());
-        let (kc, floor, noise_sum) = match cutoff_hz {
-            Some(f) => {
-                let (_, floor, _) = choose_cutoff_on(&power, &floor_model, &fl, 0);
-                let kc = ((f / df).round() as usize).min(spec.len() - 1);
-                let s: f64 = (1..=kc).map(|k| fl[k]).sum();
-                (kc, floor, if s.is_finite() { s } else { 0.0 })
-            }
-            None => choose_cutoff_on(&power, &floor_model, &fl, 1),
-        };
-        let cost = cutoff_cost_on(&power, &fl, kc);
-        Self {
-            spec,
-            power,
-            nn,
-            floor_model,
-            fl,
-            kc,
-            floor,
-            noise_sum,
-            cost,
-        }
     }
 }
 
@@ -463,7 +438,8 @@ impl NoiseSpectrum {
         if n > nn || q == 0 {
             return None;
         }
-        let [x, v, a] = inverse_at(&self.coef, self.band.bin_hz, nn, (n, q), with_acc);
+        let orders = if with_acc { 3 } else { 2 };
+        let [x, v, a] = inverse_at(&self.coef, self.band.bin_hz, nn, (n, q), orders);
         Some(Smoothed {
             x,
             v,
@@ -484,6 +460,7 @@ fn gcd(mut a: usize, mut b: usize) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fft::fast_even_len;
 
     /// The band-limited derivatives of a smooth signal in white noise are close to the truth.
     #[test]

@@ -43,24 +43,31 @@ pub(crate) fn choose_cutoff_on(
     // to it (from `start` up): two running sums, each in its own order, walked in one loop so
     // that neither waits for the other.
     let start = min_bin.min(k - 1);
-    let mut tail = vec![0.0; k + 1];
-    let mut heads = vec![0.0; k];
     let mut head: f64 = (0..start).map(floor).sum();
-    for (i, h) in heads.iter_mut().enumerate() {
-        let j = k - 1 - i;
-        tail[j] = tail[j + 1] + (p[j] - floor(j)).max(0.0);
-        if i >= start {
-            head += floor(i);
-            *h = head;
+    // The sums go to this thread's buffers, kept between calls: a spectrum's worth of fresh,
+    // zeroed memory per call cost more than the sums themselves. Every entry read is written
+    // first (`heads` from `start` up).
+    let best = SUMS.with_borrow_mut(|(tail, heads)| {
+        tail.resize(k + 1, 0.0);
+        heads.resize(k, 0.0);
+        tail[k] = 0.0;
+        for (i, h) in heads[..k].iter_mut().enumerate() {
+            let j = k - 1 - i;
+            tail[j] = tail[j + 1] + (p[j] - floor(j)).max(0.0);
+            if i >= start {
+                head += floor(i);
+                *h = head;
+            }
         }
-    }
-    let mut best = (start, f64::INFINITY, 0.0);
-    for kc in start..k {
-        let cost = heads[kc] + tail[kc + 1];
-        if cost < best.1 {
-            best = (kc, cost, heads[kc] - floor(0));
+        let mut best = (start, f64::INFINITY, 0.0);
+        for kc in start..k {
+            let cost = heads[kc] + tail[kc + 1];
+            if cost < best.1 {
+                best = (kc, cost, heads[kc] - floor(0));
+            }
         }
-    }
+        best
+    });
     // Harmonics: a nonlinear response has energy at multiples of the drive band that may be
     // worth less than the noise between them in total, yet each rises clearly above the local
     // floor. Extend the cut-off to the last block of `m` bins whose mean power exceeds the floor
@@ -74,10 +81,14 @@ pub(crate) fn choose_cutoff_on(
     let blocks = ((k / 2).saturating_sub(kc + 1) / m).max(1);
     let z = Normal::standard().inverse_cdf(1.0 - HARMONIC_LEVEL / blocks as f64);
     let block_var = 2.0 / m as f64;
-    let mut a0 = kc + 1;
+    let first = kc + 1;
+    // Every block's power and floor sums (each in its own order), taken before the scan.
+    let sums = block_sums(p, fl, first, m, (k / 2).saturating_sub(first) / m);
+    let mut a0 = first;
     while a0 + m <= k / 2 {
-        let mean = p[a0..a0 + m].iter().sum::<f64>() / m as f64;
-        let fl = (a0..a0 + m).map(floor).sum::<f64>() / m as f64;
+        let (sp, sf) = sums[(a0 - first) / m];
+        let mean = sp / m as f64;
+        let fl = sf / m as f64;
         let se = ff.log_se(a0 + m / 2);
         let need = HARMONIC_EXCESS.ln() + z * (block_var + se * se).sqrt();
         if mean > 0.0 && fl > 0.0 && (mean / fl).ln() > need {
@@ -89,6 +100,42 @@ pub(crate) fn choose_cutoff_on(
         a0 += m;
     }
     (kc, floor(kc), noise.max(0.0))
+}
+
+/// The sums of `p` and of `fl` over each of `count` blocks of `m` bins from bin `first`, each
+/// summed from its first bin up as `Iterator::sum` does (the same value to the bit); four blocks
+/// go side by side, so that their sums do not wait for one another.
+fn block_sums(p: &[f64], fl: &[f64], first: usize, m: usize, count: usize) -> Vec<(f64, f64)> {
+    const SIDE: usize = 4;
+    let mut out = Vec::with_capacity(count);
+    let mut b = 0;
+    while b + SIDE <= count {
+        let base: [usize; SIDE] = std::array::from_fn(|l| first + (b + l) * m);
+        let mut sp: [f64; SIDE] = std::array::from_fn(|l| p[base[l]]);
+        let mut sf: [f64; SIDE] = std::array::from_fn(|l| fl[base[l]]);
+        for i in 1..m {
+            for l in 0..SIDE {
+                sp[l] += p[base[l] + i];
+                sf[l] += fl[base[l] + i];
+            }
+        }
+        out.extend(sp.into_iter().zip(sf));
+        b += SIDE;
+    }
+    for b in b..count {
+        let a0 = first + b * m;
+        out.push((
+            p[a0..a0 + m].iter().sum::<f64>(),
+            fl[a0..a0 + m].iter().sum::<f64>(),
+        ));
+    }
+    out
+}
+
+thread_local! {
+    /// The running sums of [`choose_cutoff_on`] (signal above, noise below each bin).
+    static SUMS: std::cell::RefCell<(Vec<f64>, Vec<f64>)> =
+        const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
 }
 
 /// Bins per block of the harmonic search of [`choose_cutoff`].

@@ -61,6 +61,7 @@ pub mod excitation;
 pub mod fft;
 pub mod floor;
 pub mod noise;
+pub mod spectra;
 pub mod window;
 pub mod windowed;
 

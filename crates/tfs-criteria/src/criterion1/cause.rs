@@ -16,7 +16,9 @@ use serde::Serialize;
 use tfs_library::{Factor, Library, Var};
 use tfs_regress::{Compressed, lstsq_support};
 
-use crate::blocks::{Prepared, time_domain_blocks};
+use tfs_signal::band::reconstruct_every;
+
+use crate::blocks::{InputBands, Prepared, td_step, time_domain};
 use crate::error::Result;
 
 /// The residual counts as noise when it is at most this many times the RMS the noise estimate
@@ -213,14 +215,28 @@ impl Filters<'_> {
 const LANES: usize = 8;
 
 /// The frequency responses at each of the frequencies `fs` (Hz) of the centred Savitzky–Golay
-/// weights `w[0]` of the first derivative and `w[1]` of the second (equal lengths) at sample
-/// step `dt`: `Σ_m w_m·e^{i2πf(m−h)dt} / dt^order`, as (re, im), one pair per frequency.
+/// weights `w[0]` of the first derivative and `w[1]` of the second (equal, odd lengths `2h + 1`)
+/// at sample step `dt`: `Σ_m w_m·e^{i2πf(m−h)dt} / dt^order`, as (re, im), one pair per
+/// frequency.
 ///
-/// Each frequency's arithmetic is that of a lone evaluation (one sine and cosine, then the
-/// phase factor of each tap by rotation, the taps summed in order), so the result does not
-/// depend on the batching; [`LANES`] frequencies go through the taps side by side so that the
-/// compiler keeps them in vector registers.
+/// The taps are summed in pairs about the centre, `w_{h+j}·e^{iθj} + w_{h−j}·e^{−iθj} =
+/// (w_{h+j} + w_{h−j})·cos θj + i·(w_{h+j} − w_{h−j})·sin θj`, so each frequency takes one sine
+/// and cosine and rotates through the `h` taps of one side. Each frequency's arithmetic is that
+/// of a lone evaluation, so the result does not depend on the batching; [`LANES`] frequencies go
+/// through the taps side by side so that the compiler keeps them in vector registers.
 fn sg_responses(w: [&[f64]; 2], dt: f64, fs: &[f64]) -> Vec<[(f64, f64); 2]> {
+    debug_assert_eq!(w[0].len(), w[1].len());
+    let h = w[0].len() / 2;
+    let taps = SgPairs {
+        centre: [w[0][h], w[1][h]],
+        pairs: (1..=h)
+            .map(|j| {
+                let (a, b) = (w[0][h + j], w[0][h - j]);
+                let (c, d) = (w[1][h + j], w[1][h - j]);
+                [a + b, a - b, c + d, c - d]
+            })
+            .collect(),
+    };
     let mut out = Vec::with_capacity(fs.len());
     for chunk in fs.chunks(LANES) {
         let mut lane = [chunk[0]; LANES];
@@ -228,15 +244,25 @@ fn sg_responses(w: [&[f64]; 2], dt: f64, fs: &[f64]) -> Vec<[(f64, f64); 2]> {
         #[cfg(target_arch = "x86_64")]
         let r = if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the processor has AVX2, checked just above.
-            unsafe { sg_batch_avx2(w, dt, &lane) }
+            unsafe { sg_batch_avx2(&taps, dt, &lane) }
         } else {
-            sg_batch(w, dt, &lane)
+            sg_batch(&taps, dt, &lane)
         };
         #[cfg(not(target_arch = "x86_64"))]
-        let r = sg_batch(w, dt, &lane);
+        let r = sg_batch(&taps, dt, &lane);
         out.extend_from_slice(&r[..chunk.len()]);
     }
     out
+}
+
+/// Savitzky–Golay weights of the first and second derivative paired about the centre (see
+/// [`sg_responses`]).
+struct SgPairs {
+    /// The centre weights `w_h` of each.
+    centre: [f64; 2],
+    /// For `j = 1..=h`: `w_{h+j} + w_{h−j}` and `w_{h+j} − w_{h−j}` of the first, then of the
+    /// second.
+    pairs: Vec<[f64; 4]>,
 }
 
 /// [`sg_batch`] compiled for AVX2 (four lanes per register; the same operations per lane, no
@@ -246,30 +272,29 @@ fn sg_responses(w: [&[f64]; 2], dt: f64, fs: &[f64]) -> Vec<[(f64, f64); 2]> {
 /// The processor must have AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn sg_batch_avx2(w: [&[f64]; 2], dt: f64, fs: &[f64; LANES]) -> [[(f64, f64); 2]; LANES] {
-    sg_batch(w, dt, fs)
+unsafe fn sg_batch_avx2(taps: &SgPairs, dt: f64, fs: &[f64; LANES]) -> [[(f64, f64); 2]; LANES] {
+    sg_batch(taps, dt, fs)
 }
 
 /// One batch of [`sg_responses`].
 #[inline(always)]
-fn sg_batch(w: [&[f64]; 2], dt: f64, fs: &[f64; LANES]) -> [[(f64, f64); 2]; LANES] {
-    debug_assert_eq!(w[0].len(), w[1].len());
-    let h = (w[0].len() / 2) as f64;
-    // e^{iθ(m−h)} by rotation from m = 0: one sine and cosine per frequency.
+fn sg_batch(taps: &SgPairs, dt: f64, fs: &[f64; LANES]) -> [[(f64, f64); 2]; LANES] {
+    // e^{iθj} by rotation from j = 1: one sine and cosine per frequency.
     let (mut c, mut s, mut dc, mut ds) = ([0.0; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
     for l in 0..LANES {
         let step = 2.0 * std::f64::consts::PI * fs[l] * dt;
-        (s[l], c[l]) = (-h * step).sin_cos();
         (ds[l], dc[l]) = step.sin_cos();
+        (c[l], s[l]) = (dc[l], ds[l]);
     }
+    let [c1, c2] = taps.centre;
     let (mut re1, mut im1, mut re2, mut im2) =
-        ([0.0; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
-    for (&w1, &w2) in w[0].iter().zip(w[1]) {
+        ([c1; LANES], [0.0; LANES], [c2; LANES], [0.0; LANES]);
+    for &[p1, m1, p2, m2] in &taps.pairs {
         for l in 0..LANES {
-            re1[l] += w1 * c[l];
-            im1[l] += w1 * s[l];
-            re2[l] += w2 * c[l];
-            im2[l] += w2 * s[l];
+            re1[l] += p1 * c[l];
+            im1[l] += m1 * s[l];
+            re2[l] += p2 * c[l];
+            im2[l] += m2 * s[l];
             (c[l], s[l]) = (c[l] * dc[l] - s[l] * ds[l], s[l] * dc[l] + c[l] * ds[l]);
         }
     }
@@ -343,7 +368,7 @@ fn shares(
     filters: Filters<'_>,
 ) -> Result<(f64, f64, bool)> {
     let comps = td
-        .iter()
+        .par_iter()
         .map(|(a, y)| {
             let aa = Mat::<f64>::from_fn(a.nrows(), nonconst.len() + 1, |i, j| {
                 if j == 0 { 1.0 } else { a[(i, nonconst[j - 1])] }
@@ -469,33 +494,64 @@ pub(crate) fn low_kappa_cause(
     let (h, order) = sg;
     let w1 = tfs_signal::savitzky_golay_weights(h, order, 1, h)?;
     let w2 = tfs_signal::savitzky_golay_weights(h, order, 2, h)?;
-    let (residual_share, noise_share, _) = shares(
-        td,
-        nonconst,
-        preps,
-        (dofs, d, lib),
-        Filters::SavitzkyGolay([&w1, &w2]),
-    )?;
-    // The records reconstructed at the cut-off that best reconstructs each DOF (no guard band):
-    // where the least noise is let in for the signal kept.
-    let plain: Vec<Prepared<'_>> = preps
-        .iter()
-        .map(|p| Prepared {
-            rec: p.rec,
-            dt: p.dt,
-            input_bands: p.input_bands.snapshot(),
-            smooth: p
-                .smooth
-                .iter()
-                .zip(dofs)
-                .map(|(s, name)| {
-                    let x = p.rec.column(name).expect("checked when prepared");
-                    tfs_signal::band::reconstruct(x, p.dt, Some(s.band.mse_cutoff_hz))
+    // Criterion 1's own block, and the records reconstructed at the cut-off that best
+    // reconstructs each DOF (no guard band): where the least noise is let in for the signal kept.
+    // Independent, so both at once; the reconstructions read the spectra each DOF's own band
+    // search kept, which hold every spectrum this search needs when it tries the same end trends.
+    let (block, plain) = rayon::join(
+        || {
+            shares(
+                td,
+                nonconst,
+                preps,
+                (dofs, d, lib),
+                Filters::SavitzkyGolay([&w1, &w2]),
+            )
+        },
+        || -> Vec<Prepared<'_>> {
+            preps
+                .par_iter()
+                .with_max_len(1)
+                .map(|p| {
+                    let kept = p.take_spectra(dofs.len());
+                    Prepared {
+                        rec: p.rec,
+                        dt: p.dt,
+                        input_bands: InputBands::default(),
+                        spectra: Default::default(),
+                        smooth: p
+                            .smooth
+                            .iter()
+                            .zip(dofs)
+                            .zip(kept)
+                            .map(|((s, name), mut kept)| {
+                                let x = p.rec.column(name).expect("checked when prepared");
+                                let cut = (Some(s.band.mse_cutoff_hz), 0.0);
+                                let q = td_step(p.rec.len());
+                                reconstruct_every(x, p.dt, cut, &mut kept, q)
+                            })
+                            .collect(),
+                    }
                 })
-                .collect(),
+                .collect()
+        },
+    );
+    let (residual_share, noise_share, _) = block?;
+    // The input columns' bands the block's shares found (the same records).
+    let plain: Vec<Prepared<'_>> = plain
+        .into_iter()
+        .zip(preps)
+        .map(|(q, p)| Prepared {
+            input_bands: p.input_bands.snapshot(),
+            ..q
         })
         .collect();
-    let bl = time_domain_blocks(&plain, dofs, d, lib)?;
+    // Only the block's rows of each reconstruction were made (every `td_step`-th sample).
+    let bl = plain
+        .par_iter()
+        .with_max_len(1)
+        .map(|p| time_domain(p, dofs, d, lib, td_step(p.rec.len())))
+        .collect::<Result<Vec<_>>>()?;
     let (band_residual, band_noise, noise_only) =
         shares(&bl, nonconst, &plain, (dofs, d, lib), Filters::Spectral)?;
     let band_hz = plain
@@ -537,18 +593,17 @@ pub(crate) fn low_kappa_cause(
 mod tests {
     use super::*;
 
-    /// The response of one set of weights at one frequency as first written: one sine and
-    /// cosine, the taps summed in order by rotation.
+    /// The response of one set of weights at one frequency, alone: one sine and cosine, the
+    /// taps paired about the centre and summed outward by rotation.
     fn one_response(w: &[f64], order: usize, dt: f64, f: f64) -> (f64, f64) {
-        let h = (w.len() / 2) as f64;
+        let h = w.len() / 2;
         let step = 2.0 * std::f64::consts::PI * f * dt;
-        let (s0, c0) = (-h * step).sin_cos();
         let (ds, dc) = step.sin_cos();
-        let (mut c, mut s) = (c0, s0);
-        let (mut re, mut im) = (0.0, 0.0);
-        for &wm in w {
-            re += wm * c;
-            im += wm * s;
+        let (mut c, mut s) = (dc, ds);
+        let (mut re, mut im) = (w[h], 0.0);
+        for j in 1..=h {
+            re += (w[h + j] + w[h - j]) * c;
+            im += (w[h + j] - w[h - j]) * s;
             (c, s) = (c * dc - s * ds, s * dc + c * ds);
         }
         let scale = dt.powi(order as i32);
@@ -577,17 +632,20 @@ mod tests {
                     (a2.0.to_bits(), a2.1.to_bits())
                 );
                 // The defining sum with each phase factor computed directly.
-                let direct = w1
-                    .iter()
-                    .enumerate()
-                    .map(|(m, wm)| {
-                        let th = 2.0 * std::f64::consts::PI * f * (m as f64 - h as f64) * dt;
-                        (wm * th.cos(), wm * th.sin())
-                    })
-                    .fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
-                let scale = (w1.iter().map(|v| v.abs()).sum::<f64>()) / dt;
-                assert!((direct.0 / dt - r1.0).abs() < 1e-9 * scale);
-                assert!((direct.1 / dt - r1.1).abs() < 1e-9 * scale);
+                for (w, order, r) in [(&w1, 1, r1), (&w2, 2, r2)] {
+                    let direct = w
+                        .iter()
+                        .enumerate()
+                        .map(|(m, wm)| {
+                            let th = 2.0 * std::f64::consts::PI * f * (m as f64 - h as f64) * dt;
+                            (wm * th.cos(), wm * th.sin())
+                        })
+                        .fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+                    let d = dt.powi(order);
+                    let scale = (w.iter().map(|v| v.abs()).sum::<f64>()) / d;
+                    assert!((direct.0 / d - r.0).abs() < 1e-9 * scale);
+                    assert!((direct.1 / d - r.1).abs() < 1e-9 * scale);
+                }
             }
         }
     }

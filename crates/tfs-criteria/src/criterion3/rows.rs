@@ -132,6 +132,16 @@ fn stacked_rows<'w>(
     (a, y)
 }
 
+/// The frequencies of the bins of `w` whose rows [`rows_for`] keeps at `delta` (its third
+/// output, without the rows).
+pub(crate) fn kept_freqs(w: &WindowTransform, delta: f64) -> Vec<f64> {
+    bin_rows(w, delta, f64::INFINITY)
+        .iter()
+        .filter(|(_, im)| !im)
+        .map(|&(b, _)| w.freq[b])
+        .collect()
+}
+
 /// The rows of the bins of `w` with `lo ≤` relative amplitude `< hi`: `(bin, imaginary part)`,
 /// a real row for every bin and an imaginary one unless it is DC.
 fn bin_rows(w: &WindowTransform, lo: f64, hi: f64) -> Vec<(usize, bool)> {

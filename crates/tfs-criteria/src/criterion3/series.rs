@@ -5,7 +5,7 @@
 
 use tfs_data::Columns;
 use tfs_library::{ColumnSet, Factor, Library, Term, Var, evaluate_term};
-use tfs_signal::band::low_pass;
+use tfs_signal::band::low_pass_every;
 use tfs_signal::{Band, Complex, Smoothed, Weighting, Window, WindowSamples, windowed_bins};
 
 use crate::blocks::{OwnedColumns, Prepared, raw_columns_sg, smoothed_columns};
@@ -202,7 +202,7 @@ pub(crate) fn decimated_series(
             }
             let fcs = full_cs.as_ref().expect("just set");
             let ser = term_series(t, fcs, &p.smooth, dofs, weak, debias)?;
-            let lp = |v: &[f64]| decimate(&low_pass(v, p.dt, 0.8 * nyq), q);
+            let lp = |v: &[f64]| low_pass_every(v, p.dt, 0.8 * nyq, q);
             terms.push(match ser {
                 Series::Plain(v) => Series::Plain(lp(&v)),
                 Series::Transfer(v) => Series::Transfer(lp(&v)),

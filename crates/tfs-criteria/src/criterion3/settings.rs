@@ -207,7 +207,6 @@ pub(crate) fn resamplable(
     grid: &[(usize, usize)],
     transforms: &Transforms,
     opt: &TfsOptions,
-    keep: &[usize],
 ) -> Vec<bool> {
     grid.iter()
         .map(|&(wi, di)| {
@@ -216,8 +215,7 @@ pub(crate) fn resamplable(
                 .enumerate()
                 .flat_map(|(r, wins)| wins.iter().enumerate().map(move |(w, t)| (r, w, t)))
                 .collect();
-            crate::uncertainty::bin_clusters(&rows, opt.criterion3.deltas[di], keep).len()
-                >= MIN_CLUSTERS
+            crate::uncertainty::cluster_count(&rows, opt.criterion3.deltas[di]) >= MIN_CLUSTERS
         })
         .collect()
 }

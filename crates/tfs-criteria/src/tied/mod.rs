@@ -370,6 +370,7 @@ fn per_dof_stages(
     for (d, lib) in libs.iter().enumerate() {
         c1s.push(criterion1_dof(blocks, preps, spec, d, lib)?.verdict);
     }
+    preps.iter().for_each(|p| p.release_spectra());
     timing.push(("criterion 1".to_string(), ms(t0)));
     let t0 = Instant::now();
     let mut qs = Vec::with_capacity(libs.len());
