@@ -83,7 +83,8 @@ pub fn rules() -> Vec<Rule> {
             "range",
             "judge",
             format!(
-                "a tied chain's fold model stops as blown up past {} times the record's largest state",
+                "every run on a record stops once a measured displacement leaves the record's span widened by {} spans on each side; a tied chain's fold model also stops as blown up past {} times the record's largest state",
+                tfs_dynamics::RANGE_SPANS,
                 crate::judge::RANGE_FACTOR
             ),
             "a prediction that leaves the records' range fails instead of crawling",

@@ -23,6 +23,23 @@ pub enum DynError {
         /// Velocities at that time.
         v: Vec<f64>,
     },
+    /// A measured displacement left the band its record allows a run
+    /// ([`crate::SimulateOptions::range`]): the model does not follow the record.
+    #[error(
+        "the simulation left the range of the record: {dof} = {x:.6e} at t = {t:.6} s, outside {lo:.6e} to {hi:.6e} (the record's own span widened on each side); the model does not follow this record under its input"
+    )]
+    LeftRange {
+        /// Time of the first output sample outside the band (s).
+        t: f64,
+        /// The displacement's name.
+        dof: String,
+        /// Its value there.
+        x: f64,
+        /// The band's low end.
+        lo: f64,
+        /// The band's high end.
+        hi: f64,
+    },
     /// The adaptive step size fell below what floating point can resolve.
     #[error(
         "the model is too stiff or discontinuous to simulate at this tolerance: the step fell to h = {h:.3e} s at t = {t:.6} s; look for a term that jumps (sign(x'), a stop) or a coefficient far larger than the others"
@@ -105,6 +122,13 @@ impl DynError {
         match self {
             DynError::BlowUp { t, x, v } => DynError::BlowUp { t: t + t0, x, v },
             DynError::StepSizeUnderflow { t, h } => DynError::StepSizeUnderflow { t: t + t0, h },
+            DynError::LeftRange { t, dof, x, lo, hi } => DynError::LeftRange {
+                t: t + t0,
+                dof,
+                x,
+                lo,
+                hi,
+            },
             DynError::TooManySteps {
                 t,
                 t_target,

@@ -42,6 +42,7 @@ mod input;
 mod integrate;
 mod metrics;
 mod model;
+mod range;
 mod rk4;
 mod system;
 
@@ -52,6 +53,8 @@ pub use initial::{InitialFit, InitialState, choose_initial_state, fit_horizon, f
 pub use input::{Interpolation, SampledInput};
 pub use integrate::{Integrator, Stats, Trajectory};
 pub use metrics::{rms_error, rmse_ratio, rmse_variance};
-pub use model::{RESOLVED_SPAN_ATOL, SimulateOptions, initial_velocity, simulate_model_on_record};
+pub use model::{
+    RANGE_SPANS, RESOLVED_SPAN_ATOL, SimulateOptions, initial_velocity, simulate_model_on_record,
+};
 pub use rk4::{Rk4, Rk4Scratch, rk4_step};
 pub use system::{FnSystem, SecondOrderSystem};

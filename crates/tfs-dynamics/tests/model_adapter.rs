@@ -2,7 +2,7 @@
 
 use std::f64::consts::PI;
 use tfs_data::Record;
-use tfs_dynamics::{DynError, SimulateOptions, rmse_ratio, simulate_model_on_record};
+use tfs_dynamics::{DynError, RANGE_SPANS, SimulateOptions, rmse_ratio, simulate_model_on_record};
 use tfs_library::{Library, Model};
 
 /// x'' = −4 x − 0.2 x' − xb_acc, with xb_acc = A sin(Ω t) sampled 20 times per period and x the
@@ -63,4 +63,48 @@ fn missing_input_column_is_named() {
         msg.contains("short.csv") && msg.contains("'xb_acc'"),
         "{msg}"
     );
+}
+
+/// A model that runs away from its record (negative damping, so its response grows without
+/// bound under the same input) stops once x leaves the record's span widened by `RANGE_SPANS` spans, naming the record's
+/// column, the time on the record's clock and the band; the record's own model is untouched by
+/// the band, and without it the runaway goes on to the end of the record.
+#[test]
+fn a_run_that_leaves_its_records_range_stops_and_says_so() {
+    let (good, rec) = case(false);
+    let lib = Library::parse("x, x', xb_acc", &["x"]).unwrap();
+    let runaway = Model::from_coefficients(&lib, &[vec![-4.0, 0.1, -1.0]], "test").unwrap();
+    let e = simulate_model_on_record(&runaway, &rec, &SimulateOptions::default()).unwrap_err();
+    let DynError::LeftRange { t, dof, x, lo, hi } = &e else {
+        panic!("expected LeftRange, got {e}");
+    };
+    let col = rec.column("x").unwrap();
+    let (mn, mx) = col
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    assert!(
+        (hi - (mx + RANGE_SPANS * (mx - mn))).abs() < 1e-12
+            && (lo - (mn - RANGE_SPANS * (mx - mn))).abs() < 1e-12
+    );
+    assert!(*x > *hi || *x < *lo);
+    assert_eq!(dof, "x");
+    assert!(
+        rec.t().contains(t) && *t < rec.t()[rec.len() - 1],
+        "t = {t}"
+    );
+    assert!(
+        e.to_string().contains("left the range of the record"),
+        "{e}"
+    );
+    let free = SimulateOptions {
+        range: None,
+        ..SimulateOptions::default()
+    };
+    let tr = simulate_model_on_record(&runaway, &rec, &free).unwrap();
+    assert!(tr.x[0].iter().any(|v| v > hi || v < lo));
+    let a = simulate_model_on_record(&good, &rec, &SimulateOptions::default()).unwrap();
+    let b = simulate_model_on_record(&good, &rec, &free).unwrap();
+    assert_eq!(a.x, b.x);
 }
