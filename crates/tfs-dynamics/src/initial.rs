@@ -137,7 +137,7 @@ pub fn fit_horizon(measured: &[&[f64]], periods: f64) -> usize {
 /// deviation, Jacobian by forward differences, Marquardt's damping ladder and NL2SOL's secant
 /// estimate of the Hessian's second-order part (the residuals of a wrong model are as large as
 /// the motion), starting from `(x0, v0)` (all DOFs; the others stay as given). It ends where a
-/// step's fall, actual or predicted, is below a share of 1e-10 of the cost. A start that blows
+/// step's fall, actual or predicted, is below a share √ε (1.49e-8) of the cost. A start that blows
 /// up has cost `+∞` and is returned unchanged.
 ///
 /// Errors: `measured` longer than the system's DOFs, or a slice shorter than `t`; a run that
@@ -366,8 +366,8 @@ where
 }
 
 /// The smallest share of the cost an iteration of [`fit_initial_state`] must remove for the
-/// fit to go on (docs/DECISIONS.md, "Simulation").
-const END_FALL: f64 = 1e-10;
+/// fit to go on: MINPACK's relative tolerance, `√ε` (docs/DECISIONS.md, "Simulation").
+const END_FALL: f64 = 1.490_116_119_384_765_6e-8;
 
 /// The part of the misfit's Hessian that Gauss–Newton leaves out, `S ≈ Σ rᵢ ∇²rᵢ`, estimated
 /// from the gradients along the accepted steps by the structured secant update of Dennis, Gay
