@@ -71,11 +71,13 @@ pub(crate) fn blocks_of(records: &[Record]) -> Result<Vec<Record>> {
     Ok(out)
 }
 
-/// Every block checked and its DOFs reconstructed (see [`prepare`]), the blocks in parallel; the
-/// error reported is the first block's.
+/// Every block checked and its DOFs reconstructed (see [`prepare`]; the band searches' spectra
+/// kept for Criterion 1's cause when `keep_spectra`), the blocks in parallel; the error reported
+/// is the first block's.
 pub(crate) fn prepare_all<'a>(
     blocks: &'a [Record],
     spec: &Checked<'_>,
+    keep_spectra: bool,
 ) -> Result<Vec<Prepared<'a>>> {
     blocks
         .par_iter()
@@ -86,6 +88,7 @@ pub(crate) fn prepare_all<'a>(
                 &spec.dofs,
                 spec.tfs.criterion3.cutoff_hz,
                 spec.tfs.reconstruction_guard(),
+                keep_spectra,
             )
         })
         // Collected in order so the error reported is the first record's (rayon's own
@@ -193,15 +196,19 @@ impl InputBands {
 }
 
 /// Validates a record and reconstructs every DOF: band-limited at `cutoff_hz`, or at the
-/// data-chosen cut-off raised by `guard_octaves` (see [`reconstruct_guarded`]).
+/// data-chosen cut-off raised by `guard_octaves` (see [`reconstruct_guarded`]). The band
+/// searches' spectra are kept when `keep_spectra` and the record is at most
+/// [`KEEP_SPECTRA_UP_TO`] long (without them Criterion 1's cause transforms again and finds the
+/// same bits).
 pub(crate) fn prepare<'a>(
     rec: &'a Record,
     dofs: &[String],
     cutoff_hz: Option<f64>,
     guard_octaves: f64,
+    keep_spectra: bool,
 ) -> Result<Prepared<'a>> {
     let dt = check_record(rec, dofs)?;
-    let keep = rec.len() <= KEEP_SPECTRA_UP_TO;
+    let keep = keep_spectra && rec.len() <= KEEP_SPECTRA_UP_TO;
     let mut spectra = Vec::new();
     let smooth = dofs
         .iter()

@@ -61,6 +61,7 @@ mod error;
 mod fit;
 mod options;
 mod pipeline;
+mod prepared;
 mod tied;
 mod trace;
 mod uncertainty;
@@ -81,6 +82,7 @@ pub use options::{
     IdentifySpec, Kappa0Choice, SindyOptions, TfsOptions, UncertaintyOptions,
 };
 pub use pipeline::identify_tfs;
+pub use prepared::{PreparedRecords, RecordBlocks};
 pub use tied::{MassChoice, Tie, TieOptions, chain_ties, identify_tfs_tied, library_ties};
 pub use trace::{
     AssemblyStep, AssemblyVerdict, ChosenSettings, Criterion4Outcome, DofTrace, Identified, Method,

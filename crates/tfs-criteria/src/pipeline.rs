@@ -12,9 +12,7 @@ use faer::Mat;
 use tfs_data::Record;
 use tfs_library::{Equation, Library, Model, ModelTerm};
 
-use crate::blocks::{
-    Prepared, blocks_of, columns_of, prepare_all, record_bins, time_domain_blocks,
-};
+use crate::blocks::{Prepared, blocks_of, columns_of, record_bins, time_domain_blocks};
 use crate::criterion1::kappa::Criterion1;
 use crate::criterion1::{Criterion1Out, criterion1_stage};
 use crate::criterion2::criterion2_stage;
@@ -24,7 +22,6 @@ use crate::criterion3::settings::{
 };
 use crate::criterion3::{Transforms, transforms_for};
 use crate::criterion4::{StepResult, StopRule, assemble, residual_stats};
-use crate::eiv::NoiseDraws;
 use crate::elimination::{FirstPass, Shared};
 use crate::error::Result;
 use crate::fit::{
@@ -32,6 +29,7 @@ use crate::fit::{
     fit_select, reselect_for_support,
 };
 use crate::options::{Checked, IdentifySpec};
+use crate::prepared::Preparation;
 use crate::trace::{
     AssemblyStep, AssemblyVerdict, ChosenSettings, Criterion4Outcome, DofTrace, Identified, Method,
     Trace,
@@ -48,28 +46,27 @@ pub(crate) fn ms(t: Instant) -> f64 {
 /// ([`crate::UncertaintyOptions::elimination_rounds`]). See the crate documentation.
 pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identified> {
     let spec = &spec.check()?;
-    let offered = &spec.libraries;
     // The records and their band-limited reconstructions do not depend on the library: every
     // pass of the elimination below shares them.
     let blocks = blocks_of(records)?;
-    let t0 = Instant::now();
-    let preps = prepare_all(&blocks, spec)?;
-    let recon_ms = ms(t0);
+    let prep = Preparation::new(&blocks, spec, true)?;
+    identify_prepared(spec, &prep)
+}
+
+/// [`identify_tfs`] on records already prepared (`prep`, made with options that match `spec`'s;
+/// [`crate::PreparedRecords`] checks that).
+pub(crate) fn identify_prepared(spec: &Checked<'_>, prep: &Preparation<'_>) -> Result<Identified> {
+    let offered = &spec.libraries;
+    let (blocks, preps, recon_ms, noise) = (prep.blocks, &prep.preps, prep.recon_ms, &prep.noise);
     let rounds = spec.tfs.uncertainty.elimination_rounds;
     let candidates: Vec<usize> = offered
         .iter()
         .map(|l| l.terms().iter().filter(|t| !t.is_constant()).count())
         .collect();
-    let noise = NoiseDraws::new(
-        preps.len(),
-        spec.dofs.len(),
-        spec.tfs.fit.noise_correction_draws,
-        spec.tfs.criterion3.form,
-    );
     let pass_on = |libs: &[Library], c1: Option<&[Criterion1]>, final_pass, shared: &Shared<'_>| {
         let pass = PassInput {
-            blocks: &blocks,
-            preps: &preps,
+            blocks,
+            preps,
             recon_ms,
             spec,
             given_c1: c1,
@@ -83,14 +80,14 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
     let (first, ()) = rayon::join(
         || {
             let shared = Shared {
-                noise: &noise,
+                noise,
                 first: None,
                 keep_products: rounds > 0,
                 candidates: &candidates,
             };
             pass_on(offered, None, rounds == 0, &shared)
         },
-        || noise.prefill(&preps, &spec.dofs, &spec.tfs),
+        || noise.prefill(preps, &spec.dofs, &spec.tfs),
     );
     let (id, first_pass) = first?;
     if rounds == 0 {
@@ -98,7 +95,7 @@ pub fn identify_tfs(records: &[Record], spec: &IdentifySpec) -> Result<Identifie
     }
     let id = {
         let shared = Shared {
-            noise: &noise,
+            noise,
             first: Some(&first_pass),
             keep_products: false,
             candidates: &candidates,

@@ -21,7 +21,10 @@
 //! tied chain, fits it tied like every other term of the cell.
 
 use serde_json::json;
-use tfs_criteria::{IdentifySpec, MassChoice, TieOptions, identify_tfs, identify_tfs_tied};
+use tfs_criteria::{
+    IdentifySpec, MassChoice, PreparedRecords, RecordBlocks, TieOptions, identify_tfs,
+    identify_tfs_tied,
+};
 use tfs_data::Record;
 use tfs_library::{Coord, Factor, HistoryEntry, Model, RecordScore, Term, Var};
 
@@ -208,12 +211,14 @@ pub(crate) fn score(model: &Model, records: &[Record]) -> Scores {
     Scores { failed, mean, each }
 }
 
-/// How the model is re-identified: the DOFs, each DOF's library (without the stop), and the tie
-/// options of a tied chain.
+/// How the model is re-identified: the DOFs, each DOF's library (without the stop), the tie
+/// options of a tied chain, and the records prepared once for every position (untied: the
+/// blocks, reconstructions and noise draws do not depend on the library).
 struct Refit<'a> {
     dofs: Vec<&'a str>,
     libraries: Vec<Vec<String>>,
     tie: Option<TieOptions>,
+    prepared: Option<PreparedRecords<'a>>,
 }
 
 impl Refit<'_> {
@@ -236,9 +241,10 @@ impl Refit<'_> {
             .collect();
         let mut spec = IdentifySpec::new(&self.dofs, &libs[0]);
         spec.dof_libraries = libs;
-        let id = match &self.tie {
-            Some(tie) => identify_tfs_tied(records, &spec, tie).ok()?,
-            None => identify_tfs(records, &spec).ok()?,
+        let id = match (&self.tie, &self.prepared) {
+            (Some(tie), _) => identify_tfs_tied(records, &spec, tie).ok()?,
+            (None, Some(prepared)) => prepared.identify_tfs(&spec).ok()?,
+            (None, None) => identify_tfs(records, &spec).ok()?,
         };
         // A stop pushes its coordinate back out of the contact: up below it, down above it.
         let push = if place.below { 1.0 } else { -1.0 };
@@ -329,10 +335,20 @@ pub fn rescan_stop(
     if !(span > 0.0 && reach > 0.0 && reach.is_finite()) {
         return Ok(None);
     }
+    let dofs: Vec<&str> = before.dofs.iter().map(String::as_str).collect();
+    // Prepared once for the whole scan (untied); where that fails, each position's fit is left
+    // to fail on its own, as it would.
+    let blocks = (!tied).then(|| RecordBlocks::new(records).ok()).flatten();
+    let prepared = blocks.as_ref().and_then(|b| {
+        let mut spec = IdentifySpec::new(&dofs, &libraries[0].join(", "));
+        spec.dof_libraries = libraries.iter().map(|l| l.join(", ")).collect();
+        b.prepare(&spec).ok()
+    });
     let refit = Refit {
-        dofs: before.dofs.iter().map(String::as_str).collect(),
+        dofs,
         libraries,
         tie: tied.then(|| TieOptions::new(MassChoice::Given(crate::chain::fit_masses(before)))),
+        prepared,
     };
     // Positions to a decimal place about 1e-4 of the span, so the term's name is exact.
     let places = (-(span * 1e-4).log10().floor()).clamp(0.0, 12.0) as usize;

@@ -385,7 +385,7 @@ mod tests {
             .collect();
         let rec = Record::new("r", t, vec![("x".into(), x)]).unwrap();
         let dofs = vec!["x".to_string()];
-        let p = prepare(&rec, &dofs, Some(fc), 0.0).unwrap();
+        let p = prepare(&rec, &dofs, Some(fc), 0.0, true).unwrap();
         let lib = Library::parse("x^7, x^6*x'", &dofs).unwrap();
         let q = decimation(&p, &lib, TransformForm::Weak, 7);
         // (7+1)·2 Hz plus 24 bins of a 50 s window: 16.48 Hz, so every 12th sample of 200 Hz.

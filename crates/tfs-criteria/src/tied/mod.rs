@@ -81,7 +81,7 @@ pub fn identify_tfs_tied(
     }
     let mut timing = Vec::new();
     let t0 = Instant::now();
-    let preps = prepare_all(&blocks, spec)?;
+    let preps = prepare_all(&blocks, spec, true)?;
     timing.push(("band-limited reconstruction".to_string(), ms(t0)));
     // ---- Time-domain validation rows per DOF and block.
     let td: Vec<Vec<(Mat<f64>, Vec<f64>)>> = (0..nd)
