@@ -189,12 +189,19 @@ impl Scores {
     }
 }
 
-/// Free-run R-MSE of `model` on each record (records that cannot be simulated counted apart).
+/// Free-run R-MSE of `model` on each record (records that cannot be simulated counted apart),
+/// the records side by side.
 pub(crate) fn score(model: &Model, records: &[Record]) -> Scores {
+    use rayon::prelude::*;
+    let runs: Vec<_> = records
+        .par_iter()
+        .with_max_len(1)
+        .map(|r| tfs_diagnose::r_mse(model, r).map_err(|e| e.to_string()))
+        .collect();
     let mut each = Vec::with_capacity(records.len());
     let mut failed = Vec::new();
-    for r in records {
-        match tfs_diagnose::r_mse(model, r) {
+    for (r, run) in records.iter().zip(runs) {
+        match run {
             Ok(v) if v.is_finite() => each.push(RecordScore {
                 record: r.source().to_string(),
                 r_mse: v,
@@ -404,16 +411,20 @@ pub fn rescan_stop(
     let positions = scored.len();
     scored.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.total_cmp(&b.0)));
     scored.truncate(SHORTLIST);
-    let shortlist: Vec<(f64, f64, Model, Scores)> = {
-        use rayon::prelude::*;
-        scored
-            .into_par_iter()
-            .map(|(c, sigma, m)| {
-                let s = score(&m, records);
-                (c, sigma, m, s)
-            })
-            .collect()
-    };
+    // The shortlist's models and the equation-error fit simulated side by side.
+    let (shortlist, theirs): (Vec<(f64, f64, Model, Scores)>, Scores) = rayon::join(
+        || {
+            use rayon::prelude::*;
+            scored
+                .into_par_iter()
+                .map(|(c, sigma, m)| {
+                    let s = score(&m, records);
+                    (c, sigma, m, s)
+                })
+                .collect()
+        },
+        || score(after, records),
+    );
     let Some((c, sigma, mut model, ours)) = shortlist.into_iter().min_by(|a, b| {
         a.3.summary()
             .key()
@@ -429,7 +440,6 @@ pub fn rescan_stop(
         .iter()
         .find(|t| t.term == term)
         .map_or(f64::NAN, |t| t.coef);
-    let theirs = score(after, records);
     // When neither model simulates any record (a chain whose other cell still falls through
     // its fold), the simulations cannot choose; the re-identified model, with the stop where the
     // model's own criterion puts it on the cell's height, is then used.
