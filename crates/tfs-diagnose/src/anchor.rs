@@ -10,14 +10,29 @@
 //! the refit also considers the *held* fit — the model's own terms at their start values, only
 //! the new columns estimated on what they leave — and fits in between, ridge-regularised
 //! toward the start values (each deviation weighted by its column's norm, so the penalty does
-//! not depend on units), and keeps the one that simulates the fit records best.
+//! not depend on units), and keeps the one that simulates the fit records best
+//! ([`choose_anchor`]).
+//!
+//! None of those fits is the start model itself, and each can predict the fit records worse
+//! than it: an equation-error estimate overshoots where the start already absorbed part of the
+//! missing force or the smoothed states bias the new column. The kept fit is therefore
+//! compared with the start model under the same rulers, and when it is not better the step
+//! toward it is searched ([`line_search`]): `start + a·(fit − start)` for a few `a` in (0, 1),
+//! `a = 0` being the start model. The refit so never ends worse than where it started on its own
+//! records; a step of 0 means the effect adds nothing there, and the model returned is the
+//! start's equations.
 
 use faer::Mat;
-use tfs_library::Model;
+use rayon::prelude::*;
+use tfs_data::Record;
+use tfs_library::{Equation, Model, ModelTerm, Term};
 use tfs_regress::{Compressed, LeastSquares, Regressor};
 
 use crate::Result;
+use crate::design::with_equation;
 use crate::effects::EffectColumn;
+use crate::predict::PredictionScore;
+use crate::prepare::DiagnoseOptions;
 
 /// The relative ridge weights between the held and the free fits: a deviation `δ_j` from the
 /// start value of column `j` costs `λ·‖a_j‖²·δ_j²`, equation error's own cost of moving the
@@ -131,9 +146,382 @@ pub(crate) fn fit(p: &Compressed, start: &[Option<f64>], anchor: Anchor) -> Resu
     }
 }
 
+/// The refit [`choose_anchor`] kept.
+pub(crate) struct Anchored {
+    pub(crate) model: Model,
+    /// The anchor's label ([`Anchor::label`]), or `refined` for the simulation-error fit.
+    pub(crate) anchor: String,
+    /// Whether the kept fit is of the whole start library ([`Planned::whole`]).
+    pub(crate) whole: bool,
+    /// The step toward the best fit kept ([`line_search`]): 1 when that fit predicts the fit
+    /// records better than the start model, 0 when the start model is kept (nothing added).
+    pub(crate) step: f64,
+    /// Each anchor's R-MSE on each fit record (`null`: the simulation failed).
+    pub(crate) scores: Vec<(String, Vec<f64>)>,
+    /// The kept model's R-MSE on each fit record (infinite where the simulation failed or
+    /// was not finite).
+    pub(crate) each: Vec<f64>,
+}
+
+/// One target DOF's refit to be made: its equation's columns with the effect, their merged
+/// compressed rows, the start value of each column ([`start_values`]), and the
+/// partner equations a coupling force also enters (index, columns, coefficients).
+pub(crate) struct Planned {
+    pub(crate) idx: usize,
+    pub(crate) cols: Vec<EffectColumn>,
+    pub(crate) merged: Compressed,
+    pub(crate) partners: Vec<(usize, Vec<EffectColumn>, Vec<f64>)>,
+    /// The same equation with every start-library term it still lacks (their names, merged
+    /// rows, columns), when there are any.
+    pub(crate) whole: Option<(Vec<String>, Compressed, Vec<EffectColumn>)>,
+}
+
+/// Refits every planned equation under each [`Anchor`] toward `model`'s coefficients (one
+/// anchor for all target DOFs, so a coupling force added to both masses stays one law), with
+/// the partners' equations as they were fitted, and keeps the model whose free runs predict the
+/// fit `records` best ([`sim_key`]: fewest failed records, then the lowest geometric-mean
+/// R-MSE; ties go to the more held anchor). With `opts.refine_added`, the kept fit is then
+/// re-estimated by simulation error ([`refined`]) and that fit replaces it when it predicts
+/// the records better by the same key; and a record on which the input's own noise decides
+/// `model`'s free run is scored, for every fit alike, by short-horizon predictions from its
+/// measured state ([`PredictionScore::choose`]): there a free run's R-MSE says which well
+/// the noise put the run in, not which fit is closer. The start model is scored under the same
+/// rulers; a kept fit that does not predict the records better than it is replaced by the best
+/// step toward it ([`line_search`]; the start model itself when no step helps). See the module
+/// docs.
+pub(crate) fn choose_anchor(
+    model: &Model,
+    plans: &[Planned],
+    records: &[Record],
+    opts: &DiagnoseOptions,
+) -> Result<Anchored> {
+    let mut fits = Vec::new();
+    let whole = plans.iter().any(|p| p.whole.is_some());
+    for with_rest in [false, true].into_iter().filter(|w| !w || whole) {
+        for anchor in Anchor::all() {
+            let mut m = model.clone();
+            for p in plans {
+                let (merged, cols) = match (&p.whole, with_rest) {
+                    (Some((_, wm, wc)), true) => (wm, wc),
+                    _ => (&p.merged, &p.cols),
+                };
+                let start = start_values(model, p.idx, cols);
+                let coef = fit(merged, &start, anchor)?;
+                m = with_equation(&m, p.idx, cols, &coef)?;
+                for (pi, pcols, pcoef) in &p.partners {
+                    m = with_equation(&m, *pi, pcols, pcoef)?;
+                }
+            }
+            let label = if with_rest {
+                format!("{}, whole library", anchor.label())
+            } else {
+                anchor.label()
+            };
+            fits.push((label, m, with_rest));
+        }
+    }
+    // One ruler per record, chosen from the start model (the free run unless refining).
+    let rulers: Vec<PredictionScore> = if opts.refine_added {
+        records
+            .par_iter()
+            .map(|r| {
+                PredictionScore::choose(model, &[], r, opts)
+                    .unwrap_or_else(|_| PredictionScore::free_run())
+            })
+            .collect()
+    } else {
+        vec![PredictionScore::free_run(); records.len()]
+    };
+    // Side by side; the choice is made in anchor order, as a serial loop would. The start
+    // model is scored under the same rulers: the kept fit is compared with it.
+    let (mut each, start) = rayon::join(
+        || {
+            fits.par_iter()
+                .map(|(_, m, _)| r_mse_each(m, records, &rulers, opts))
+                .collect::<Vec<Vec<f64>>>()
+        },
+        || r_mse_each(model, records, &rulers, opts),
+    );
+    let mut pick = 0;
+    for (k, e) in each.iter().enumerate() {
+        if better(sim_key(e), sim_key(&each[pick])) {
+            pick = k;
+        }
+    }
+    if opts.refine_added
+        && let Some((m, e)) = refined(&fits[pick].1, records, &rulers, opts)
+    {
+        let w = fits[pick].2;
+        let label = if w {
+            "refined, whole library"
+        } else {
+            "refined"
+        };
+        fits.push((label.into(), m, w));
+        each.push(e);
+        if better(sim_key(&each[fits.len() - 1]), sim_key(&each[pick])) {
+            pick = fits.len() - 1;
+        }
+    }
+    let mut scores: Vec<(String, Vec<f64>)> = fits
+        .iter()
+        .zip(&each)
+        .map(|((a, _, _), e)| (a.clone(), e.clone()))
+        .collect();
+    scores.push(("start".into(), start.clone()));
+    let mut step = 1.0;
+    if !better(sim_key(&each[pick]), sim_key(&start)) {
+        let Stepped {
+            step: a,
+            model: m,
+            each: e,
+            tried,
+        } = line_search(model, &fits[pick].1, &each[pick], &start, |m| {
+            r_mse_each(m, records, &rulers, opts)
+        })?;
+        scores.extend(tried);
+        step = a;
+        let label = if a == 0.0 {
+            "none: the start model".to_string()
+        } else {
+            format!("{}, step {a}", fits[pick].0)
+        };
+        fits.push((label, m, fits[pick].2 && a > 0.0));
+        each.push(e);
+        pick = fits.len() - 1;
+    }
+    let (anchor, model, whole) = fits.swap_remove(pick);
+    // The history holds free-run R-MSEs: a record scored by pieces is simulated again for it.
+    let each = each
+        .swap_remove(pick)
+        .into_iter()
+        .zip(&rulers)
+        .map(|(v, r)| {
+            if r.horizon.is_none() {
+                v
+            } else {
+                f64::INFINITY
+            }
+        })
+        .collect();
+    Ok(Anchored {
+        model,
+        anchor,
+        whole,
+        step,
+        scores,
+        each,
+    })
+}
+
+/// The steps [`line_search`] tries toward a fit that does not predict the fit records better
+/// than the start model, halving from the half step: the smallest moves the added effect's
+/// coefficients by a sixteenth of the fit's, where its sign and shape are kept but the
+/// overshoot of an equation-error estimate (a collinear power, a biased smoothed state) is
+/// mostly gone.
+pub const STEPS: [f64; 4] = [0.0625, 0.125, 0.25, 0.5];
+
+/// What [`line_search`] kept.
+pub(crate) struct Stepped {
+    /// The step kept: 0 is the start model (nothing added), 1 the fit.
+    pub(crate) step: f64,
+    /// The model at that step.
+    pub(crate) model: Model,
+    /// Its score on each record.
+    pub(crate) each: Vec<f64>,
+    /// Each step tried (`step a`) with its score on each record.
+    pub(crate) tried: Vec<(String, Vec<f64>)>,
+}
+
+/// The line search on an added effect's step, when the kept fit `fit` (scores `fit_each`) does
+/// not predict the fit records better than `start` itself (scores `start_each`, by [`sim_key`]):
+/// `start + a·(fit − start)` coefficient-wise ([`toward`]) for every `a` of [`STEPS`], scored by
+/// `score` side by side. Returns the step kept (0: the start model, nothing added; 1: `fit`),
+/// its model and scores, and each step tried with its scores (for the history). The kept step
+/// is the best by [`sim_key`]; ties go to the smaller step, so a step that changes nothing the
+/// records can see leaves the start model. The result is never worse than the start model on
+/// the records `score` simulates.
+pub(crate) fn line_search(
+    start: &Model,
+    fit: &Model,
+    fit_each: &[f64],
+    start_each: &[f64],
+    score: impl Fn(&Model) -> Vec<f64> + Sync,
+) -> Result<Stepped> {
+    let trials: Vec<(f64, Model)> = STEPS
+        .iter()
+        .map(|&a| Ok((a, toward(start, fit, a)?)))
+        .collect::<Result<_>>()?;
+    let scored: Vec<Vec<f64>> = trials.par_iter().map(|(_, m)| score(m)).collect();
+    let tried = trials
+        .iter()
+        .zip(&scored)
+        .map(|((a, _), e)| (format!("step {a}"), e.clone()))
+        .collect();
+    // From the start (a = 0) up to the fit (a = 1): the first of the best is kept.
+    let mut best: (f64, Option<usize>, &[f64]) = (0.0, None, start_each);
+    for (k, e) in scored.iter().enumerate() {
+        if better(sim_key(e), sim_key(best.2)) {
+            best = (trials[k].0, Some(k), e);
+        }
+    }
+    if better(sim_key(fit_each), sim_key(best.2)) {
+        return Ok(Stepped {
+            step: 1.0,
+            model: fit.clone(),
+            each: fit_each.to_vec(),
+            tried,
+        });
+    }
+    let each = best.2.to_vec();
+    let model = match best.1 {
+        Some(k) => trials[k].1.clone(),
+        None => {
+            let mut m = start.clone();
+            m.history = fit.history.clone();
+            m
+        }
+    };
+    Ok(Stepped {
+        step: best.0,
+        model,
+        each,
+        tried,
+    })
+}
+
+/// The model `start + a·(fit − start)`, coefficient by coefficient over the union of both
+/// models' terms in each equation (a term one model lacks counts as 0 there; zero coefficients
+/// are left out): `a = 0` is `start`'s equations exactly, `a = 1` is `fit`'s. The added
+/// effect's columns start at 0, so a small `a` adds a fraction of the effect and moves the
+/// model's own terms a fraction of the way to their refitted values. History and trace are
+/// `fit`'s. Both models must have the same DOFs.
+pub(crate) fn toward(start: &Model, fit: &Model, a: f64) -> Result<Model> {
+    let equations = start
+        .equations
+        .iter()
+        .zip(&fit.equations)
+        .map(|(s, f)| {
+            let mut terms: Vec<(Term, f64)> = s
+                .terms
+                .iter()
+                .map(|t| (t.term.clone(), (1.0 - a) * t.coef))
+                .collect();
+            for t in &f.terms {
+                match terms.iter_mut().find(|(m, _)| *m == t.term) {
+                    Some(slot) => slot.1 += a * t.coef,
+                    None => terms.push((t.term.clone(), a * t.coef)),
+                }
+            }
+            Equation {
+                dof: s.dof.clone(),
+                terms: terms
+                    .into_iter()
+                    .filter(|(_, c)| *c != 0.0 && c.is_finite())
+                    .map(|(t, c)| ModelTerm::new(t, c))
+                    .collect(),
+            }
+        })
+        .collect();
+    let mut m = Model::new(fit.dofs.clone(), equations, fit.method.clone())?;
+    m.trace = fit.trace.clone();
+    m.history = fit.history.clone();
+    Ok(m)
+}
+
+/// How well free runs with R-MSE `each` (one per record, infinite where the simulation failed)
+/// predict the records: (records failed, geometric mean R-MSE of the others). The geometric
+/// mean weighs a factor gained on any record alike; an arithmetic mean is decided by the one
+/// record whose free run departs most (a multi-stable record whose run settles in the other
+/// well scores R-MSE ≫ 1 under every fit), so the other records' gains and losses would not
+/// count.
+fn sim_key(each: &[f64]) -> (usize, f64) {
+    let ok: Vec<f64> = each
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .collect();
+    let failed = each.iter().filter(|v| !v.is_finite()).count();
+    let g = if ok.is_empty() {
+        f64::INFINITY
+    } else {
+        (ok.iter().map(|v| v.ln()).sum::<f64>() / ok.len() as f64).exp()
+    };
+    (failed, g)
+}
+
+/// Whether key `a` ([`sim_key`]) is strictly better than `b`.
+fn better(a: (usize, f64), b: (usize, f64)) -> bool {
+    a.0 < b.0 || (a.0 == b.0 && a.1 < b.1)
+}
+
+/// `model`'s coefficients re-estimated by simulation error on `records`
+/// ([`tfs_refine::refine`]: multiple shooting from the records' own states, records whose
+/// free-run error the input's noise dominates left out), with its R-MSE on each record; `None`
+/// when refinement cannot run on this model or returns it unchanged. Each record is scored by
+/// its ruler in `rulers`.
+fn refined(
+    model: &Model,
+    records: &[Record],
+    rulers: &[PredictionScore],
+    opts: &DiagnoseOptions,
+) -> Option<(Model, Vec<f64>)> {
+    let train: Vec<Record> = records
+        .iter()
+        .map(|r| crate::simulate::augment_record(model, r, &DiagnoseOptions::default()))
+        .collect::<Result<_>>()
+        .ok()?;
+    let out = tfs_refine::refine(model, &train, &tfs_refine::RefineOptions::default()).ok()?;
+    if out.model.equations == model.equations {
+        return None;
+    }
+    // The refinement's own history step is not the ladder's: the added effect's step is.
+    let mut m = out.model;
+    m.history = model.history.clone();
+    let each = r_mse_each(&m, records, rulers, opts);
+    Some((m, each))
+}
+
+/// R-MSE of `model` on each of `records`, each under its ruler in `rulers` (infinite where a
+/// simulation fails).
+fn r_mse_each(
+    model: &Model,
+    records: &[Record],
+    rulers: &[PredictionScore],
+    opts: &DiagnoseOptions,
+) -> Vec<f64> {
+    records
+        .iter()
+        .zip(rulers)
+        .map(|(r, ruler)| match ruler.r_mse(model, r, opts) {
+            Ok(v) if v.is_finite() => v,
+            _ => f64::INFINITY,
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The anchor choice's key: a fit that fails a record loses to one that simulates every
+    /// record; among those that simulate, one record whose free run departs under every fit
+    /// (R-MSE ≫ 1, as a multi-stable record that settles in the other well) does not decide —
+    /// the fit that predicts the other records better wins, which an arithmetic mean gets
+    /// backwards here.
+    #[test]
+    fn the_kept_fit_is_not_chosen_by_the_one_record_every_fit_misses() {
+        let a = [98.0, 0.0014, 0.066];
+        let b = [87.0, 0.008, 0.021];
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        assert!(mean(&b) < mean(&a));
+        assert!(better(sim_key(&a), sim_key(&b)));
+        let failed = [f64::INFINITY, 1e-4, 1e-4];
+        assert!(better(sim_key(&[5.0, 5.0, 5.0]), sim_key(&failed)));
+        assert_eq!(sim_key(&failed).0, 1);
+        assert!(!better(sim_key(&a), sim_key(&a)));
+        assert_eq!(sim_key(&[f64::INFINITY]), (1, f64::INFINITY));
+    }
 
     /// Two nearly collinear columns and a new one: the held fit keeps the start values and
     /// fits the new column on what they leave; the ridge fits move from the held fit toward
@@ -169,5 +557,80 @@ mod tests {
         }
         let no_start = fit(&p, &[None, None, None], Anchor::Held).unwrap();
         assert_eq!(no_start, free);
+    }
+
+    fn model(json: &str) -> Model {
+        Model::from_json_str(&format!(
+            r#"{{"format":"tfs-model/1","dofs":["x"],"equations":[{{"dof":"x","terms":[{json}]}}]}}"#
+        ))
+        .unwrap()
+    }
+
+    fn coef(m: &Model, t: &str) -> f64 {
+        m.equations[0]
+            .terms
+            .iter()
+            .find(|x| x.term.to_string() == t)
+            .map_or(0.0, |x| x.coef)
+    }
+
+    /// A step from the start model toward a fit that replaced one of its terms and added one:
+    /// step 0 is the start's equations exactly, step 1 the fit's, and a step between moves every
+    /// coefficient of either model that far, the replaced term fading and the new one growing.
+    #[test]
+    fn a_step_runs_from_the_start_model_to_the_fit() {
+        let start = model(r#"{"term":"x","coef":-4.0},{"term":"xb_acc","coef":-1.0}"#);
+        let fit = model(
+            r#"{"term":"x","coef":-2.0},{"term":"xb_acc_lowpass_0p01","coef":-0.8},{"term":"x^3","coef":-0.5}"#,
+        );
+        assert_eq!(
+            toward(&start, &fit, 0.0).unwrap().equations,
+            start.equations
+        );
+        let one = toward(&start, &fit, 1.0).unwrap();
+        for t in ["x", "xb_acc_lowpass_0p01", "x^3"] {
+            assert_eq!(coef(&one, t), coef(&fit, t), "{t}");
+        }
+        assert_eq!(coef(&one, "xb_acc"), 0.0);
+        let q = toward(&start, &fit, 0.25).unwrap();
+        assert_eq!(coef(&q, "x"), -3.5);
+        assert_eq!(coef(&q, "xb_acc"), -0.75);
+        assert_eq!(coef(&q, "xb_acc_lowpass_0p01"), -0.2);
+        assert_eq!(coef(&q, "x^3"), -0.125);
+        assert_eq!(q.inputs.len(), 2, "{:?}", q.inputs);
+    }
+
+    /// The line search keeps the best step by the records' key, the smaller of equals: the
+    /// start model (step 0, its equations exactly) when every step predicts worse or no better,
+    /// a step between when the fit overshoots, and the fit only when it is better than every
+    /// step and the start.
+    #[test]
+    fn the_line_search_never_ends_worse_than_the_start() {
+        let start = model(r#"{"term":"x","coef":-4.0}"#);
+        let fit = model(r#"{"term":"x","coef":-4.0},{"term":"x^3","coef":-1.0}"#);
+        let run = |best: f64| {
+            // A record's R-MSE as a function of the added coefficient, least at `-best`.
+            let score = |m: &Model| vec![1e-3 * (1.0 + (coef(m, "x^3") + best).powi(2))];
+            let (s0, s1) = (score(&start), score(&fit));
+            line_search(&start, &fit, &s1, &s0, score).unwrap()
+        };
+        // The fit's direction is wrong: the start model is kept, nothing added.
+        let s = run(-0.3);
+        assert_eq!(s.step, 0.0);
+        assert_eq!(s.model.equations, start.equations);
+        assert_eq!(s.each, vec![1e-3 * (1.0 + 0.09)]);
+        assert_eq!(s.tried.len(), STEPS.len());
+        // The fit overshoots fourfold: the quarter step.
+        let s = run(0.25);
+        assert_eq!(s.step, 0.25);
+        assert_eq!(coef(&s.model, "x^3"), -0.25);
+        // The fit is right: kept.
+        let s = run(1.0);
+        assert_eq!(s.step, 1.0);
+        assert_eq!(s.model.equations, fit.equations);
+        // Nothing the records can see changes: the start.
+        let flat = |_: &Model| vec![2e-3];
+        let s = line_search(&start, &fit, &[2e-3], &[2e-3], flat).unwrap();
+        assert_eq!((s.step, s.model.equations), (0.0, start.equations.clone()));
     }
 }

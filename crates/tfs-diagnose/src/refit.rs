@@ -2,17 +2,15 @@
 //! parameter chosen by held-out error), keep the history, and print the error ladder.
 
 use faer::Mat;
-use rayon::prelude::*;
 use serde::Serialize;
 use serde_json::json;
 use tfs_data::Record;
 use tfs_library::{HistoryEntry, Model, RecordScore, Term};
 use tfs_regress::Compressed;
 
-use crate::anchor::Anchor;
+use crate::anchor::{Planned, choose_anchor};
 use crate::design::{compress_blocks, design, full_fit, partner_columns, with_equation};
 use crate::effects::{Catalogue, EffectColumn};
-use crate::predict::PredictionScore;
 use crate::prepare::{DiagnoseOptions, Layout, RecordStates, check_records};
 use crate::{DiagnoseError, Result};
 
@@ -207,9 +205,13 @@ pub fn add_effect(model: &Model, effect_name: &str, records: &[Record]) -> Resul
 /// the equation's terms on training folds and the one with the lowest held-out equation error is
 /// kept; the extended equation is then refitted on all records toward the model's own
 /// coefficients ([`crate::anchor`]: held, ridge-regularised or free), keeping the fit whose free
-/// runs predict the records best. The model's history gets a `"start"` entry (if empty) and an
-/// `"add <name>"` entry with the R-MSE of every record (its details name the anchor kept and
-/// every anchor's R-MSE per record).
+/// runs predict the records best. When that fit does not predict them better than `model`
+/// itself, the step toward it is searched ([`crate::anchor::line_search`]): the result never
+/// predicts the fit records worse than `model`, and when no step helps it is `model`'s equations
+/// unchanged, with nothing listed as added. The model's history gets a `"start"` entry (if
+/// empty) and an `"add <name>"` entry with the R-MSE of every record (its details name the
+/// anchor kept, the `step` kept toward it (1: the fit itself; 0: nothing added), and every
+/// anchor's and step's R-MSE per record, and the start model's as `start`).
 pub fn add_effect_with(
     model: &Model,
     effect_name: &str,
@@ -328,10 +330,15 @@ pub fn add_effect_with(
                 }
             }
         }
+        if chosen.step == 0.0 {
+            // Every step toward the effect predicts the records worse: nothing is added.
+            added.clear();
+        }
         out = chosen.model;
         known = Some(chosen.each);
         if let Some(first) = details.first_mut().and_then(|d| d.as_object_mut()) {
             first.insert("anchor".into(), json!(chosen.anchor));
+            first.insert("step".into(), json!(chosen.step));
             first.insert("train_r_mse".into(), json!(chosen.scores));
         }
     }
@@ -352,211 +359,6 @@ pub fn add_effect_with(
         details: json!({"variants": details, "equations": out.equation_string(), "failed": failed}),
     });
     Ok(out)
-}
-
-/// The refit [`choose_anchor`] kept.
-struct Anchored {
-    model: Model,
-    /// The anchor's label ([`Anchor::label`]), or `refined` for the simulation-error fit.
-    anchor: String,
-    /// Whether the kept fit is of the whole start library ([`Planned::whole`]).
-    whole: bool,
-    /// Each anchor's R-MSE on each fit record (`null`: the simulation failed).
-    scores: Vec<(String, Vec<f64>)>,
-    /// The kept model's R-MSE on each fit record (infinite where the simulation failed or
-    /// was not finite).
-    each: Vec<f64>,
-}
-
-/// One target DOF's refit to be made: its equation's columns with the effect, their merged
-/// compressed rows, the start value of each column ([`crate::anchor::start_values`]), and the
-/// partner equations a coupling force also enters (index, columns, coefficients).
-struct Planned {
-    idx: usize,
-    cols: Vec<EffectColumn>,
-    merged: Compressed,
-    partners: Vec<(usize, Vec<EffectColumn>, Vec<f64>)>,
-    /// The same equation with every start-library term it still lacks (their names, merged
-    /// rows, columns), when there are any.
-    whole: Option<(Vec<String>, Compressed, Vec<EffectColumn>)>,
-}
-
-/// Refits every planned equation under each [`Anchor`] toward `model`'s coefficients (one
-/// anchor for all target DOFs, so a coupling force added to both masses stays one law), with
-/// the partners' equations as they were fitted, and keeps the model whose free runs predict the
-/// fit `records` best ([`sim_key`]: fewest failed records, then the lowest geometric-mean
-/// R-MSE; ties go to the more held anchor). With `opts.refine_added`, the kept fit is then
-/// re-estimated by simulation error ([`refined`]) and that fit replaces it when it predicts
-/// the records better by the same key; and a record on which the input's own noise decides
-/// `model`'s free run is scored, for every fit alike, by short-horizon predictions from its
-/// measured state ([`PredictionScore::choose`]): there a free run's R-MSE says which well
-/// the noise put the run in, not which fit is closer. See [`crate::anchor`].
-fn choose_anchor(
-    model: &Model,
-    plans: &[Planned],
-    records: &[Record],
-    opts: &DiagnoseOptions,
-) -> Result<Anchored> {
-    let mut fits = Vec::new();
-    let whole = plans.iter().any(|p| p.whole.is_some());
-    for with_rest in [false, true].into_iter().filter(|w| !w || whole) {
-        for anchor in Anchor::all() {
-            let mut m = model.clone();
-            for p in plans {
-                let (merged, cols) = match (&p.whole, with_rest) {
-                    (Some((_, wm, wc)), true) => (wm, wc),
-                    _ => (&p.merged, &p.cols),
-                };
-                let start = crate::anchor::start_values(model, p.idx, cols);
-                let coef = crate::anchor::fit(merged, &start, anchor)?;
-                m = with_equation(&m, p.idx, cols, &coef)?;
-                for (pi, pcols, pcoef) in &p.partners {
-                    m = with_equation(&m, *pi, pcols, pcoef)?;
-                }
-            }
-            let label = if with_rest {
-                format!("{}, whole library", anchor.label())
-            } else {
-                anchor.label()
-            };
-            fits.push((label, m, with_rest));
-        }
-    }
-    // One ruler per record, chosen from the start model (the free run unless refining).
-    let rulers: Vec<PredictionScore> = if opts.refine_added {
-        records
-            .par_iter()
-            .map(|r| {
-                PredictionScore::choose(model, &[], r, opts)
-                    .unwrap_or_else(|_| PredictionScore::free_run())
-            })
-            .collect()
-    } else {
-        vec![PredictionScore::free_run(); records.len()]
-    };
-    // Side by side; the choice is made in anchor order, as a serial loop would.
-    let mut each: Vec<Vec<f64>> = fits
-        .par_iter()
-        .map(|(_, m, _)| r_mse_each(m, records, &rulers, opts))
-        .collect();
-    let mut pick = 0;
-    for (k, e) in each.iter().enumerate() {
-        if better(sim_key(e), sim_key(&each[pick])) {
-            pick = k;
-        }
-    }
-    if opts.refine_added
-        && let Some((m, e)) = refined(&fits[pick].1, records, &rulers, opts)
-    {
-        let w = fits[pick].2;
-        let label = if w {
-            "refined, whole library"
-        } else {
-            "refined"
-        };
-        fits.push((label.into(), m, w));
-        each.push(e);
-        if better(sim_key(&each[fits.len() - 1]), sim_key(&each[pick])) {
-            pick = fits.len() - 1;
-        }
-    }
-    let scores = fits
-        .iter()
-        .zip(&each)
-        .map(|((a, _, _), e)| (a.clone(), e.clone()))
-        .collect();
-    let (anchor, model, whole) = fits.swap_remove(pick);
-    // The history holds free-run R-MSEs: a record scored by pieces is simulated again for it.
-    let each = each
-        .swap_remove(pick)
-        .into_iter()
-        .zip(&rulers)
-        .map(|(v, r)| {
-            if r.horizon.is_none() {
-                v
-            } else {
-                f64::INFINITY
-            }
-        })
-        .collect();
-    Ok(Anchored {
-        model,
-        anchor,
-        whole,
-        scores,
-        each,
-    })
-}
-
-/// How well free runs with R-MSE `each` (one per record, infinite where the simulation failed)
-/// predict the records: (records failed, geometric mean R-MSE of the others). The geometric
-/// mean weighs a factor gained on any record alike; an arithmetic mean is decided by the one
-/// record whose free run departs most (a multi-stable record whose run settles in the other
-/// well scores R-MSE ≫ 1 under every fit), so the other records' gains and losses would not
-/// count.
-fn sim_key(each: &[f64]) -> (usize, f64) {
-    let ok: Vec<f64> = each
-        .iter()
-        .copied()
-        .filter(|v| v.is_finite() && *v > 0.0)
-        .collect();
-    let failed = each.iter().filter(|v| !v.is_finite()).count();
-    let g = if ok.is_empty() {
-        f64::INFINITY
-    } else {
-        (ok.iter().map(|v| v.ln()).sum::<f64>() / ok.len() as f64).exp()
-    };
-    (failed, g)
-}
-
-/// Whether key `a` ([`sim_key`]) is strictly better than `b`.
-fn better(a: (usize, f64), b: (usize, f64)) -> bool {
-    a.0 < b.0 || (a.0 == b.0 && a.1 < b.1)
-}
-
-/// `model`'s coefficients re-estimated by simulation error on `records`
-/// ([`tfs_refine::refine`]: multiple shooting from the records' own states, records whose
-/// free-run error the input's noise dominates left out), with its R-MSE on each record; `None`
-/// when refinement cannot run on this model or returns it unchanged. Each record is scored by
-/// its ruler in `rulers`.
-fn refined(
-    model: &Model,
-    records: &[Record],
-    rulers: &[PredictionScore],
-    opts: &DiagnoseOptions,
-) -> Option<(Model, Vec<f64>)> {
-    let train: Vec<Record> = records
-        .iter()
-        .map(|r| crate::simulate::augment_record(model, r, &DiagnoseOptions::default()))
-        .collect::<Result<_>>()
-        .ok()?;
-    let out = tfs_refine::refine(model, &train, &tfs_refine::RefineOptions::default()).ok()?;
-    if out.model.equations == model.equations {
-        return None;
-    }
-    // The refinement's own history step is not the ladder's: the added effect's step is.
-    let mut m = out.model;
-    m.history = model.history.clone();
-    let each = r_mse_each(&m, records, rulers, opts);
-    Some((m, each))
-}
-
-/// R-MSE of `model` on each of `records`, each under its ruler in `rulers` (infinite where a
-/// simulation fails).
-fn r_mse_each(
-    model: &Model,
-    records: &[Record],
-    rulers: &[PredictionScore],
-    opts: &DiagnoseOptions,
-) -> Vec<f64> {
-    records
-        .iter()
-        .zip(rulers)
-        .map(|(r, ruler)| match ruler.r_mse(model, r, opts) {
-            Ok(v) if v.is_finite() => v,
-            _ => f64::INFINITY,
-        })
-        .collect()
 }
 
 /// Scores every record, keeping failed simulations (e.g. blow-up) as messages instead of scores.
@@ -685,25 +487,6 @@ pub fn ladder_table(ladder: &[LadderStep]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The anchor choice's key: a fit that fails a record loses to one that simulates every
-    /// record; among those that simulate, one record whose free run departs under every fit
-    /// (R-MSE ≫ 1, as a multi-stable record that settles in the other well) does not decide —
-    /// the fit that predicts the other records better wins, which an arithmetic mean gets
-    /// backwards here.
-    #[test]
-    fn the_kept_fit_is_not_chosen_by_the_one_record_every_fit_misses() {
-        let a = [98.0, 0.0014, 0.066];
-        let b = [87.0, 0.008, 0.021];
-        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
-        assert!(mean(&b) < mean(&a));
-        assert!(better(sim_key(&a), sim_key(&b)));
-        let failed = [f64::INFINITY, 1e-4, 1e-4];
-        assert!(better(sim_key(&[5.0, 5.0, 5.0]), sim_key(&failed)));
-        assert_eq!(sim_key(&failed).0, 1);
-        assert!(!better(sim_key(&a), sim_key(&a)));
-        assert_eq!(sim_key(&[f64::INFINITY]), (1, f64::INFINITY));
-    }
 
     fn step(name: &str, scores: &[f64], failed: &[&str]) -> HistoryEntry {
         HistoryEntry {
