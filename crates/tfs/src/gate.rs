@@ -137,7 +137,9 @@ pub struct Step {
 
 /// Adds every name of `names` to `model` in turn as `refit --add` does (a stop re-scanned by
 /// T-F-S) and scores each result on `records`; a candidate that cannot be added gives why, in
-/// one line. The candidates are made in parallel and collected in order, so the result does not
+/// one line, and so does one whose refit leaves the equations unchanged (no step toward it
+/// predicts the records better than the model: it adds nothing, and is never named as the
+/// effect that helps). The candidates are made in parallel and collected in order, so the result does not
 /// depend on the threads.
 pub(crate) fn add_each(
     model: &Model,
@@ -153,6 +155,12 @@ pub(crate) fn add_each(
             let mut notes = crate::refit::AddNotes::default();
             let m = crate::refit::add_one(model, name, records, catalogue, opts, &mut notes)
                 .map_err(|e| crate::one_line(&e))?;
+            if m.equations == model.equations {
+                return Err(
+                    "no step toward its refit predicts the records better than the model without it: it adds nothing"
+                        .to_string(),
+                );
+            }
             let score = SimScore::of(&m, records);
             Ok(Chosen {
                 effect: name.to_string(),

@@ -118,6 +118,11 @@ pub(crate) fn add_one(
         opts
     };
     let added = add_effect_with(model, name, records, catalogue, opts)?;
+    if added.equations == model.equations {
+        notes.warnings.push(format!(
+            "'{name}': no step toward its refit predicts these records better than the model without it, so nothing was added (the equations are unchanged)"
+        ));
+    }
     let added = keep_ties(added, records, opts)?;
     notes.warnings.extend(dropped_terms(&added).into_iter().map(|t| {
         format!(
