@@ -186,14 +186,15 @@ pub(crate) struct Planned {
 /// `model`'s free run is scored, for every fit alike, by short-horizon predictions from its
 /// measured state ([`PredictionScore::choose`]): there a free run's R-MSE says which well
 /// the noise put the run in, not which fit is closer. The start model is scored under the same
-/// rulers; a kept fit that does not predict the records better than it is replaced by the best
-/// step toward it ([`line_search`]; the start model itself when no step helps). See the module
-/// docs.
+/// rulers; with `search`, a kept fit that does not predict the records better than it is
+/// replaced by the best step toward it ([`line_search`]; the start model itself when no step
+/// helps). See the module docs.
 pub(crate) fn choose_anchor(
     model: &Model,
     plans: &[Planned],
     records: &[Record],
     opts: &DiagnoseOptions,
+    search: bool,
 ) -> Result<Anchored> {
     let mut fits = Vec::new();
     let whole = plans.iter().any(|p| p.whole.is_some());
@@ -220,18 +221,7 @@ pub(crate) fn choose_anchor(
             fits.push((label, m, with_rest));
         }
     }
-    // One ruler per record, chosen from the start model (the free run unless refining).
-    let rulers: Vec<PredictionScore> = if opts.refine_added {
-        records
-            .par_iter()
-            .map(|r| {
-                PredictionScore::choose(model, &[], r, opts)
-                    .unwrap_or_else(|_| PredictionScore::free_run())
-            })
-            .collect()
-    } else {
-        vec![PredictionScore::free_run(); records.len()]
-    };
+    let rulers = rulers(model, records, opts);
     // Side by side; the choice is made in anchor order, as a serial loop would. The start
     // model is scored under the same rulers: the kept fit is compared with it.
     let (mut each, start) = rayon::join(
@@ -270,7 +260,7 @@ pub(crate) fn choose_anchor(
         .collect();
     scores.push(("start".into(), start.clone()));
     let mut step = 1.0;
-    if !better(sim_key(&each[pick]), sim_key(&start)) {
+    if search && !better(sim_key(&each[pick]), sim_key(&start)) {
         let Stepped {
             step: a,
             model: m,
@@ -429,13 +419,33 @@ pub(crate) fn toward(start: &Model, fit: &Model, a: f64) -> Result<Model> {
     Ok(m)
 }
 
+/// One ruler per record, chosen from the start `model`: the free run unless `opts` refines
+/// the added effect, then [`PredictionScore::choose`] per record.
+pub(crate) fn rulers(
+    model: &Model,
+    records: &[Record],
+    opts: &DiagnoseOptions,
+) -> Vec<PredictionScore> {
+    if opts.refine_added {
+        records
+            .par_iter()
+            .map(|r| {
+                PredictionScore::choose(model, &[], r, opts)
+                    .unwrap_or_else(|_| PredictionScore::free_run())
+            })
+            .collect()
+    } else {
+        vec![PredictionScore::free_run(); records.len()]
+    }
+}
+
 /// How well free runs with R-MSE `each` (one per record, infinite where the simulation failed)
 /// predict the records: (records failed, geometric mean R-MSE of the others). The geometric
 /// mean weighs a factor gained on any record alike; an arithmetic mean is decided by the one
 /// record whose free run departs most (a multi-stable record whose run settles in the other
 /// well scores R-MSE ≫ 1 under every fit), so the other records' gains and losses would not
 /// count.
-fn sim_key(each: &[f64]) -> (usize, f64) {
+pub(crate) fn sim_key(each: &[f64]) -> (usize, f64) {
     let ok: Vec<f64> = each
         .iter()
         .copied()
@@ -451,7 +461,7 @@ fn sim_key(each: &[f64]) -> (usize, f64) {
 }
 
 /// Whether key `a` ([`sim_key`]) is strictly better than `b`.
-fn better(a: (usize, f64), b: (usize, f64)) -> bool {
+pub(crate) fn better(a: (usize, f64), b: (usize, f64)) -> bool {
     a.0 < b.0 || (a.0 == b.0 && a.1 < b.1)
 }
 
@@ -484,7 +494,7 @@ fn refined(
 
 /// R-MSE of `model` on each of `records`, each under its ruler in `rulers` (infinite where a
 /// simulation fails).
-fn r_mse_each(
+pub(crate) fn r_mse_each(
     model: &Model,
     records: &[Record],
     rulers: &[PredictionScore],

@@ -219,6 +219,84 @@ pub fn add_effect_with(
     catalogue: &Catalogue,
     opts: &DiagnoseOptions,
 ) -> Result<Model> {
+    add(model, effect_name, records, catalogue, opts, true)
+}
+
+/// [`add_effect_with`] without the step search: the best fit of the effect is kept even when it
+/// predicts the records worse than `model`. For a caller that changes the refit further (a tied
+/// chain refitted with its ties, a stop re-placed by another method) and then searches the step
+/// on what it ends with ([`hold_start`]), so the step is chosen for the model returned.
+pub fn add_effect_fit(
+    model: &Model,
+    effect_name: &str,
+    records: &[Record],
+    catalogue: &Catalogue,
+    opts: &DiagnoseOptions,
+) -> Result<Model> {
+    add(model, effect_name, records, catalogue, opts, false)
+}
+
+/// `fitted` (a refit of `start` with an effect added, its last history step that effect's) kept
+/// only as far as it predicts `records` better than `start`, by the rulers and key the refit's
+/// anchors are chosen by: when it is not better, the best step toward it
+/// ([`crate::anchor::line_search`]), or `start`'s equations (nothing added, the step's `added`
+/// list emptied). The last history step gets the step kept (`step` in its first variant's
+/// details; 1: `fitted` as it is) and, when the model changed, its R-MSE per record again.
+pub fn hold_start(
+    start: &Model,
+    fitted: &Model,
+    records: &[Record],
+    opts: &DiagnoseOptions,
+) -> Result<Model> {
+    use crate::anchor::{better, line_search, r_mse_each, rulers, sim_key};
+    let rulers = rulers(start, records, opts);
+    let (s0, s1) = rayon::join(
+        || r_mse_each(start, records, &rulers, opts),
+        || r_mse_each(fitted, records, &rulers, opts),
+    );
+    let (step, mut out) = if better(sim_key(&s1), sim_key(&s0)) {
+        (1.0, fitted.clone())
+    } else {
+        let s = line_search(start, fitted, &s1, &s0, |m| {
+            r_mse_each(m, records, &rulers, opts)
+        })?;
+        (s.step, s.model)
+    };
+    let rescore = step < 1.0;
+    let (scores, failed) = if rescore {
+        try_scores(&out, records)
+    } else {
+        (Vec::new(), Vec::new())
+    };
+    let equations = out.equation_string();
+    if let Some(last) = out.history.last_mut() {
+        if let Some(v) = last.details["variants"]
+            .get_mut(0)
+            .and_then(|v| v.as_object_mut())
+        {
+            v.insert("step".into(), json!(step));
+        }
+        if rescore {
+            last.r_mse = scores;
+            last.details["failed"] = json!(failed);
+            last.details["equations"] = json!(equations);
+        }
+        if step == 0.0 {
+            last.added.clear();
+        }
+    }
+    Ok(out)
+}
+
+/// [`add_effect_with`], with the step search only when `search`.
+fn add(
+    model: &Model,
+    effect_name: &str,
+    records: &[Record],
+    catalogue: &Catalogue,
+    opts: &DiagnoseOptions,
+    search: bool,
+) -> Result<Model> {
     let (effect, dofs) = targets(model, effect_name)?;
     let eff = catalogue.get(&effect)?;
     let states = prepare(model, records, opts)?;
@@ -322,7 +400,7 @@ pub fn add_effect_with(
     // that failed: simulated again below for the message).
     let mut known = None;
     if !plans.is_empty() {
-        let chosen = choose_anchor(model, &plans, records, opts)?;
+        let chosen = choose_anchor(model, &plans, records, opts, search)?;
         if chosen.whole {
             for p in &plans {
                 if let Some((names, _, _)) = &p.whole {

@@ -5,7 +5,7 @@ mod common;
 
 use common::*;
 use tfs_data::Record;
-use tfs_diagnose::{add_effect, r_mse};
+use tfs_diagnose::{Catalogue, DiagnoseOptions, add_effect, add_effect_fit, hold_start, r_mse};
 use tfs_library::{Library, Model};
 
 /// The geometric mean of `model`'s free-run R-MSE over `records` (as the refit's choice weighs
@@ -54,6 +54,18 @@ fn a_refit_whose_every_anchor_is_worse_keeps_the_start_model() {
     let before = geo_r_mse(&start, &train);
     for effect in ["stiffness-x^5", "stiffness-x^7"] {
         let after = add_effect(&start, effect, &train).unwrap();
+        // The same search made on the unsearched fit by a caller that changes it first (the
+        // facade's ties and stop re-scans) ends at the same model.
+        let opts = DiagnoseOptions::default();
+        let cat = Catalogue::standard(opts.max_power);
+        let fit = add_effect_fit(&start, effect, &train, &cat, &opts).unwrap();
+        assert!(geo_r_mse(&fit, &train) > before, "{effect}: the premise");
+        let held = hold_start(&start, &fit, &train, &opts).unwrap();
+        assert_eq!(held.equations, after.equations, "{effect}");
+        assert_eq!(
+            held.history.last().unwrap().added,
+            after.history.last().unwrap().added
+        );
         let step = after.history.last().unwrap();
         let details = &step.details["variants"][0];
         // Every anchor the refit tried, and the start model, on the fit records.

@@ -6,8 +6,8 @@
 use serde::Serialize;
 use tfs_data::Record;
 use tfs_diagnose::{
-    Catalogue, DiagnoseOptions, LadderStep, SharedTerm, add_effect_with, error_ladder, explain,
-    refit_shared,
+    Catalogue, DiagnoseOptions, LadderStep, SharedTerm, add_effect_fit, error_ladder, explain,
+    hold_start, refit_shared,
 };
 use tfs_library::{Factor, Library, Model, Term};
 
@@ -94,7 +94,10 @@ pub(crate) struct AddNotes {
 /// stop on a T-F-S model re-scans its position by T-F-S (pushing what was done to
 /// `notes.stops`). A stop the refit's history lists as added but no equation holds (the refit
 /// drops a column whose coefficient came out zero or non-finite, as for a stop that never
-/// engages on the smoothed states) is warned about in `notes.warnings`.
+/// engages on the smoothed states) is warned about in `notes.warnings`. Last, the step toward
+/// that model is searched ([`hold_start`]): when it does not predict the records better than
+/// `model`, a fraction of the way, or `model`'s equations unchanged (warned about; a stop's
+/// re-scan is then not reported).
 pub(crate) fn add_one(
     model: &Model,
     name: &str,
@@ -117,25 +120,30 @@ pub(crate) fn add_one(
     } else {
         opts
     };
-    let added = add_effect_with(model, name, records, catalogue, opts)?;
-    if added.equations == model.equations {
-        notes.warnings.push(format!(
-            "'{name}': no step toward its refit predicts these records better than the model without it, so nothing was added (the equations are unchanged)"
-        ));
-    }
+    // The effect's best fit, refitted with a chain's ties and a stop re-placed by T-F-S; the
+    // step toward that model is searched last (`hold_start`), so what is returned never
+    // predicts the records worse than `model`.
+    let added = add_effect_fit(model, name, records, catalogue, opts)?;
     let added = keep_ties(added, records, opts)?;
     notes.warnings.extend(dropped_terms(&added).into_iter().map(|t| {
         format!(
             "'{name}': the refit gave '{t}' a zero or non-finite coefficient on these records and left it out, so the model does not have it (a stop that never engages in the data does that)"
         )
     }));
-    match rescan_stop(model, &added, name.split_once('@').map(|(_, d)| d), records)? {
-        Some((m, report)) => {
-            notes.stops.push(report);
-            Ok(m)
-        }
-        None => Ok(added),
+    let (added, report) =
+        match rescan_stop(model, &added, name.split_once('@').map(|(_, d)| d), records)? {
+            Some((m, report)) => (m, Some(report)),
+            None => (added, None),
+        };
+    let held = hold_start(model, &added, records, opts)?;
+    if held.equations == model.equations {
+        notes.warnings.push(format!(
+            "'{name}': no step toward its refit predicts these records better than the model without it, so nothing was added (the equations are unchanged)"
+        ));
+    } else {
+        notes.stops.extend(report);
     }
+    Ok(held)
 }
 
 /// The stop terms (`below`, `above`) the model's last history step lists as added that no
