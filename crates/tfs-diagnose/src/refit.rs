@@ -275,6 +275,15 @@ pub fn hold_start(
             .and_then(|v| v.as_object_mut())
         {
             v.insert("step".into(), json!(step));
+            if rescore {
+                let fit = v.get("anchor").and_then(|a| a.as_str()).unwrap_or("fit");
+                let anchor = if step == 0.0 {
+                    "none: the start model".to_string()
+                } else {
+                    format!("{fit}, step {step}")
+                };
+                v.insert("anchor".into(), json!(anchor));
+            }
         }
         if rescore {
             last.r_mse = scores;

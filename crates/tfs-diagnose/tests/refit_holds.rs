@@ -62,10 +62,12 @@ fn a_refit_whose_every_anchor_is_worse_keeps_the_start_model() {
         assert!(geo_r_mse(&fit, &train) > before, "{effect}: the premise");
         let held = hold_start(&start, &fit, &train, &opts).unwrap();
         assert_eq!(held.equations, after.equations, "{effect}");
-        assert_eq!(
-            held.history.last().unwrap().added,
-            after.history.last().unwrap().added
-        );
+        let (h, a) = (held.history.last().unwrap(), after.history.last().unwrap());
+        assert_eq!(h.added, a.added, "{effect}");
+        let v = |e: &tfs_library::HistoryEntry, k: &str| e.details["variants"][0][k].clone();
+        assert_eq!(v(h, "anchor"), v(a, "anchor"), "{effect}");
+        assert_eq!(v(h, "step"), v(a, "step"), "{effect}");
+        assert_eq!(h.r_mse, a.r_mse, "{effect}");
         let step = after.history.last().unwrap();
         let details = &step.details["variants"][0];
         // Every anchor the refit tried, and the start model, on the fit records.
