@@ -260,7 +260,7 @@ pub(crate) fn choose_anchor(
         .collect();
     scores.push(("start".into(), start.clone()));
     let mut step = 1.0;
-    if search && !better(sim_key(&each[pick]), sim_key(&start)) {
+    if search && holds(&start) && !better(sim_key(&each[pick]), sim_key(&start)) {
         let Stepped {
             step: a,
             model: m,
@@ -302,6 +302,15 @@ pub(crate) fn choose_anchor(
         scores,
         each,
     })
+}
+
+/// Whether the start model's scores `start` (one per record) are a baseline the refit must not
+/// fall below: it simulates every record. A start that fails on some record is no such
+/// baseline; which candidate cures the failures is the decision's question (its control is the
+/// start's own terms refitted), and a tie among failing fits would otherwise go to the start
+/// and drop the candidate before it is asked.
+pub(crate) fn holds(start: &[f64]) -> bool {
+    sim_key(start).0 == 0
 }
 
 /// The steps [`line_search`] tries toward a fit that does not predict the fit records better

@@ -238,7 +238,8 @@ pub fn add_effect_fit(
 
 /// `fitted` (a refit of `start` with an effect added, its last history step that effect's) kept
 /// only as far as it predicts `records` better than `start`, by the rulers and key the refit's
-/// anchors are chosen by: when it is not better, the best step toward it
+/// anchors are chosen by: when it is not better (and `start` simulates every record), the best
+/// step toward it
 /// ([`crate::anchor::line_search`]), or `start`'s equations (nothing added, the step's `added`
 /// list emptied). The last history step gets the step kept (`step` in its first variant's
 /// details; 1: `fitted` as it is) and, when the model changed, its R-MSE per record again.
@@ -248,13 +249,13 @@ pub fn hold_start(
     records: &[Record],
     opts: &DiagnoseOptions,
 ) -> Result<Model> {
-    use crate::anchor::{better, line_search, r_mse_each, rulers, sim_key};
+    use crate::anchor::{better, holds, line_search, r_mse_each, rulers, sim_key};
     let rulers = rulers(start, records, opts);
     let (s0, s1) = rayon::join(
         || r_mse_each(start, records, &rulers, opts),
         || r_mse_each(fitted, records, &rulers, opts),
     );
-    let (step, mut out) = if better(sim_key(&s1), sim_key(&s0)) {
+    let (step, mut out) = if !holds(&s0) || better(sim_key(&s1), sim_key(&s0)) {
         (1.0, fitted.clone())
     } else {
         let s = line_search(start, fitted, &s1, &s0, |m| {

@@ -155,7 +155,7 @@ pub fn rules() -> Vec<Rule> {
             "refit toward the start",
             "refit",
             format!(
-                "the added effect fitted with the start terms held, with ridge weights {:?} toward the start, and free; the fit whose free runs predict the fit records best is kept; when it does not predict them better than the start model, the best of the steps {:?} toward it, or the start model itself (nothing added)",
+                "the added effect fitted with the start terms held, with ridge weights {:?} toward the start, and free; the fit whose free runs predict the fit records best is kept; when it does not predict them better than the start model (and that simulates every fit record), the best of the steps {:?} toward it, or the start model itself (nothing added)",
                 crate::anchor::RIDGE,
                 crate::anchor::STEPS
             ),
