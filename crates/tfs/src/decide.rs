@@ -31,7 +31,10 @@
 //!    positions scanned ([`crate::gate::tfs_stop_p_value`]), and the records simulate better with
 //!    it. The stop's equation-error evidence is weak where the contact is stiff (the smoothing
 //!    spreads its short acceleration burst), while T-F-S resolves it through the momentum it
-//!    changes.
+//!    changes. The simulations must single the contact out: when another candidate whose test
+//!    passes and whose error falls, short only of the size, makes the records simulate better
+//!    still, the contact is not named ([`Reason::StopOutdone`]) — the simulations then say
+//!    something is missing, not that it is a contact.
 //! 4. Else nothing is named: [`Reason::NothingSignificant`] or [`Reason::NoneSupported`].
 //!
 //! Each candidate's model is made once per decision (the same candidate tried in two steps
@@ -42,12 +45,12 @@ use std::fmt;
 
 use serde::Serialize;
 use tfs_data::Record;
-use tfs_diagnose::{Catalogue, DiagnoseOptions, RankedEffect};
+use tfs_diagnose::{Catalogue, DiagnoseOptions, RankedEffect, Significance};
 use tfs_library::{Factor, Model, Term};
 
 use crate::error::Result;
 use crate::gate::{
-    Chosen, MAX_FURTHER, SimScore, Step, add_each, fewest_failing, further_steps, p_text,
+    Chosen, MAX_FURTHER, NotMade, SimScore, Step, add_each, fewest_failing, further_steps, p_text,
     refitted_as_is, tfs_stop_p_value, worsens,
 };
 
@@ -69,6 +72,9 @@ pub enum Reason {
     WorsensSimulation,
     /// Its refit could not be made: passed over.
     CouldNotAdd,
+    /// No step toward its refit predicts the records better than the model without it (the
+    /// refit returns the model unchanged): it adds nothing, so it is passed over.
+    AddsNothing,
     /// A one-sided contact not significant by equation error that T-F-S's re-identification
     /// with its position scanned keeps, whose term test passes, and with which the records
     /// simulate better.
@@ -76,6 +82,10 @@ pub enum Reason {
     /// A one-sided contact not significant by equation error that T-F-S does not support (not
     /// kept, its term test fails or has no test, or the records simulate no better with it).
     StopNotByTfs,
+    /// A one-sided contact T-F-S supports, but another candidate whose test passes (short only
+    /// of the size) makes the records simulate better still: the simulations do not single out
+    /// the contact, so it is not named on them.
+    StopOutdone,
     /// No candidate is significant by equation error (nor a contact T-F-S supports).
     NothingSignificant,
     /// Every significant candidate was passed over (nor a contact T-F-S supports).
@@ -92,8 +102,12 @@ impl fmt::Display for Reason {
                 "significant, but the records simulate worse with it: passed over"
             }
             Reason::CouldNotAdd => "it could not be added: passed over",
+            Reason::AddsNothing => "its refit adds nothing to the model: passed over",
             Reason::StopByTfs => "a stop that T-F-S's own term test supports",
             Reason::StopNotByTfs => "a stop that T-F-S's own term test does not support",
+            Reason::StopOutdone => {
+                "a stop T-F-S supports, but another candidate makes the records simulate better"
+            }
             Reason::NothingSignificant => "no candidate is significant",
             Reason::NoneSupported => {
                 "every significant candidate was passed over by the simulations"
@@ -214,7 +228,7 @@ struct Made<'a> {
     records: &'a [Record],
     catalogue: &'a Catalogue,
     opts: &'a DiagnoseOptions,
-    made: HashMap<String, std::result::Result<Chosen, String>>,
+    made: HashMap<String, std::result::Result<Chosen, NotMade>>,
 }
 
 impl Made<'_> {
@@ -232,7 +246,7 @@ impl Made<'_> {
     }
 
     /// The model with `name` added, or why it could not be made.
-    fn get(&mut self, name: &str) -> &std::result::Result<Chosen, String> {
+    fn get(&mut self, name: &str) -> &std::result::Result<Chosen, NotMade> {
         self.make(&[name]);
         &self.made[name]
     }
@@ -241,7 +255,7 @@ impl Made<'_> {
     fn trial(&mut self, name: &str, reason: Reason) -> Trial {
         let (score, error) = match self.get(name) {
             Ok(c) => (Some(c.score), None),
-            Err(e) => (None, Some(e.clone())),
+            Err(e) => (None, Some(e.to_string())),
         };
         Trial {
             effect: name.to_string(),
@@ -255,6 +269,14 @@ impl Made<'_> {
     fn take(&mut self, name: &str) -> Option<Chosen> {
         self.make(&[name]);
         self.made.remove(name).and_then(|m| m.ok())
+    }
+}
+
+/// The reason of a candidate whose model was not made: it adds nothing, or could not be added.
+fn not_made_reason(m: &std::result::Result<Chosen, NotMade>) -> Reason {
+    match m {
+        Err(NotMade::AddsNothing) => Reason::AddsNothing,
+        _ => Reason::CouldNotAdd,
     }
 }
 
@@ -383,7 +405,7 @@ fn for_failures(
     for (i, n) in names.iter().enumerate() {
         let reason = match (Some(i) == best, &scores[i]) {
             (true, _) => Reason::CuresFailures,
-            (false, None) => Reason::CouldNotAdd,
+            (false, None) => not_made_reason(made.get(n)),
             (false, Some(_)) => Reason::CuresLess,
         };
         let trial = made.trial(n, reason);
@@ -454,11 +476,20 @@ fn first_supported(
         let score = match made_it {
             Ok(s) => s,
             Err(e) => {
-                notes.push(format!(
-                    "{} passed over: it could not be added ({e})",
-                    cand.name
-                ));
-                let trial = made.trial(&cand.name, Reason::CouldNotAdd);
+                let reason = match e {
+                    NotMade::AddsNothing => {
+                        notes.push(format!("{} passed over: {e}", cand.name));
+                        Reason::AddsNothing
+                    }
+                    NotMade::Failed(_) => {
+                        notes.push(format!(
+                            "{} passed over: it could not be added ({e})",
+                            cand.name
+                        ));
+                        Reason::CouldNotAdd
+                    }
+                };
+                let trial = made.trial(&cand.name, reason);
                 out.tried.push(trial);
                 continue;
             }
@@ -492,9 +523,17 @@ fn contact_by_tfs(
 ) -> Option<Chosen> {
     let dofs = made.model.dofs.clone();
     let alpha = made.opts.alpha;
-    let contacts = ranked
+    let contacts: Vec<&RankedEffect> = ranked
         .iter()
-        .filter(|r| !r.significant && r.delta_heldout > 0.0 && adds_contact(r, &dofs));
+        .filter(|r| !r.significant && r.delta_heldout > 0.0 && adds_contact(r, &dofs))
+        .collect();
+    // The other candidates whose test passes and whose error falls, short only of the size:
+    // the same simulations must not support one of them better than the contact.
+    let rivals: Vec<&str> = ranked
+        .iter()
+        .filter(|r| r.significance == Significance::TooSmall && !adds_contact(r, &dofs))
+        .map(|r| r.name.as_str())
+        .collect();
     for cand in contacts {
         let looked = made.get(&cand.name).as_ref().ok().and_then(|m| {
             let stop = m.stops.last()?;
@@ -507,7 +546,13 @@ fn contact_by_tfs(
         let Some((score, stop, p)) = looked else {
             continue;
         };
-        let accepted = p.is_some_and(|p| p < alpha) && score.key() < before.key();
+        let supported = p.is_some_and(|p| p < alpha) && score.key() < before.key();
+        let outdone = if supported {
+            outdone_by(made, &rivals, &score)
+        } else {
+            None
+        };
+        let accepted = supported && outdone.is_none();
         let tfs = match p {
             Some(p) => format!(
                 "T-F-S re-identified the model with {} (stiffness {:.4e}, {} corrected over the library's terms and the {} positions scanned)",
@@ -528,10 +573,10 @@ fn contact_by_tfs(
             score.describe(),
             before.describe()
         );
-        let reason = if accepted {
-            Reason::StopByTfs
-        } else {
-            Reason::StopNotByTfs
+        let reason = match (accepted, &outdone) {
+            (true, _) => Reason::StopByTfs,
+            (false, Some(_)) => Reason::StopOutdone,
+            (false, None) => Reason::StopNotByTfs,
         };
         let trial = made.trial(&cand.name, reason);
         out.tried.push(trial);
@@ -539,9 +584,34 @@ fn contact_by_tfs(
             notes.push(format!("{words}: added"));
             return made.take(&cand.name);
         }
-        notes.push(format!("{words}: not added"));
+        match outdone {
+            Some((rival, s)) => notes.push(format!(
+                "{words}, but with {rival} (its test passes too, short only of the size) {}: the simulations do not single out the contact, not added",
+                s.describe()
+            )),
+            None => notes.push(format!("{words}: not added")),
+        }
     }
     None
+}
+
+/// The rival (test passed, error falls, short only of the size) with which the records
+/// simulate best, if better than `score`, the contact's (ties go to the contact).
+fn outdone_by(
+    made: &mut Made<'_>,
+    rivals: &[&str],
+    score: &SimScore,
+) -> Option<(String, SimScore)> {
+    made.make(rivals);
+    let mut best: Option<(String, SimScore)> = None;
+    for r in rivals {
+        let Ok(m) = made.get(r) else { continue };
+        let s = m.score;
+        if s.key() < score.key() && best.as_ref().is_none_or(|(_, b)| s.key() < b.key()) {
+            best = Some((r.to_string(), s));
+        }
+    }
+    best
 }
 
 #[cfg(test)]

@@ -104,6 +104,27 @@ impl SimScore {
     }
 }
 
+/// Why a candidate's model was not made ([`add_each`]).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum NotMade {
+    /// The refit failed, in one line.
+    Failed(String),
+    /// No step toward its refit predicts the records better than the model without it: the
+    /// refit returned the model unchanged.
+    AddsNothing,
+}
+
+impl std::fmt::Display for NotMade {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            NotMade::Failed(e) => f.write_str(e),
+            NotMade::AddsNothing => f.write_str(
+                "no step toward its refit predicts the records better than the model without it: it adds nothing",
+            ),
+        }
+    }
+}
+
 /// A candidate chosen with the model that has it.
 #[derive(Debug, Clone)]
 pub struct Chosen {
@@ -147,19 +168,16 @@ pub(crate) fn add_each(
     records: &[Record],
     catalogue: &Catalogue,
     opts: &DiagnoseOptions,
-) -> Vec<std::result::Result<Chosen, String>> {
+) -> Vec<std::result::Result<Chosen, NotMade>> {
     use rayon::prelude::*;
     names
         .par_iter()
         .map(|&name| {
             let mut notes = crate::refit::AddNotes::default();
             let m = crate::refit::add_one(model, name, records, catalogue, opts, &mut notes)
-                .map_err(|e| crate::one_line(&e))?;
+                .map_err(|e| NotMade::Failed(crate::one_line(&e)))?;
             if m.equations == model.equations {
-                return Err(
-                    "no step toward its refit predicts the records better than the model without it: it adds nothing"
-                        .to_string(),
-                );
+                return Err(NotMade::AddsNothing);
             }
             let score = SimScore::of(&m, records);
             Ok(Chosen {

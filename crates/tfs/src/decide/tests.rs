@@ -228,3 +228,63 @@ fn a_failure_that_the_refit_alone_cures_names_no_effect() {
     assert_eq!(d.reason, Reason::NothingSignificant);
     assert!(d.why.contains("the start fit's"), "{}", d.why);
 }
+
+/// The rival that outdoes a contact is the one with which the records simulate best, and only
+/// when strictly better than the contact: fewer failing records first, then the lower mean
+/// R-MSE; a rival that could not be added is no rival; a tie goes to the contact.
+#[test]
+fn a_contact_is_outdone_only_by_a_rival_that_simulates_strictly_better() {
+    let (start, records) = undamped_start();
+    let opts = DiagnoseOptions::default();
+    let catalogue = Catalogue::standard(opts.max_power);
+    let score = |failed, mean_r_mse| SimScore {
+        failed,
+        records: 2,
+        mean_r_mse,
+    };
+    let chosen = |name: &str, s: SimScore| Chosen {
+        effect: name.into(),
+        model: start.clone(),
+        stops: Vec::new(),
+        warnings: Vec::new(),
+        score: s,
+    };
+    let mut made = Made {
+        model: &start,
+        records: &records,
+        catalogue: &catalogue,
+        opts: &opts,
+        made: HashMap::new(),
+    };
+    let entries = [
+        ("worse", Ok(chosen("worse", score(0, 0.3)))),
+        ("fails-less", Ok(chosen("fails-less", score(0, 0.25)))),
+        ("best", Ok(chosen("best", score(0, 0.05)))),
+        ("broken", Err(NotMade::Failed("could not be added".into()))),
+        ("nothing", Err(NotMade::AddsNothing)),
+    ];
+    for (n, m) in entries {
+        made.made.insert(n.to_string(), m);
+    }
+    let contact = score(0, 0.2);
+    let all = ["worse", "fails-less", "best", "broken", "nothing"];
+    let (name, s) = outdone_by(&mut made, &all, &contact).unwrap();
+    assert_eq!((name.as_str(), s.mean_r_mse), ("best", 0.05));
+    // Only rivals no better than the contact, or ones not made: not outdone.
+    assert!(outdone_by(&mut made, &["worse", "broken", "nothing"], &contact).is_none());
+    // A candidate not made is recorded by why: it could not be added, or it adds nothing.
+    assert_eq!(
+        made.trial("broken", Reason::CouldNotAdd).error.as_deref(),
+        Some("could not be added")
+    );
+    assert_eq!(not_made_reason(made.get("broken")), Reason::CouldNotAdd);
+    assert_eq!(not_made_reason(made.get("nothing")), Reason::AddsNothing);
+    // A tie goes to the contact.
+    assert!(outdone_by(&mut made, &["best"], &score(0, 0.05)).is_none());
+    // A rival with which fewer records fail outdoes a contact with a lower mean R-MSE.
+    assert!(outdone_by(&mut made, &["worse"], &score(1, 0.01)).is_some());
+    assert_eq!(
+        serde_json::to_value(Reason::StopOutdone).unwrap(),
+        "stop-outdone"
+    );
+}
