@@ -414,25 +414,37 @@ pub(crate) enum Correction {
 }
 
 /// Solves `(AᵀA − D)β = Aᵀy − d` on the columns `support` (indices into the columns of `rows`),
-/// with `m` the noise moments over the same columns in the same order.
+/// with `m` the noise moments over the same columns in the same order, jointly with the
+/// noise-free columns `exact` (the constant: no noise moments, solved for but not returned). A
+/// constant left out of these equations would leave its leakage into the kept low bins to the
+/// terms it is collinear with there (a displacement recorded with a sensor offset).
 pub(crate) fn corrected_fit(
     rows: &Compressed,
     support: &[usize],
+    exact: &[usize],
     m: &NoiseMoments,
 ) -> Option<Correction> {
     let k = support.len();
     if k == 0 || m.d.nrows() != k {
         return None;
     }
+    let all: Vec<usize> = support.iter().chain(exact).copied().collect();
+    let n = all.len();
     let (g, c) = rows.gram();
     // Scale to a unit diagonal so columns of very different size (x^7 next to x') are treated
     // alike by the factorisations.
-    let s: Vec<f64> = support.iter().map(|&j| g[(j, j)].sqrt()).collect();
+    let s: Vec<f64> = all.iter().map(|&j| g[(j, j)].sqrt()).collect();
     if s.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
         return None;
     }
-    let gs = Mat::<f64>::from_fn(k, k, |i, j| g[(support[i], support[j])] / (s[i] * s[j]));
-    let ds = Mat::<f64>::from_fn(k, k, |i, j| m.d[(i, j)] / (s[i] * s[j]));
+    let gs = Mat::<f64>::from_fn(n, n, |i, j| g[(all[i], all[j])] / (s[i] * s[j]));
+    let ds = Mat::<f64>::from_fn(n, n, |i, j| {
+        if i < k && j < k {
+            m.d[(i, j)] / (s[i] * s[j])
+        } else {
+            0.0
+        }
+    });
     let share: Vec<f64> = (0..k).map(|i| ds[(i, i)]).collect();
     if share.iter().any(|v| !v.is_finite()) {
         return None;
@@ -442,7 +454,8 @@ pub(crate) fn corrected_fit(
     if margin.llt(Side::Lower).is_err() {
         return Some(Correction::TooNoisy { share });
     }
-    let rhs = Mat::<f64>::from_fn(k, 1, |i, _| (c[support[i]] - m.dy[i]) / s[i]);
+    let dy = |i: usize| if i < k { m.dy[i] } else { 0.0 };
+    let rhs = Mat::<f64>::from_fn(n, 1, |i, _| (c[all[i]] - dy(i)) / s[i]);
     let z = (&gs - &ds).llt(Side::Lower).ok()?.solve(&rhs);
     let coef: Vec<f64> = (0..k).map(|i| z[(i, 0)] / s[i]).collect();
     coef.iter()

@@ -286,6 +286,7 @@ pub(crate) fn final_fit(
         .filter(|&j| support[j] && Some(j) != reg.const_j)
         .collect();
     let lib_cols: Vec<usize> = cols.iter().map(|&j| keep[j]).collect();
+    let constant: Vec<usize> = reg.const_j.filter(|&cj| support[cj]).into_iter().collect();
     let moments = noise_moments(
         &ctx.preps[..used],
         &ctx.spec.dofs,
@@ -300,7 +301,7 @@ pub(crate) fn final_fit(
         ctx.shared.noise,
     )?;
     let eiv = match moments {
-        Moments::Estimated(m) => match corrected_fit(&rows, &cols, &m) {
+        Moments::Estimated(m) => match corrected_fit(&rows, &cols, &constant, &m) {
             Some(corr) => {
                 if let Correction::Applied { coef, .. } = &corr {
                     for (&j, &v) in cols.iter().zip(coef) {

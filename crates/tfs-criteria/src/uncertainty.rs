@@ -98,12 +98,15 @@ fn cluster_intervals(
     clusters: &[ClusterRows],
     sel: &[usize],
     coef: &[f64],
+    fixed: Option<usize>,
 ) -> Option<(Vec<f64>, usize, Vec<f64>)> {
+    // A fixed column's part of the target is taken off every row (its coefficient is known).
+    let fixed_part = |row: &[f64]| fixed.map_or(0.0, |j| coef[j] * row[j]);
     let own: Vec<ClusterRows> = clusters
         .iter()
         .map(|rows| {
             rows.iter()
-                .map(|(row, y)| (sel.iter().map(|&j| row[j]).collect(), *y))
+                .map(|(row, y)| (sel.iter().map(|&j| row[j]).collect(), *y - fixed_part(row)))
                 .collect()
         })
         .collect();
@@ -470,6 +473,15 @@ fn passes_term_test(
 /// The jackknife over the clusters: intervals of the kept terms (not the constant, which is
 /// estimated in the time domain) and their term test, written into `out`; the number of
 /// clusters that pinned them down (`None` when too few did).
+///
+/// A kept constant's part is taken off the target at its time-domain value (fixed, not
+/// resampled: the mean residual over every sample pins it far better than these bins): the
+/// windowed transform of a constant is the window's own spectrum, which reaches the low bins
+/// the regression keeps, so leaving it in the residual would put the offset's leakage into
+/// every cluster and widen the other terms' intervals until they all fail the term test (a
+/// linear oscillator recorded with a sensor offset lost its stiffness, damping and input that
+/// way); fitting it afresh from the bins would tie it to the stiffness it is collinear with
+/// there.
 fn jackknife_step(
     ctx: &DofContext<'_>,
     reg: &Regression,
@@ -482,7 +494,8 @@ fn jackknife_step(
     let sel: Vec<usize> = (0..keep.len())
         .filter(|&j| support[j] && Some(j) != reg.const_j)
         .collect();
-    let (half, g, nus) = cluster_intervals(clusters_all, &sel, coef)?;
+    let fixed = reg.const_j.filter(|&cj| support[cj]);
+    let (half, g, nus) = cluster_intervals(clusters_all, &sel, coef, fixed)?;
     for (k, &j) in sel.iter().enumerate() {
         out.intervals[j] = Some([coef[j] - half[k], coef[j] + half[k]]);
     }
