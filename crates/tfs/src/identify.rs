@@ -419,46 +419,29 @@ pub struct Identification {
 /// policy, fits by the chosen method, refines when asked (keeping, with `held_out` records,
 /// whichever fit predicts them better), and records the offsets in the model's trace.
 pub fn identify(
-    mut records: Vec<Record>,
+    records: Vec<Record>,
     mut held_out: Vec<Record>,
     opts: &IdentifyOptions,
     plan: &Plan,
 ) -> Result<Identification> {
-    let decided;
-    let plan = if opts.offsets == Offsets::Auto && plan.mode == Offsets::ConstantTerm {
-        decided = choose_force_offsets(&records, opts, plan)?;
-        &decided
+    let auto_force = opts.offsets == Offsets::Auto && plan.mode == Offsets::ConstantTerm;
+    let (plan, fitted) = if auto_force && opts.method == Method::Tfs {
+        choose_by_sparse_fits(&records, opts, plan)?
+    } else if auto_force {
+        let decided = choose_force_offsets(&records, opts, plan)?;
+        let fitted = fit_treatment(records, opts, &decided)?;
+        (decided, fitted)
     } else {
-        plan
+        (plan.clone(), fit_treatment(records, opts, plan)?)
     };
+    let Treated {
+        records,
+        mut offsets,
+        mut identified,
+        restored,
+    } = fitted;
+    offsets.why = plan.why.clone();
     let data_mode = plan.data_mode();
-    let mut offsets = apply_offsets(&mut records, &plan.channels, data_mode, &plan.why)?;
-    offsets.requested = Some(opts.offsets);
-    if plan.mode == Offsets::ConstantTerm {
-        offsets.mode = plan.mode;
-        offsets.constant_term_added = Some(plan.added_constant);
-    }
-    let spec = &plan.spec;
-    check_terms_finite(spec, &records)?;
-    let mut restored = Vec::new();
-    let mut identified = match (opts.method, tied(opts, plan)?) {
-        (Method::Tfs, false) => {
-            let mut id = identify_tfs(&records, spec)?;
-            // A DOF left without a restoring force gets the library's displacement terms back
-            // when the records simulate better with them (not with a threshold the user fixed).
-            if opts.threshold.is_none() {
-                restored = crate::restore::restore_displacement(&mut id, &records, spec)?;
-            }
-            id
-        }
-        (Method::Tfs, true) => {
-            let tie = TieOptions::new(parse_masses(&opts.masses, plan.dofs.len())?);
-            identify_tfs_tied(&records, spec, &tie)?
-        }
-        (Method::Sindy, _) => identify_sindy(&records, spec)?,
-    };
-    // The model file carries the criteria trace (the offsets are added below).
-    identified.model.trace = identified.trace.to_json();
     let mut refine = None;
     if opts.refine {
         let refined = tfs_refine::refine(
@@ -493,19 +476,144 @@ pub fn identify(
     })
 }
 
-/// `--offsets auto` with force-like inputs: the treatment of the channel offsets whose full-library
-/// least squares explains the records' accelerations better (see [`crate::offsets_choice`]):
-/// `plan` (the constant term) or the plan with each record's means removed. The plan returned
-/// says why.
-fn choose_force_offsets(records: &[Record], opts: &IdentifyOptions, plan: &Plan) -> Result<Plan> {
+/// The records as one treatment of their offsets left them, the fit on them, what was done to
+/// the offsets, and the warnings of a restored restoring force.
+struct Treated {
+    records: Vec<Record>,
+    offsets: OffsetsReport,
+    identified: tfs_criteria::Identified,
+    restored: Vec<String>,
+}
+
+/// Applies `plan`'s treatment of the offsets to `records` and fits them by the chosen method.
+fn fit_treatment(mut records: Vec<Record>, opts: &IdentifyOptions, plan: &Plan) -> Result<Treated> {
+    let data_mode = plan.data_mode();
+    let mut offsets = apply_offsets(&mut records, &plan.channels, data_mode, &plan.why)?;
+    offsets.requested = Some(opts.offsets);
+    if plan.mode == Offsets::ConstantTerm {
+        offsets.mode = plan.mode;
+        offsets.constant_term_added = Some(plan.added_constant);
+    }
+    let spec = &plan.spec;
+    check_terms_finite(spec, &records)?;
+    let mut restored = Vec::new();
+    let mut identified = match (opts.method, tied(opts, plan)?) {
+        (Method::Tfs, false) => {
+            let mut id = identify_tfs(&records, spec)?;
+            // A DOF left without a restoring force gets the library's displacement terms back
+            // when the records simulate better with them (not with a threshold the user fixed).
+            if opts.threshold.is_none() {
+                restored = crate::restore::restore_displacement(&mut id, &records, spec)?;
+            }
+            id
+        }
+        (Method::Tfs, true) => {
+            let tie = TieOptions::new(parse_masses(&opts.masses, plan.dofs.len())?);
+            identify_tfs_tied(&records, spec, &tie)?
+        }
+        (Method::Sindy, _) => identify_sindy(&records, spec)?,
+    };
+    // The model file carries the criteria trace (the offsets are added below).
+    identified.model.trace = identified.trace.to_json();
+    Ok(Treated {
+        records,
+        offsets,
+        identified,
+        restored,
+    })
+}
+
+/// The plan of `opts` with each record's means removed (`--offsets remove`), for `records`.
+fn remove_plan(records: &[Record], opts: &IdentifyOptions) -> Result<Option<Plan>> {
     let Some(first) = records.first() else {
-        return Ok(plan.clone());
+        return Ok(None);
     };
     let remove_opts = IdentifyOptions {
         offsets: Offsets::Remove,
         ..opts.clone()
     };
-    let mut remove_plan = self::plan(&remove_opts, first.names(), first.source())?;
+    Ok(Some(self::plan(
+        &remove_opts,
+        first.names(),
+        first.source(),
+    )?))
+}
+
+/// `--offsets auto` with force-like inputs and T-F-S: the records are identified both ways —
+/// kept with the constant term of `plan`, and with each record's means removed — and the
+/// treatment whose sparse law scores better is used (see [`crate::offsets_choice::compare_sparse`]:
+/// held-out equation error against the number of terms, on the bins the fit kept). Returns the
+/// plan used (saying why) and its fit.
+fn choose_by_sparse_fits(
+    records: &[Record],
+    opts: &IdentifyOptions,
+    plan: &Plan,
+) -> Result<(Plan, Treated)> {
+    let Some(mut removing) = remove_plan(records, opts)? else {
+        return Ok((plan.clone(), fit_treatment(records.to_vec(), opts, plan)?));
+    };
+    let kept = fit_treatment(records.to_vec(), opts, plan)?;
+    let removed = fit_treatment(records.to_vec(), opts, &removing)?;
+    use crate::offsets_choice::{compare_sparse, sparse_scores};
+    let s_keep = sparse_scores(&kept.identified.trace, &kept.identified.model);
+    let s_remove = sparse_scores(&removed.identified.trace, &removed.identified.model);
+    let compared = s_keep
+        .as_ref()
+        .zip(s_remove.as_ref())
+        .and_then(|(k, r)| compare_sparse(k, r));
+    let (Some(s_keep), Some(s_remove), Some((c_keep, c_remove))) = (s_keep, s_remove, compared)
+    else {
+        // No held-out score to compare (no equation kept a term): the full library decides.
+        let decided = choose_force_offsets(records, opts, plan)?;
+        let fitted = if decided.mode == Offsets::Remove {
+            removed
+        } else {
+            kept
+        };
+        return Ok((decided, fitted));
+    };
+    let terms = |s: &[crate::offsets_choice::SparseScore]| s.iter().map(|v| v.terms).sum::<usize>();
+    let held = |s: &[crate::offsets_choice::SparseScore]| {
+        s.iter().map(|v| v.held_out).sum::<f64>() / s.len() as f64
+    };
+    let pct = |v: f64| format!("{:.4} %", 100.0 * v);
+    // Removing the means changes the user's data: it must not predict the held-out records
+    // worse on any DOF, and must win the criterion (the rig's linear law, as good either way,
+    // is one constant shorter without its offsets).
+    let removal_predicts = s_remove
+        .iter()
+        .zip(&s_keep)
+        .all(|(r, k)| r.held_out <= k.held_out);
+    if !(removal_predicts && c_remove < c_keep) {
+        let mut chosen = plan.clone();
+        chosen.why = format!(
+            "auto: force-like input(s): records used as they are with a constant term in the library (kept only if the records need it) — the sparse law found that way ({} terms) leaves {} of the held-out accelerations unexplained, against {} ({} terms) with each record's means removed (the means are motion, not offsets)",
+            terms(&s_keep),
+            pct(held(&s_keep)),
+            pct(held(&s_remove)),
+            terms(&s_remove)
+        );
+        Ok((chosen, kept))
+    } else {
+        removing.why = format!(
+            "auto: force-like input(s): each record's means removed from every DOF and input channel — the sparse law found that way ({} terms) leaves {} of the held-out accelerations unexplained, against {} ({} terms) with the records kept and a constant term (sensor offsets inside the nonlinear terms)",
+            terms(&s_remove),
+            pct(held(&s_remove)),
+            pct(held(&s_keep)),
+            terms(&s_keep)
+        );
+        Ok((removing, removed))
+    }
+}
+
+/// `--offsets auto` with force-like inputs (classical SINDy, or when the sparse fits give no
+/// score): the treatment of the channel offsets whose full-library least squares explains the
+/// records' accelerations better (see [`crate::offsets_choice::score_treatment`]): `plan` (the
+/// constant term) or the plan with each record's means removed. The plan returned says why.
+fn choose_force_offsets(records: &[Record], opts: &IdentifyOptions, plan: &Plan) -> Result<Plan> {
+    let Some(mut remove_plan) = remove_plan(records, opts)? else {
+        return Ok(plan.clone());
+    };
     let mut removed = records.to_vec();
     apply_offsets(&mut removed, &remove_plan.channels, Offsets::Remove, "")?;
     let score = crate::offsets_choice::score_treatment;

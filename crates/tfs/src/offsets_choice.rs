@@ -6,11 +6,15 @@
 //! terms the library may lack), and only its removal identifies the law. A short or transient
 //! record of a structure without offsets has a mean that is motion, not offset; removing it
 //! puts a constant force into the law that the library has no column for, and the selection
-//! turns `x³` into `x²` and `x` terms. The two treatments are two models of the same
-//! accelerations (which no offset touches), so the records tell them apart: each is fitted by
-//! least squares on the full library over the band-limited reconstruction of every record, and
-//! the one with the lower Bayesian information criterion (the extra constant costs its column)
-//! is used.
+//! turns `x³` into `x²` and `x` terms.
+//!
+//! The two treatments are two models of the same accelerations (which no offset touches), so
+//! the records tell them apart — by the sparse laws the identification finds under each, not
+//! by the full library: a library closed under shifts (every lower power present) fits both
+//! treatments' accelerations alike, and only the selected law shows which coordinate it is
+//! simple in. [`compare_sparse`] weighs each law's held-out equation error against its number of
+//! terms. The full-library score ([`score_treatment`]) decides where no sparse law is scored
+//! (classical SINDy, or no term kept).
 
 use faer::Mat;
 use tfs_data::{Columns, Record};
@@ -18,6 +22,69 @@ use tfs_library::Library;
 use tfs_signal::band::reconstruct_guarded;
 
 use crate::error::Result;
+use tfs_criteria::Trace;
+use tfs_library::Model;
+
+/// What a treatment's sparse law scores on one DOF (see [`sparse_scores`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SparseScore {
+    /// Held-out relative residual energy of least squares on the law's own terms.
+    pub held_out: f64,
+    /// Terms the law keeps (the constant included).
+    pub terms: usize,
+    /// Frequency bins the fit kept over every record.
+    pub bins: usize,
+}
+
+/// Per DOF, what an identified model's sparse law scores: the held-out relative residual energy
+/// of least squares on the law's own terms at its coefficients' setting (each record left out in
+/// turn, as the identification chooses its settings), its terms and the bins the fit kept.
+/// `None` when a DOF has no held-out score or no bins.
+pub fn sparse_scores(trace: &Trace, model: &Model) -> Option<Vec<SparseScore>> {
+    trace
+        .dofs
+        .iter()
+        .map(|d| {
+            let s = &d.settings;
+            let list = if s.coefficient_candidates.is_empty() {
+                &s.candidates
+            } else {
+                &s.coefficient_candidates
+            };
+            let e = list
+                .iter()
+                .map(|c| c.held_out_error)
+                .filter(|v| v.is_finite())
+                .fold(f64::INFINITY, f64::min);
+            let m: usize = d.bins.iter().map(|b| b.kept_bins).sum();
+            let k = model.equation(&d.dof).ok()?.terms.len();
+            (e.is_finite() && m > 0).then_some(SparseScore {
+                held_out: e,
+                terms: k,
+                bins: m,
+            })
+        })
+        .collect()
+}
+
+/// Compares two treatments' sparse laws DOF by DOF: `Σ_d m_d·ln(e_d) + k_d·ln(m_d)` for each,
+/// with `e` the held-out error, `k` the terms and `m` the fewer of the two fits' kept bins on
+/// that DOF — the independent values a band-limited record holds (its time samples are far from
+/// independent), counted alike for both so that neither gains from keeping more bins. Returns
+/// the two criteria (lower is better); `None` when the DOFs do not match.
+pub fn compare_sparse(a: &[SparseScore], b: &[SparseScore]) -> Option<(f64, f64)> {
+    if a.len() != b.len() || a.is_empty() {
+        return None;
+    }
+    let (mut sa, mut sb) = (0.0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        let m = x.bins.min(y.bins) as f64;
+        let crit = |s: &SparseScore| m * s.held_out.max(1e-300).ln() + s.terms as f64 * m.ln();
+        sa += crit(x);
+        sb += crit(y);
+    }
+    Some((sa, sb))
+}
 
 /// Guard band of the reconstruction, as the identification's default.
 const GUARD_OCTAVES: f64 = 0.5;
