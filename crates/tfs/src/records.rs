@@ -183,9 +183,11 @@ pub fn check_records(
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Offsets {
-    /// `identify`: `constant-term` when the inputs are force-like channels (`u`, `force`,
-    /// `voltage`, …: a constant force or sensor offset is estimated with the model as the
-    /// constant term, which the selection drops when the records do not need it), `keep` when
+    /// `identify`: with force-like input channels (`u`, `force`, `voltage`) the records are
+    /// identified both as `constant-term` (a constant force or sensor offset estimated with the
+    /// model, dropped when the records do not need it) and as `remove`, and the means are
+    /// removed only when that law predicts the held-out rows as well and is worth its terms
+    /// (`crate::offsets_choice`); `keep` when
     /// there is no input or a base-motion input (`xb_*`: the displacements are then geometric
     /// coordinates whose origin matters). Other commands: follow what the model's trace says
     /// `identify` did, else `keep`.

@@ -69,8 +69,10 @@ pub struct Args {
     pub verbose: bool,
     /// DC offsets of the DOF and input channels: `remove` subtracts each record's mean from
     /// them, `keep` uses the records as they are, `constant-term` keeps them and adds the term
-    /// `1` to the library; `auto` (default) is `constant-term` when the inputs are force-like
-    /// (`u`, `force`, `voltage`) and `keep` otherwise (base excitation `xb_*`, or no input).
+    /// `1` to the library; `auto` (default) with force-like inputs (`u`, `force`, `voltage`)
+    /// identifies the records both ways (`constant-term`, `remove`) and removes the means only
+    /// when that law predicts the held-out rows as well with fewer terms, and is `keep`
+    /// otherwise (base excitation `xb_*`, or no input).
     /// The choice and the offsets are in the trace and the model file.
     #[arg(long, value_enum, default_value_t = Offsets::Auto)]
     pub offsets: Offsets,
