@@ -222,3 +222,32 @@ fn short_records_at_40_db_keep_every_true_term() {
     }
     assert!(failures.is_empty(), "{failures:#?}");
 }
+
+/// A forced Duffing oscillator started from rest, its sensor without offset: the mean of a 20 s
+/// record of it is motion (the response has not settled about zero). With a library closed
+/// under shifts (`x, x^2, x^3`) the full library fits the accelerations as well with the mean
+/// removed as without, and a choice by the full library removed it on some noise draws — which
+/// turns the mean into an `x^2` term and drops the damping. The sparse laws tell them apart.
+#[test]
+fn a_record_without_offsets_keeps_its_mean() {
+    let case = Case {
+        name: "hardening Duffing from rest",
+        terms: &[("x", -1.0), ("x^3", -0.5), ("x'", -0.05), ("force", 1.0)],
+        library: "x, x^2, x^3, x', force",
+        amp: 0.5,
+        w: 1.4,
+        x0: 0.0,
+        offset: 0.0,
+    };
+    let mut removed = Vec::new();
+    for seed in 1..=8 {
+        let model = identify_default(&case, record(&case, Some(40.0), seed));
+        if model.trace["offsets"]["mode"] == "remove" {
+            removed.push(format!("seed {seed}: {}", model.equation_string()));
+        }
+    }
+    assert!(
+        removed.is_empty(),
+        "the means were removed from records without offsets: {removed:#?}"
+    );
+}
