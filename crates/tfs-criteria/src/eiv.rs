@@ -462,3 +462,48 @@ pub(crate) fn corrected_fit(
         .all(|v| v.is_finite())
         .then_some(Correction::Applied { coef, share })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Rows `[x, 1, u]` whose `x` carries an offset `c` (a sensor offset: `x = s + c`) and whose
+    /// target is `−k·s + g·u`, i.e. `−k·x + k·c + g·u`: the constant's column is what takes up
+    /// `k·c`. With no noise moments the corrected equations are plain least squares.
+    #[test]
+    fn the_constant_is_solved_with_the_corrected_terms() {
+        let (k, g, c) = (6.0, 1.0, 0.25);
+        let n = 200;
+        let mut a = Mat::<f64>::zeros(n, 3);
+        let mut y = vec![0.0; n];
+        for i in 0..n {
+            let t = i as f64 * 0.05;
+            // A constant's windowed transform is not zero in the low bins: the rows here are
+            // time samples, where it is plainly 1.
+            let s = (1.3 * t).sin() + 0.2 * (0.4 * t).cos();
+            let u = (0.9 * t).cos();
+            a[(i, 0)] = s + c;
+            a[(i, 1)] = 1.0;
+            a[(i, 2)] = u;
+            y[i] = -k * s + g * u;
+        }
+        let rows = Compressed::from_rows(a.as_ref(), &y).unwrap();
+        let m = NoiseMoments {
+            d: Mat::zeros(2, 2),
+            dy: vec![0.0; 2],
+            draws: 1,
+        };
+        let coef = |exact: &[usize]| match corrected_fit(&rows, &[0, 2], exact, &m) {
+            Some(Correction::Applied { coef, .. }) => coef,
+            other => panic!("not applied: {other:?}"),
+        };
+        let with = coef(&[1]);
+        assert!(
+            (with[0] + k).abs() < 1e-9 && (with[1] - g).abs() < 1e-9,
+            "{with:?}"
+        );
+        // Without the constant the offset's share goes to the terms it overlaps.
+        let without = coef(&[]);
+        assert!((without[0] + k).abs() > 0.1, "{without:?}");
+    }
+}

@@ -201,3 +201,38 @@ impl Columns for Owned {
         self.rows
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn s(held_out: f64, terms: usize, bins: usize) -> SparseScore {
+        SparseScore {
+            held_out,
+            terms,
+            bins,
+        }
+    }
+
+    /// Both laws are counted on the fewer of the two fits' bins: a fit that kept more bins (41
+    /// against 19) does not win by multiplying its worse log error by more rows.
+    #[test]
+    fn both_treatments_are_counted_on_the_same_bins() {
+        let keep = [s(0.0017, 3, 19)];
+        let remove = [s(0.0035, 4, 47)];
+        let (k, r) = compare_sparse(&keep, &remove).unwrap();
+        let m = 19.0_f64;
+        assert!((k - (m * 0.0017_f64.ln() + 3.0 * m.ln())).abs() < 1e-9);
+        assert!((r - (m * 0.0035_f64.ln() + 4.0 * m.ln())).abs() < 1e-9);
+        assert!(k < r, "{k} {r}");
+    }
+
+    /// Equal held-out errors: the law with fewer terms wins (the rig's linear law without its
+    /// constant once the offsets are removed).
+    #[test]
+    fn equal_errors_go_to_the_sparser_law() {
+        let (k, r) = compare_sparse(&[s(0.02, 4, 60)], &[s(0.02, 3, 60)]).unwrap();
+        assert!(r < k, "{k} {r}");
+        assert!(compare_sparse(&[s(0.02, 4, 60)], &[]).is_none());
+    }
+}
