@@ -552,8 +552,18 @@ fn choose_by_sparse_fits(
     let Some(mut removing) = remove_plan(records, opts)? else {
         return Ok((plan.clone(), fit_treatment(records.to_vec(), opts, plan)?));
     };
-    let kept = fit_treatment(records.to_vec(), opts, plan)?;
-    let removed = fit_treatment(records.to_vec(), opts, &removing)?;
+    // A treatment the fit refuses leaves the other (the kept data's error when both fail).
+    let kept = fit_treatment(records.to_vec(), opts, plan);
+    let removed = fit_treatment(records.to_vec(), opts, &removing);
+    let (kept, removed) = match (kept, removed) {
+        (Ok(k), Ok(r)) => (k, r),
+        (Ok(k), Err(_)) => return Ok((plan.clone(), k)),
+        (Err(_), Ok(r)) => {
+            removing.why = "auto: force-like input(s): each record's means removed from every DOF and input channel (the records as they are, with a constant term, could not be fitted)".to_string();
+            return Ok((removing, r));
+        }
+        (Err(e), Err(_)) => return Err(e),
+    };
     use crate::offsets_choice::{compare_sparse, sparse_scores};
     let s_keep = sparse_scores(&kept.identified.trace, &kept.identified.model);
     let s_remove = sparse_scores(&removed.identified.trace, &removed.identified.model);
