@@ -118,8 +118,10 @@ pub(crate) struct Candidate {
 /// divergence the short-horizon error is too coarse to order on its own); under the short
 /// horizon, a candidate that the equation error does not tell apart from its DOF's top one
 /// takes the top place when the paired tests over the pieces say the top predicts worse than it
-/// ([`short_horizon_breaks_tie`]). The rest by the free-run R-MSE (failed simulations last),
-/// then the equation error.
+/// ([`short_horizon_breaks_tie`]); under the free run, a candidate whose held-out equation
+/// error is decisively lower than the top one's takes its place
+/// ([`decisive_equation_error_first`]). The rest by the free-run R-MSE (failed simulations
+/// last), then the equation error.
 pub(crate) fn order(ranked: &mut [Candidate], judge: Judge, alpha: f64) {
     let sim_key = |c: &Candidate| c.entry.r_mse_after.unwrap_or(f64::INFINITY);
     let key = |c: &Candidate| {
@@ -141,6 +143,55 @@ pub(crate) fn order(ranked: &mut [Candidate], judge: Judge, alpha: f64) {
     if judge == Judge::ShortHorizon {
         short_horizon_breaks_tie(ranked, alpha);
     }
+    if judge == Judge::FreeRun {
+        decisive_equation_error_first(ranked, alpha);
+    }
+}
+
+/// How much lower a significant candidate's held-out equation error must be than that of the
+/// free run's top one (of its DOF) for the equation error to overrule the free run's order
+/// ([`decisive_equation_error_first`]): it must leave less than this share of what the top one
+/// leaves.
+pub(crate) const DECISIVE_RATIO: f64 = 0.5;
+
+/// Under the free-run judge, per DOF: the significant candidate with the lowest held-out
+/// equation error takes the top place when it leaves less than [`DECISIVE_RATIO`] of the top
+/// one's held-out equation error and the paired block tests say so at `alpha`; the others keep
+/// their order. The free run scores each candidate's per-fold equation-error refits, which are
+/// not the refit the loop makes (its anchors are chosen by simulation): an equation-error refit
+/// can simulate far worse than the refit of the same terms chosen by simulation (a rig's
+/// stiffness and offset terms whose small errors move its equilibrium), so between candidates
+/// of comparable equation error the free run orders, and where one removes most of what the
+/// other leaves, the equation error does.
+fn decisive_equation_error_first(ranked: &mut [Candidate], alpha: f64) {
+    let mut dofs: Vec<String> = Vec::new();
+    for c in ranked.iter().filter(|c| c.entry.significant) {
+        if !dofs.contains(&c.entry.dof) {
+            dofs.push(c.entry.dof.clone());
+        }
+    }
+    for dof in dofs {
+        let mine: Vec<usize> = (0..ranked.len())
+            .filter(|&i| ranked[i].entry.significant && ranked[i].entry.dof == dof)
+            .collect();
+        let top = mine[0];
+        let left: Vec<f64> = mine
+            .iter()
+            .map(|&i| 1.0 - ranked[i].entry.delta_heldout)
+            .collect();
+        let told = |k: usize| !equation_ties(&ranked[mine[k]], &ranked[top], alpha);
+        if let Some(k) = decisive(&left, told) {
+            ranked[top..=mine[k]].rotate_right(1);
+        }
+    }
+}
+
+/// Of candidates leaving the held-out equation errors `left` (relative to the model without
+/// them; the first is the top one), the index of the one with the lowest when it leaves less
+/// than [`DECISIVE_RATIO`] of the first's and `told(index)` says the paired tests tell it apart.
+fn decisive(left: &[f64], told: impl Fn(usize) -> bool) -> Option<usize> {
+    let (k, &best) = left.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1))?;
+    (k != 0 && best < DECISIVE_RATIO * left[0] && told(k)).then_some(k)
 }
 
 /// Under the short-horizon judge, per DOF: among the significant candidates whose held-out
@@ -219,5 +270,30 @@ pub(crate) fn mark_ties(ranked: &mut [Candidate], judge: Judge, alpha: f64) {
         };
         let tied = equation_ties(top, c, alpha) && judge_ties;
         ranked[i].entry.tied_with_top = tied;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The equation error overrules the free run's top place only when decisive: the lowest
+    /// held-out equation error, less than half the top one's, and told apart by the paired
+    /// tests; otherwise the free run's order stands.
+    #[test]
+    fn only_a_decisively_lower_equation_error_takes_the_top_place() {
+        let all = |_: usize| true;
+        // A candidate leaving 6 % of the start model's error against the top one's 75 %.
+        assert_eq!(decisive(&[0.75, 0.9, 0.06], all), Some(2));
+        // The lowest is taken, not the first below the ratio.
+        assert_eq!(decisive(&[0.8, 0.3, 0.1], all), Some(2));
+        // Comparable equation errors: the free run's order stands.
+        assert_eq!(decisive(&[0.75, 0.4], all), None);
+        assert_eq!(decisive(&[0.4, 0.2], all), None);
+        // The top one already has the lowest.
+        assert_eq!(decisive(&[0.1, 0.9], all), None);
+        // The paired tests do not tell the two apart.
+        assert_eq!(decisive(&[0.75, 0.06], |_| false), None);
+        assert_eq!(decisive(&[], all), None);
     }
 }

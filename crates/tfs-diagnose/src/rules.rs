@@ -129,7 +129,11 @@ pub fn rules() -> Vec<Rule> {
         r(
             "order",
             "rank",
-            "significant first; by free-run R-MSE where the free run judges and shows skill (below 1), else by held-out equation error".to_string(),
+            format!(
+                "significant first; by free-run R-MSE where the free run judges and shows skill (below 1), else by held-out equation error; under the free run, a candidate leaving less than {} of the top one's held-out equation error (the paired block test at `alpha` = {} agreeing) goes first",
+                crate::rank::DECISIVE_RATIO,
+                o.alpha
+            ),
             "the ranking and the effect named first",
         ),
         r(
