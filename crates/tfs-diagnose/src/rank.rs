@@ -164,16 +164,8 @@ pub(crate) const DECISIVE_RATIO: f64 = 0.5;
 /// of comparable equation error the free run orders, and where one removes most of what the
 /// other leaves, the equation error does.
 fn decisive_equation_error_first(ranked: &mut [Candidate], alpha: f64) {
-    let mut dofs: Vec<String> = Vec::new();
-    for c in ranked.iter().filter(|c| c.entry.significant) {
-        if !dofs.contains(&c.entry.dof) {
-            dofs.push(c.entry.dof.clone());
-        }
-    }
-    for dof in dofs {
-        let mine: Vec<usize> = (0..ranked.len())
-            .filter(|&i| ranked[i].entry.significant && ranked[i].entry.dof == dof)
-            .collect();
+    for dof in significant_dofs(ranked) {
+        let mine = significant_of(ranked, &dof);
         let top = mine[0];
         let left: Vec<f64> = mine
             .iter()
@@ -184,6 +176,24 @@ fn decisive_equation_error_first(ranked: &mut [Candidate], alpha: f64) {
             ranked[top..=mine[k]].rotate_right(1);
         }
     }
+}
+
+/// The DOFs with a significant candidate, in the order their first one is ranked.
+fn significant_dofs(ranked: &[Candidate]) -> Vec<String> {
+    let mut dofs: Vec<String> = Vec::new();
+    for c in ranked.iter().filter(|c| c.entry.significant) {
+        if !dofs.contains(&c.entry.dof) {
+            dofs.push(c.entry.dof.clone());
+        }
+    }
+    dofs
+}
+
+/// The positions of `dof`'s significant candidates in `ranked`, in ranked order.
+fn significant_of(ranked: &[Candidate], dof: &str) -> Vec<usize> {
+    (0..ranked.len())
+        .filter(|&i| ranked[i].entry.significant && ranked[i].entry.dof == dof)
+        .collect()
 }
 
 /// Of candidates leaving the held-out equation errors `left` (relative to the model without
@@ -202,16 +212,8 @@ fn decisive(left: &[f64], told: impl Fn(usize) -> bool) -> Option<usize> {
 /// which a model loses the motion (as the sole key it put true effects last). Whether the pieces
 /// resolve the difference is for [`mark_ties`] to say.
 fn short_horizon_breaks_tie(ranked: &mut [Candidate], alpha: f64) {
-    let mut dofs: Vec<String> = Vec::new();
-    for c in ranked.iter().filter(|c| c.entry.significant) {
-        if !dofs.contains(&c.entry.dof) {
-            dofs.push(c.entry.dof.clone());
-        }
-    }
-    for dof in dofs {
-        let mine: Vec<usize> = (0..ranked.len())
-            .filter(|&i| ranked[i].entry.significant && ranked[i].entry.dof == dof)
-            .collect();
+    for dof in significant_dofs(ranked) {
+        let mine = significant_of(ranked, &dof);
         let top = mine[0];
         let tied: Vec<usize> = mine
             .iter()
