@@ -76,9 +76,11 @@ pub(crate) fn start_of(y: &[f64], dt: f64, m: usize) -> (f64, f64) {
     (value, slope / dt)
 }
 
-/// Period of `y` in samples from its crossings of the mean with hysteresis of half its standard
-/// deviation (noise below that level does not add crossings); `None` with fewer than two
-/// crossings or a constant signal.
+/// Period of `y` in samples from its crossings of the mean with hysteresis: half its standard
+/// deviation, or three times the sample-to-sample noise of `y` ([`sample_noise`]) when that is
+/// larger, so that noise does not add crossings (white noise alone passes from above `+3σ` to
+/// below `−3σ` a few times in ten thousand samples); `None` with fewer than two crossings or a
+/// constant signal.
 pub(crate) fn period_samples(y: &[f64]) -> Option<f64> {
     let n = y.len() as f64;
     if y.len() < 4 {
@@ -89,7 +91,8 @@ pub(crate) fn period_samples(y: &[f64]) -> Option<f64> {
     if !(sd > 0.0 && sd.is_finite()) {
         return None;
     }
-    let (hi, lo) = (mean + 0.5 * sd, mean - 0.5 * sd);
+    let band = (0.5 * sd).max(3.0 * sample_noise(y));
+    let (hi, lo) = (mean + band, mean - band);
     let mut state = 0i8;
     let mut crossings = 0usize;
     let (mut first, mut last) = (0usize, 0usize);
@@ -112,6 +115,25 @@ pub(crate) fn period_samples(y: &[f64]) -> Option<f64> {
     }
     // Two crossings per period, measured between the first and the last one.
     (crossings >= 3).then(|| 2.0 * (last - first) as f64 / (crossings - 1) as f64)
+}
+
+/// The standard deviation of white noise on `y` that its second differences allow:
+/// `√(mean((y[k+1] − 2y[k] + y[k−1])²)/6)` (white noise of variance σ² gives second differences
+/// of mean square 6σ²). Motion sampled finely has small second differences, so this is the
+/// noise's level on a well-sampled record and an upper bound otherwise; it only sets how far
+/// [`period_samples`] makes a crossing go.
+pub(crate) fn sample_noise(y: &[f64]) -> f64 {
+    if y.len() < 3 {
+        return 0.0;
+    }
+    let ss: f64 = y
+        .windows(3)
+        .map(|w| {
+            let d = w[2] - 2.0 * w[1] + w[0];
+            d * d
+        })
+        .sum();
+    (ss / (y.len() - 2) as f64 / 6.0).sqrt()
 }
 
 /// Samples of the fitted stretch for [`InitialState::Fitted`]: `periods` periods of the
@@ -561,6 +583,26 @@ mod tests {
         assert!((p - 50.0).abs() < 0.5, "period {p}");
         assert_eq!(period_samples(&[1.0; 10]), None);
         assert_eq!(fit_horizon(&[&y], 2.0), 100);
+    }
+
+    #[test]
+    fn period_ignores_white_noise_near_the_motion_s_size() {
+        // A 100-sample sine under white noise at 7 dB (σ ≈ 0.32 of an amplitude of 1): with a
+        // hysteresis of half the standard deviation the noise adds crossings about the mean
+        // and the period came out near 80 samples; counted past three times the noise's
+        // level, it is the sine's.
+        use tfs_signal::NoiseKind;
+        let clean: Vec<f64> = (0..3000)
+            .map(|k| (std::f64::consts::TAU * k as f64 / 100.0).sin())
+            .collect();
+        for seed in 0..5 {
+            let y =
+                tfs_signal::noise::add_noise_seeded(&clean, 7.0, NoiseKind::White, seed).unwrap();
+            let s = sample_noise(&y);
+            assert!((s - 0.316).abs() < 0.03, "seed {seed}: noise level {s}");
+            let p = period_samples(&y).unwrap();
+            assert!((p - 100.0).abs() < 3.0, "seed {seed}: period {p}");
+        }
     }
 
     #[test]
