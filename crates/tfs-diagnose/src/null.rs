@@ -54,6 +54,8 @@ use crate::simulate::BaseRun;
 /// perturb.
 struct Source<'a> {
     record: &'a Record,
+    /// The start model's own run of the record (from its fitted start state).
+    run: &'a tfs_dynamics::Trajectory,
     /// Per column of the record (in its order): the band of its noise, spanning every bin
     /// (`None` for a column no draw perturbs).
     bands: Vec<Option<Band>>,
@@ -297,7 +299,11 @@ fn sources<'a>(
                     Some(raw_noise_band(&b))
                 })
                 .collect();
-            Some(Source { record: r, bands })
+            Some(Source {
+                record: r,
+                run: tr,
+                bands,
+            })
         })
         .collect()
 }
@@ -547,10 +553,13 @@ fn synthetic(
         }
     };
     // The drive: the measured inputs plus a fresh draw of their noise, so that each draw
-    // follows its own trajectory where the motion is sensitive to the input. It starts at the
-    // record's first samples: fitting the start, as the model's own run of the record does,
-    // costs more than the rest of the simulation, and any plausible start serves a synthetic
-    // record.
+    // follows its own trajectory where the motion is sensitive to the input. It starts where
+    // the model's own run of the record started (its fitted state: the first sample of each
+    // displacement set to it, the velocity given as a column), not from the record's first
+    // samples, whose velocity carries the displacement noise times `1/dt`: on a record whose
+    // motion is not far above its noise that velocity throws a model over its barrier, every
+    // draw fails, and there is no null. Fitting the start again for each draw would cost more
+    // than the rest of the simulation, and any plausible start serves a synthetic record.
     let mut drive = s.record.clone();
     for (c, name) in s.record.names().iter().enumerate() {
         if model.inputs.contains(name) {
@@ -558,6 +567,13 @@ fn synthetic(
                 .set_column(name.clone(), add(s.record.column(name)?, c, 0))
                 .ok()?;
         }
+    }
+    for (j, d) in model.dofs.iter().enumerate() {
+        let (x0, v) = (s.run.x.get(j)?.first()?, s.run.v.get(j)?);
+        let mut x = drive.column(d)?.to_vec();
+        x[0] = *x0;
+        drive.set_column(d.clone(), x).ok()?;
+        drive.set_column(format!("{d}'"), v.clone()).ok()?;
     }
     let drive = crate::simulate::augment_record(model, &drive, opts).ok()?;
     let tr = tfs_dynamics::simulate_model_on_record(model, &drive, &first).ok()?;
@@ -773,6 +789,74 @@ mod tests {
         let banded: Vec<bool> = s[0].bands.iter().map(Option::is_some).collect();
         assert_eq!(records[0].names(), ["x", "x_clean", "xb_acc"]);
         assert_eq!(banded, [true, false, true]);
+    }
+
+    /// A synthetic draw starts where the start model's own run of the record starts (its
+    /// fitted state), not at the record's first samples: on a noisy record of a double well
+    /// `x'' = x − x³ − 0.2x' + u`, moving in its right well, the first samples' velocity is
+    /// past the barrier's escape speed, a run from there leaves the well, and every draw was
+    /// dropped (no null). Each draw must now stay in the record's well.
+    #[test]
+    fn draws_start_from_the_model_s_own_run_not_the_noisy_first_samples() {
+        let dofs = ["x"];
+        let eq = tfs_library::Equation {
+            dof: "x".into(),
+            terms: [("x", 1.0), ("x^3", -1.0), ("x'", -0.2), ("u", 1.0)]
+                .iter()
+                .map(|(n, c)| {
+                    tfs_library::ModelTerm::new(tfs_library::Term::parse(n, &dofs).unwrap(), *c)
+                })
+                .collect(),
+        };
+        let model = Model::new(vec!["x".into()], vec![eq], "test").unwrap();
+        let dt = 0.01;
+        let t: Vec<f64> = (0..3000).map(|k| k as f64 * dt).collect();
+        let u: Vec<f64> = t.iter().map(|&t| 0.1 * (0.9 * t).sin()).collect();
+        let drive = Record::new(
+            "r",
+            t.clone(),
+            vec![
+                ("x".to_string(), vec![1.0; t.len()]),
+                ("u".to_string(), u.clone()),
+            ],
+        )
+        .unwrap();
+        let first = tfs_dynamics::SimulateOptions {
+            initial_state: tfs_dynamics::InitialState::FirstSamples,
+            ..Default::default()
+        };
+        let truth = tfs_dynamics::simulate_model_on_record(&model, &drive, &first).unwrap();
+        // The motion's spread is about 0.05; white noise of about 0.04 on it.
+        let x = tfs_signal::noise::add_noise_seeded(
+            &truth.x[0],
+            28.0,
+            tfs_signal::NoiseKind::White,
+            11,
+        )
+        .unwrap();
+        let v0 = tfs_dynamics::initial_velocity(&x, dt, first.velocity_window).unwrap();
+        // The escape speed from the well's bottom over the barrier at 0 is √(1/2).
+        assert!(
+            v0.abs() > 0.8,
+            "the first samples' velocity {v0} must be past escape"
+        );
+        let u = tfs_signal::noise::add_noise_seeded(&u, 40.0, tfs_signal::NoiseKind::White, 12)
+            .unwrap();
+        let rec = Record::new("r", t.clone(), vec![("x".into(), x), ("u".into(), u)]).unwrap();
+        let records = [rec];
+        let opts = DiagnoseOptions::default();
+        let runs = crate::simulate::base_runs(&model, &records, &opts);
+        let s = sources(&model, &records, &runs).expect("the start model simulates the record");
+        let (lo, hi) = extent(std::iter::once(records[0].column("x").unwrap()));
+        let w = 0.25 * (hi - lo);
+        for i in 0..4 {
+            let made = synthetic(&model, &s[0], &opts, i, 0).expect("the draw simulates");
+            let drawn = extent(std::iter::once(made.column("x").unwrap()));
+            assert!(
+                drawn.0 > lo - w && drawn.1 < hi + w,
+                "draw {i} left the record's well: it spans {drawn:?}, the record ({lo}, {hi})"
+            );
+        }
     }
 
     #[test]
