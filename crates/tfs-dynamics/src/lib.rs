@@ -40,6 +40,7 @@ mod error;
 mod initial;
 mod input;
 mod integrate;
+mod memo;
 mod metrics;
 mod model;
 mod range;

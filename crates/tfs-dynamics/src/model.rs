@@ -1,6 +1,7 @@
 //! Adapter from `tfs_library` models to this crate: simulate a fitted model on a measured record.
 
 use crate::initial::{InitialState, choose_initial_state, start_of};
+use crate::memo::{self, KeyHasher};
 use crate::range::{Ranged, band};
 use crate::{Dopri5, DynError, Integrator, Result, SampledInput, SecondOrderSystem, Trajectory};
 use tfs_data::Record;
@@ -100,10 +101,25 @@ pub fn initial_velocity(y: &[f64], dt: f64, m: usize) -> Result<f64> {
 /// * Internal states (`maxwell(x', τ)`, `bouc_wen(x', a, b)`, `dahl(x', κ)` terms) start at 0
 ///   and are integrated with the motion; the trajectory holds the model's DOFs only.
 /// * Blow-up gives [`DynError::BlowUp`] with the time and state.
+///
+/// A run from the same model's equations, the same columns and the same options starts from
+/// the state fitted the first time (kept in a process-wide memo of start states; the fit is a
+/// pure function of them, so the run is the same to the bit).
 pub fn simulate_model_on_record(
     model: &Model,
     record: &Record,
     opts: &SimulateOptions,
+) -> Result<Trajectory> {
+    simulate_on_record(model, record, opts, true)
+}
+
+/// [`simulate_model_on_record`], reading and filling the memo of fitted starts only with
+/// `memo` (the tests compare the two).
+fn simulate_on_record(
+    model: &Model,
+    record: &Record,
+    opts: &SimulateOptions,
+    memo: bool,
 ) -> Result<Trajectory> {
     let compiled = model
         .compile()
@@ -173,17 +189,49 @@ pub fn simulate_model_on_record(
         },
         names: compiled.dof_names().to_vec(),
     };
-    let (x0, v0) = choose_initial_state(
-        opts.initial_state,
-        &compiled,
-        &ranged,
-        &input,
-        &measured,
-        t,
-        x0,
-        v0,
-    )
-    .map_err(|e| e.on_clock(t_abs[0]))?;
+    // The fitted start is a pure function of what the fit reads: a run of the same model on the
+    // same columns with the same options starts from the state fitted before (`memo`).
+    let key = (memo && matches!(opts.initial_state, InitialState::Fitted { .. })).then(|| {
+        let mut h = KeyHasher::new();
+        h.text(&format!(
+            "{:?}|{:?}|{:?}|{:?}|{:?}",
+            model.dofs,
+            model.inputs,
+            model.equations,
+            compiled.dof_names(),
+            opts
+        ))
+        .floats(t)
+        .floats(&x0)
+        .floats(&v0);
+        for c in 0..input.channels() {
+            h.floats(input.samples(c));
+        }
+        for m in &measured {
+            h.floats(m);
+        }
+        h.key()
+    });
+    let start = match key.as_ref().and_then(memo::get) {
+        Some(start) => start,
+        None => {
+            let start = choose_initial_state(
+                opts.initial_state,
+                &compiled,
+                &ranged,
+                &input,
+                &measured,
+                t,
+                x0,
+                v0,
+            );
+            if let Some(key) = key {
+                memo::put(key, &start);
+            }
+            start
+        }
+    };
+    let (x0, v0) = start.map_err(|e| e.on_clock(t_abs[0]))?;
     let mut tr = ranged
         .integrate(&compiled, &input, &x0, &v0, t)
         .map_err(|e| e.on_clock(t_abs[0]))?;
@@ -230,6 +278,76 @@ fn check_resolved(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A run whose fitted start comes from the memo is the run a fresh fit gives: the same
+    /// model on the same record again is the first run to the bit, and a change to any one
+    /// thing the fit reads (an input sample or a displacement sample inside the fitted stretch,
+    /// a coefficient, the fitted periods) starts from its own fit, not
+    /// from the remembered one. Each change moves the fitted start, so a key that left it out
+    /// would return the wrong state.
+    #[test]
+    fn a_remembered_start_is_the_fresh_fit() {
+        let model = |k: f64| {
+            Model::from_json_str(&format!(
+                r#"{{"format":"tfs-model/1","dofs":["x"],"equations":[{{"dof":"x","terms":[{{"term":"x","coef":{k}}},{{"term":"x^3","coef":-0.5}},{{"term":"x'","coef":-0.2}},{{"term":"u","coef":1.0}}]}}]}}"#
+            ))
+            .unwrap()
+        };
+        let dt = 0.05;
+        let n = 600;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * dt).collect();
+        let u: Vec<f64> = t.iter().map(|t| 0.8 * (1.1 * t).sin()).collect();
+        // A displacement the model does not quite reproduce (a wrong stiffness and a wobble),
+        // so the fitted start is not the first sample.
+        let x: Vec<f64> = t
+            .iter()
+            .map(|t| 0.6 * (1.1 * t - 0.4).sin() + 0.05 * (3.7 * t).cos() + 0.1)
+            .collect();
+        let rec = |x: &[f64], u: &[f64]| {
+            Record::new(
+                "r",
+                t.clone(),
+                vec![("x".into(), x.to_vec()), ("u".into(), u.to_vec())],
+            )
+            .unwrap()
+        };
+        let base = rec(&x, &u);
+        let opts = SimulateOptions::default();
+        let first = simulate_model_on_record(&model(-1.0), &base, &opts).unwrap();
+        let again = simulate_model_on_record(&model(-1.0), &base, &opts).unwrap();
+        let fresh = simulate_on_record(&model(-1.0), &base, &opts, false).unwrap();
+        assert_eq!(first, again);
+        assert_eq!(first, fresh);
+        let start = |tr: &Trajectory| (tr.x[0][0], tr.v[0][0]);
+        assert_ne!(
+            first.x[0][0], x[0],
+            "the start is fitted, not the first sample"
+        );
+        let mut x2 = x.clone();
+        x2[20] += 0.01;
+        let mut u2 = u.clone();
+        u2[20] += 0.05;
+        let two_and_half = SimulateOptions {
+            initial_state: InitialState::Fitted { periods: 2.5 },
+            ..opts
+        };
+        let cases: Vec<(&str, Model, Record, SimulateOptions)> = vec![
+            ("displacement", model(-1.0), rec(&x2, &u), opts),
+            ("input", model(-1.0), rec(&x, &u2), opts),
+            ("coefficient", model(-1.1), base.clone(), opts),
+            ("periods", model(-1.0), base.clone(), two_and_half),
+        ];
+        for (what, m, r, o) in cases {
+            let remembered = simulate_model_on_record(&m, &r, &o).unwrap();
+            let fresh = simulate_on_record(&m, &r, &o, false).unwrap();
+            assert_ne!(
+                start(&fresh),
+                start(&first),
+                "{what}: the change moves the start"
+            );
+            assert_eq!(remembered, fresh, "{what}");
+        }
+    }
 
     /// Quadratics are covered by `initial::tests::start_of_is_exact_for_quadratics`, which this
     /// delegates to; here the two-sample line and the argument checks.
