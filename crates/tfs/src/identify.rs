@@ -565,6 +565,7 @@ fn choose_by_sparse_fits(
         (Err(e), Err(_)) => return Err(e),
     };
     use crate::offsets_choice::{compare_sparse, sparse_scores};
+    let (kept_plan, kept, kept_how) = drop_unneeded_constant(records, opts, plan, kept)?;
     let s_keep = sparse_scores(&kept.identified.trace, &kept.identified.model);
     let s_remove = sparse_scores(&removed.identified.trace, &removed.identified.model);
     let compared = s_keep
@@ -575,12 +576,13 @@ fn choose_by_sparse_fits(
     else {
         // No held-out score to compare (no equation kept a term): the full library decides.
         let decided = choose_force_offsets(records, opts, plan)?;
-        let fitted = if decided.mode == Offsets::Remove {
-            removed
+        return Ok(if decided.mode == Offsets::Remove {
+            (decided, removed)
+        } else if kept_plan.mode == Offsets::Keep {
+            (kept_plan, kept)
         } else {
-            kept
-        };
-        return Ok((decided, fitted));
+            (decided, kept)
+        });
     };
     let terms = |s: &[crate::offsets_choice::SparseScore]| s.iter().map(|v| v.terms).sum::<usize>();
     let held = |s: &[crate::offsets_choice::SparseScore]| {
@@ -595,9 +597,9 @@ fn choose_by_sparse_fits(
         .zip(&s_keep)
         .all(|(r, k)| r.held_out <= k.held_out);
     if !(removal_predicts && c_remove < c_keep) {
-        let mut chosen = plan.clone();
+        let mut chosen = kept_plan;
         chosen.why = format!(
-            "auto: force-like input(s): records used as they are with a constant term in the library (kept only if the records need it) — the sparse law found that way ({} terms) leaves {} of the held-out accelerations unexplained, against {} ({} terms) with each record's means removed (the means are motion, not offsets)",
+            "auto: force-like input(s): records used as they are {kept_how} — the sparse law found that way ({} terms) leaves {} of the held-out accelerations unexplained, against {} ({} terms) with each record's means removed (the means are motion, not offsets)",
             terms(&s_keep),
             pct(held(&s_keep)),
             pct(held(&s_remove)),
@@ -606,7 +608,7 @@ fn choose_by_sparse_fits(
         Ok((chosen, kept))
     } else {
         removing.why = format!(
-            "auto: force-like input(s): each record's means removed from every DOF and input channel — the sparse law found that way ({} terms) leaves {} of the held-out accelerations unexplained, against {} ({} terms) with the records kept and a constant term (sensor offsets inside the nonlinear terms)",
+            "auto: force-like input(s): each record's means removed from every DOF and input channel — the sparse law found that way ({} terms) leaves {} of the held-out accelerations unexplained, against {} ({} terms) with the records kept {kept_how} (sensor offsets inside the nonlinear terms)",
             terms(&s_remove),
             pct(held(&s_remove)),
             pct(held(&s_keep)),
@@ -614,6 +616,62 @@ fn choose_by_sparse_fits(
         );
         Ok((removing, removed))
     }
+}
+
+/// The constant-term treatment's fit `kept` of `plan`, or the records as they are without the
+/// constant when it is not needed: when `plan` added the constant and the sparse law keeps it,
+/// the records are identified once more without it (`--offsets keep`), and that law is used
+/// when it predicts the held-out records as well on every DOF and wins
+/// [`crate::offsets_choice::compare_sparse`] (held-out error against terms). The constant's own
+/// test in the fit weighs its value against the noise of the residual's mean only, with the
+/// other coefficients taken as exact; where the record's mean is motion (a response that stays
+/// in one well of a double-well law) `1, x, x², x³` are nearly collinear over the record, the
+/// constant and `x²` stand in for `x³`, and only the law found without the constant shows that
+/// none was needed. Returns the plan used, its fit, and how the records were used (for the
+/// trace's sentence).
+fn drop_unneeded_constant(
+    records: &[Record],
+    opts: &IdentifyOptions,
+    plan: &Plan,
+    kept: Treated,
+) -> Result<(Plan, Treated, &'static str)> {
+    const WITH: &str = "with a constant term in the library (kept only if the records need it)";
+    const WITHOUT: &str = "without a constant term (the law found with one keeps it, the law found without it predicts the held-out accelerations as well with fewer terms)";
+    let keeps_constant = kept
+        .identified
+        .model
+        .equations
+        .iter()
+        .any(|e| e.terms.iter().any(|t| t.term.is_constant()));
+    let Some(first) = records.first() else {
+        return Ok((plan.clone(), kept, WITH));
+    };
+    if !(plan.added_constant && keeps_constant) {
+        return Ok((plan.clone(), kept, WITH));
+    }
+    let keep_opts = IdentifyOptions {
+        offsets: Offsets::Keep,
+        ..opts.clone()
+    };
+    let keep_plan = self::plan(&keep_opts, first.names(), first.source())?;
+    let Ok(plain) = fit_treatment(records.to_vec(), opts, &keep_plan) else {
+        return Ok((plan.clone(), kept, WITH));
+    };
+    use crate::offsets_choice::{compare_sparse, sparse_scores};
+    let s_const = sparse_scores(&kept.identified.trace, &kept.identified.model);
+    let s_plain = sparse_scores(&plain.identified.trace, &plain.identified.model);
+    let better = match (&s_const, &s_plain) {
+        (Some(c), Some(p)) => {
+            p.iter().zip(c).all(|(p, c)| p.held_out <= c.held_out)
+                && compare_sparse(p, c).is_some_and(|(cp, cc)| cp < cc)
+        }
+        _ => false,
+    };
+    Ok(if better {
+        (keep_plan, plain, WITHOUT)
+    } else {
+        (plan.clone(), kept, WITH)
+    })
 }
 
 /// `--offsets auto` with force-like inputs (classical SINDy, or when the sparse fits give no
