@@ -187,7 +187,8 @@ pub enum Offsets {
     /// identified both as `constant-term` (a constant force or sensor offset estimated with the
     /// model, dropped when the records do not need it) and as `remove`, and the means are
     /// removed only when that law predicts the held-out rows as well and is worth its terms
-    /// (`crate::offsets_choice`); `keep` when
+    /// (`crate::offsets_choice`); a constant the kept law holds is likewise checked against
+    /// the law found without it (`keep`); `keep` when
     /// there is no input or a base-motion input (`xb_*`: the displacements are then geometric
     /// coordinates whose origin matters). Other commands: follow what the model's trace says
     /// `identify` did, else `keep`.
