@@ -47,6 +47,9 @@ pub struct Localisation {
     pub history: Vec<(String, f64)>,
     /// What measurement noise can explain of the residual.
     pub noise: NoiseEstimate,
+    /// The RMS of the residual the estimated noise alone would leave, over the RMS of x'' (the
+    /// share the residual line prints beside `relative_rms`).
+    pub relative_noise: f64,
     /// Share of the binned residual power that is odd in x' (about 0).
     pub odd_in_velocity: f64,
     /// Share of the binned residual power that is odd in x (about its mean).
@@ -264,22 +267,8 @@ fn localise_dof(
                 .collect()
         })
         .collect();
-    let odd_share = |mirror: &dyn Fn(usize, usize) -> (usize, usize)| {
-        let (mut odd, mut all) = (0.0, 0.0);
-        for i in 0..nb {
-            for j in 0..nb {
-                let (mi, mj) = mirror(i, j);
-                if count[i][j] > 0 && count[mi][mj] > 0 {
-                    let o = 0.5 * (mean[i][j] - mean[mi][mj]);
-                    odd += count[i][j] as f64 * o * o;
-                    all += count[i][j] as f64 * mean[i][j] * mean[i][j];
-                }
-            }
-        }
-        if all > 0.0 { odd / all } else { f64::NAN }
-    };
-    let odd_in_velocity = odd_share(&|i, j| (i, nb - 1 - j));
-    let odd_in_displacement = odd_share(&|i, j| (nb - 1 - i, j));
+    let odd_in_velocity = odd_share(&count, &mean, &|i, j| (i, nb - 1 - j));
+    let odd_in_displacement = odd_share(&count, &mean, &|i, j| (nb - 1 - i, j));
     // Worst bin and worst window.
     let mut worst = (0, 0, 0.0);
     for i in 0..nb {
@@ -314,6 +303,7 @@ fn localise_dof(
         correlations,
         history,
         noise,
+        relative_noise: noise.residual_rms / acc_rms,
         odd_in_velocity,
         odd_in_displacement,
         map: ResidualMap {
@@ -443,6 +433,33 @@ fn partial_correlations<L>(
         .collect()
 }
 
+/// The share of the binned residual's power that is odd under `mirror` (a bin's mirror bin in
+/// x' or in x): each pair of bins with means `a`, `b` splits into an odd part `(a − b)/2` and an
+/// even part `(a + b)/2`, whose powers add up to `(a² + b²)/2`, weighted by the precision of
+/// their difference, `c_a·c_b/(c_a + c_b)` (the same weight for both bins of a pair, so the share
+/// is between 0 and 1 however unevenly the motion fills the two sides). NaN when no pair of bins
+/// is filled.
+fn odd_share(
+    count: &[Vec<usize>],
+    mean: &[Vec<f64>],
+    mirror: &dyn Fn(usize, usize) -> (usize, usize),
+) -> f64 {
+    let (mut odd, mut all) = (0.0, 0.0);
+    for (i, row) in count.iter().enumerate() {
+        for (j, &c) in row.iter().enumerate() {
+            let (mi, mj) = mirror(i, j);
+            let cm = count[mi][mj];
+            if c > 0 && cm > 0 {
+                let w = (c * cm) as f64 / (c + cm) as f64;
+                let o = 0.5 * (mean[i][j] - mean[mi][mj]);
+                odd += w * o * o;
+                all += w * mean[i][j] * mean[i][j];
+            }
+        }
+    }
+    if all > 0.0 { odd / all } else { f64::NAN }
+}
+
 /// Plain words from the probe correlations, the history probes, the symmetry shares and the
 /// noise estimate (general rules, no case tables).
 #[allow(clippy::too_many_arguments)]
@@ -557,3 +574,23 @@ fn summarise(
 /// A residual at most this many times what measurement noise alone would leave is called the
 /// size of the noise.
 pub const NOISE_FACTOR: f64 = 1.5;
+
+#[cfg(test)]
+mod tests {
+    use super::odd_share;
+
+    /// The odd share is a share: an even residual gives 0, an odd one 1, and a pair of bins
+    /// filled a hundred to one gives the split of its two means (0 and 1: half odd), not the
+    /// count-weighted 25× the old weighting gave.
+    #[test]
+    fn the_odd_share_is_between_zero_and_one_however_uneven_the_bins() {
+        let flip = |i: usize, j: usize| (i, 1 - j);
+        let even = odd_share(&[vec![3, 7]], &[vec![2.0, 2.0]], &flip);
+        let odd = odd_share(&[vec![3, 7]], &[vec![2.0, -2.0]], &flip);
+        let uneven = odd_share(&[vec![100, 1]], &[vec![0.0, 1.0]], &flip);
+        assert_eq!(even, 0.0);
+        assert!((odd - 1.0).abs() < 1e-12, "{odd}");
+        assert!((uneven - 0.5).abs() < 1e-12, "{uneven}");
+        assert!(odd_share(&[vec![0, 4]], &[vec![0.0, 1.0]], &flip).is_nan());
+    }
+}

@@ -38,6 +38,7 @@
 //! ```
 
 mod compiled;
+mod gains;
 mod library;
 mod model;
 mod parse;
@@ -46,6 +47,7 @@ pub mod state;
 mod term;
 
 pub use compiled::CompiledModel;
+pub use gains::{GainMoments, LocalGains};
 pub use library::{ColumnSet, Library, evaluate_term};
 pub use model::{
     Equation, HistoryEntry, MAX_MODEL_BYTES, MODEL_FORMAT, Model, ModelTerm, RecordScore, sig4,

@@ -140,15 +140,22 @@ pub fn filtered_noise_var(
 /// response through which the processing sees the channel's derivative of that order. The
 /// channel's noise enters the target and the terms coherently, so they are combined before the
 /// power is taken.
+///
+/// A nonlinear equation sees the noise through its local gains (its partial derivatives along
+/// the records), which vary: `terms` then holds the gains' means, and `spread` the gains'
+/// variances over the samples as (derivative order, variance). A gain `g(t) = ḡ + δ(t)` that
+/// varies slowly beside the noise leaves `ḡ`'s share plus `var(δ)` times the noise through that
+/// derivative alone (the cross term averages out), which is what is added.
 pub fn residual_noise_var(
     band: &Band,
     dt: f64,
     own: bool,
     terms: &[(usize, f64)],
+    spread: &[(usize, f64)],
     up_to_hz: f64,
     filter: impl Fn(usize, f64) -> (f64, f64),
 ) -> f64 {
-    filtered_noise_var(band, dt, up_to_hz, |f| {
+    let mean = filtered_noise_var(band, dt, up_to_hz, |f| {
         let (mut re, mut im) = if own { filter(2, f) } else { (0.0, 0.0) };
         for &(order, c) in terms {
             let (r, i) = filter(order, f);
@@ -156,7 +163,13 @@ pub fn residual_noise_var(
             im -= c * i;
         }
         (re, im)
-    })
+    });
+    spread
+        .iter()
+        .filter(|&&(_, var)| var > 0.0)
+        .fold(mean, |acc, &(order, var)| {
+            acc + var * filtered_noise_var(band, dt, up_to_hz, |f| filter(order, f))
+        })
 }
 
 /// Which signal a noise share is of, from the records' cut-offs (Hz, lowest and highest):

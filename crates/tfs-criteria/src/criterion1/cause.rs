@@ -18,7 +18,7 @@ use tfs_regress::{Compressed, lstsq_support};
 
 use tfs_signal::band::reconstruct_every;
 
-use crate::blocks::{InputBands, Prepared, td_step, time_domain};
+use crate::blocks::{InputBands, Prepared, td_step, td_stride, td_trim, time_domain};
 use crate::error::Result;
 
 /// The residual counts as noise when it is at most this many times the RMS the noise estimate
@@ -302,15 +302,21 @@ fn sg_batch(taps: &SgPairs, dt: f64, fs: &[f64; LANES]) -> [[(f64, f64); 2]; LAN
     std::array::from_fn(|l| [(re1[l] / d1, im1[l] / d1), (re2[l] / d2, im2[l] / d2)])
 }
 
+/// A channel's gains or their variances, per derivative order: (order, value).
+type Gains<'a> = &'a [(usize, f64)];
+
 /// The variance of one channel's estimated noise (floor `band`) through the filter
 /// `own·H₂ − Σ c·H_k` (H₂ the second derivative when the channel is the DOF's own displacement,
-/// `H_k` the filter each linear term of the channel sees, with its coefficient `c`): the noise
-/// of one channel enters `x''` and the library's columns coherently.
+/// `H_k` the filter the channel's derivative of order `k` is seen through, `c` the fit's local
+/// gain in it: its mean over the records), plus each gain's variance over the records in
+/// `spread` (order, variance) times the noise through `H_k` alone: the noise of one channel
+/// enters `x''` and the library's columns coherently, through gains that vary along the
+/// records (`tfs_signal::estimate::residual_noise_var` combines them the same way).
 fn channel_noise_var(
     band: &tfs_signal::Band,
     dt: f64,
     (own, dof): (bool, bool),
-    terms: &[(usize, f64)],
+    (terms, spread): (Gains<'_>, Gains<'_>),
     filters: Filters<'_>,
 ) -> f64 {
     if band.bin_hz <= 0.0 || band.mirror_len < 2 {
@@ -323,7 +329,9 @@ fn channel_noise_var(
     let flat = (band.floor_beta == 0.0).then(|| band.noise_psd(band.bin_hz, dt));
     // The Savitzky–Golay responses of every bin, where a derivative reaches this channel (not
     // for an input's own column, which only the samples' response reaches).
-    let derivatives = own || terms.iter().any(|&(order, _)| order > 0);
+    let derivatives = own
+        || terms.iter().any(|&(order, _)| order > 0)
+        || spread.iter().any(|&(order, v)| order > 0 && v > 0.0);
     let sg = match filters {
         Filters::SavitzkyGolay(w) if derivatives => {
             let fs: Vec<f64> = (1..=bins).map(freq).collect();
@@ -348,22 +356,59 @@ fn channel_noise_var(
                 re -= c * r;
                 im -= c * i;
             }
-            flat.unwrap_or_else(|| band.noise_psd(f, dt)) * (re * re + im * im)
+            let mut power = re * re + im * im;
+            for &(order, v) in spread {
+                if v > 0.0 {
+                    let (r, i) = resp[order];
+                    power += v * (r * r + i * i);
+                }
+            }
+            flat.unwrap_or_else(|| band.noise_psd(f, dt)) * power
         })
         .sum::<f64>()
         * 2.0
         * band.bin_hz
 }
 
+/// The local gains of `model`'s equation `d` in every DOF along one record's full-length
+/// reconstructions (`prep.smooth`), over the rows of its time-domain block (trimmed ends, every
+/// [`td_stride`]-th sample); `None` when an input the model reads is not in the record or the
+/// reconstructions are not full length.
+fn local_gains(
+    model: &tfs_library::CompiledModel,
+    d: usize,
+    prep: &Prepared<'_>,
+) -> Option<Vec<tfs_library::LocalGains>> {
+    let len = prep.rec.len();
+    if prep
+        .smooth
+        .iter()
+        .any(|s| s.x.len() != len || s.v.len() != len)
+    {
+        return None;
+    }
+    let x: Vec<&[f64]> = prep.smooth.iter().map(|s| s.x.as_slice()).collect();
+    let v: Vec<&[f64]> = prep.smooth.iter().map(|s| s.v.as_slice()).collect();
+    let u: Vec<&[f64]> = model
+        .input_names()
+        .iter()
+        .map(|n| prep.rec.column(n).filter(|c| c.len() == len))
+        .collect::<Option<_>>()?;
+    let trim = td_trim(len);
+    let rows = (trim..len.saturating_sub(trim)).step_by(td_stride(len));
+    Some(model.local_gains(d, &x, &v, &u, rows))
+}
+
 /// The residual of `x''` on the library over blocks `td` (columns `nonconst`, with a constant)
 /// as a share of `x''`'s RMS, and the share the records' estimated noise would leave through the
-/// blocks' `filters` and the fitted linear terms (noise through nonlinear terms is neglected: it
-/// is second to the twice-differentiated displacement noise). Also says whether every floor was
-/// fitted on noise alone.
+/// blocks' `filters`: each displacement's noise through the fit's local gains in it along the
+/// records (`gain_states`, full-length reconstructions of the same records; see
+/// [`local_gains`]), each input's through the fit's linear terms in it. Also says whether every
+/// floor was fitted on noise alone.
 fn shares(
     td: &[(Mat<f64>, Vec<f64>)],
     nonconst: &[usize],
-    preps: &[Prepared<'_>],
+    (preps, gain_states): (&[Prepared<'_>], &[Prepared<'_>]),
     (dofs, d, lib): (&[String], usize, &Library),
     filters: Filters<'_>,
 ) -> Result<(f64, f64, bool)> {
@@ -386,32 +431,51 @@ fn shares(
         .map(|v| (v - mean).powi(2))
         .sum::<f64>();
     let residual_share = (fit.rss.max(0.0) / var_acc.max(f64::MIN_POSITIVE)).sqrt();
-    // The linear terms of each channel with their fitted coefficients.
+    // The linear terms of each channel with their fitted coefficients: the inputs' are used as
+    // they are, the DOFs' stand in for the local gains where those cannot be evaluated.
     let mut channels: Vec<(String, Vec<(usize, f64)>)> =
         dofs.iter().map(|n| (n.clone(), Vec::new())).collect();
+    let mut coefs = vec![vec![0.0; lib.len()]; dofs.len()];
     for (jj, &j) in nonconst.iter().enumerate() {
+        let c = fit.coef[jj + 1];
+        coefs[d][j] = c;
         if let Some((name, order)) = linear_channel(lib, j) {
-            let c = fit.coef[jj + 1];
             match channels.iter_mut().find(|(n, _)| n == name) {
                 Some((_, t)) => t.push((order, c)),
                 None => channels.push((name.to_string(), vec![(order, c)])),
             }
         }
     }
+    let compiled = tfs_library::Model::from_coefficients(lib, &coefs, "criterion 1")
+        .and_then(|m| m.compile())
+        .ok();
     // Per record (in parallel, summed in order): the noise variance left in x'' and whether every
     // floor was fitted on noise alone.
     let per_record: Vec<(f64, bool)> = preps
         .par_iter()
+        .zip(gain_states)
         .with_max_len(1)
-        .map(|p| {
+        .map(|(p, g)| {
             let dt = p.dt;
+            let gains = compiled.as_ref().and_then(|c| local_gains(c, d, g));
             let (mut var, mut noise_only) = (0.0, true);
             for (name, terms) in &channels {
                 let own = *name == dofs[d];
-                if !own && terms.is_empty() {
+                let dof = dofs.iter().position(|n| n == name);
+                let (terms, spread) = match (dof, &gains) {
+                    (Some(k), Some(gains)) => {
+                        let g = gains[k];
+                        let mean: Vec<(usize, f64)> = [(0, g.disp.mean), (1, g.vel.mean)]
+                            .into_iter()
+                            .filter(|&(_, c)| c != 0.0)
+                            .collect();
+                        (mean, vec![(0, g.disp.var), (1, g.vel.var)])
+                    }
+                    _ => (terms.clone(), Vec::new()),
+                };
+                if !own && terms.is_empty() && spread.iter().all(|&(_, v)| v <= 0.0) {
                     continue;
                 }
-                let dof = dofs.iter().position(|n| n == name);
                 let band = match dof {
                     Some(k) => p.smooth[k].band,
                     None => match p.input_bands.get(p.rec, name, dt) {
@@ -420,7 +484,8 @@ fn shares(
                     },
                 };
                 noise_only &= band.floor_is_noise_only();
-                var += channel_noise_var(&band, dt, (own, dof.is_some()), terms, filters);
+                var +=
+                    channel_noise_var(&band, dt, (own, dof.is_some()), (&terms, &spread), filters);
             }
             (var, noise_only)
         })
@@ -503,7 +568,7 @@ pub(crate) fn low_kappa_cause(
             shares(
                 td,
                 nonconst,
-                preps,
+                (preps, preps),
                 (dofs, d, lib),
                 Filters::SavitzkyGolay([&w1, &w2]),
             )
@@ -552,8 +617,13 @@ pub(crate) fn low_kappa_cause(
         .with_max_len(1)
         .map(|p| time_domain(p, dofs, d, lib, td_step(p.rec.len())))
         .collect::<Result<Vec<_>>>()?;
-    let (band_residual, band_noise, noise_only) =
-        shares(&bl, nonconst, &plain, (dofs, d, lib), Filters::Spectral)?;
+    let (band_residual, band_noise, noise_only) = shares(
+        &bl,
+        nonconst,
+        (&plain, preps),
+        (dofs, d, lib),
+        Filters::Spectral,
+    )?;
     let band_hz = plain
         .iter()
         .map(|p| p.smooth[d].band.cutoff_hz)
