@@ -89,10 +89,15 @@ pub struct PredictionEvidence {
     /// simulated (`None` when the model without it has no score to compare with).
     pub worse: Option<bool>,
     /// Predicts better, resolved by the judge, by at least `min_share` of the motion's RMS or
-    /// with at most half the model's own RMS prediction error: the drop of RMS error as a share
-    /// of the motion's RMS (`None` otherwise).
+    /// with at most half the model's own RMS prediction error (both read above `floor`): the
+    /// drop of that RMS error as a share of the motion's RMS (`None` otherwise).
     pub better_by: Option<f64>,
-    /// Predicts with at most half the model's own RMS prediction error, resolved by the judge.
+    /// The R-MSE the judge leaves to noise, not to any model ([`crate::judge::Choice`]'s
+    /// `floor`: the measured record's and its input's noise under the free run, 0 otherwise);
+    /// `better_by` is the drop of the error above it.
+    pub floor: f64,
+    /// Predicts with at most half the model's whole RMS prediction error (noise included),
+    /// resolved by the judge.
     pub removes_most: bool,
     /// The variant judged, when the judge chose it from a shortlist over the best by equation
     /// error.
@@ -339,6 +344,7 @@ fn judged_words(
     let judge = prediction.map_or("", |pr| pr.judge.describe());
     let before = prediction.and_then(|pr| pr.before).unwrap_or(f64::NAN);
     let after = prediction.and_then(|pr| pr.after).unwrap_or(f64::NAN);
+    let floor = prediction.map_or(0.0, |pr| pr.floor);
     match judged {
         Significance::Significant => format!(
             "held-out equation error falls {:.1} %, p = {p:.2e} (corrected over {tests} tests), size {:.1} % of the force RMS",
@@ -367,6 +373,11 @@ fn judged_words(
             let drop = prediction.and_then(|pr| pr.better_by).unwrap_or(f64::NAN);
             let how = if drop >= opts.min_share {
                 format!("by {:.1} % of the motion's RMS", 100.0 * drop)
+            } else if floor > 0.0 {
+                format!(
+                    "with {:.1} % of the RMS prediction error of the model without it above what the noise leaves (R-MSE {floor:.3e}), most of what that model misses",
+                    100.0 * ((after - floor).max(0.0) / (before - floor)).sqrt()
+                )
             } else {
                 format!(
                     "with {:.1} % of the RMS prediction error of the model without it, most of what that model misses",

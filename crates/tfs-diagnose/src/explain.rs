@@ -131,6 +131,7 @@ fn judge_candidates(
             ),
             plain: false,
             resolution: choice.resolution,
+            floor: 0.0,
             from_fitted_rows: false,
         }
     } else if let Some((s, _)) = scans
@@ -150,6 +151,7 @@ fn judge_candidates(
             ),
             plain: false,
             resolution: choice.resolution,
+            floor: choice.floor,
             from_fitted_rows: true,
         }
     } else {
@@ -233,9 +235,15 @@ fn judge_with(
                 Some(a) => crate::judge::predicts_worse(judge, b, a, resolution, opts.alpha),
                 None => true,
             });
-            let better = |min_share: f64| {
+            let better = |floor: f64, min_share: f64| {
                 before.zip(heldout.as_ref()).and_then(|(b, a)| {
-                    crate::judge::predicts_better_by(judge, b, a, resolution, opts.alpha, min_share)
+                    crate::judge::predicts_better_by(
+                        judge,
+                        (b, a),
+                        (resolution, floor),
+                        opts.alpha,
+                        min_share,
+                    )
                 })
             };
             let judged_at = alternative
@@ -250,10 +258,15 @@ fn judge_with(
                 before: before.map(|h| h.mean),
                 after: heldout.as_ref().map(|h| h.mean),
                 worse,
-                better_by: better(opts.min_share),
-                // Most of the error, whatever the drop's share of the motion (`min_share`
-                // never met).
-                removes_most: better(f64::INFINITY).is_some(),
+                // The size on the motion: the drop of the model's own error, above what the
+                // noise leaves to any model.
+                better_by: better(choice.floor, opts.min_share),
+                floor: choice.floor,
+                // Most of the whole error, whatever the drop's share of the motion (`min_share`
+                // never met): what exempts a candidate from the null, so read on the whole
+                // R-MSE, the noise's share included — the stricter reading, since the null is
+                // the guard against the equation error's bias it would skip.
+                removes_most: better(0.0, f64::INFINITY).is_some(),
                 judged_at,
             };
             Judged {

@@ -77,6 +77,11 @@ pub(crate) struct Choice {
     /// variance (how far a fresh draw of the input's own noise moves the score; 0 when no
     /// input could be perturbed).
     pub resolution: f64,
+    /// Under the free run, the R-MSE no model can go below: the measured displacement's own
+    /// noise (its variance over the displacement's, mean over records and DOFs) plus
+    /// `resolution` (the input noise's share); 0 under the other judges. Most of a model's
+    /// error is read above it ([`predicts_better_by`]).
+    pub floor: f64,
     /// Under the free run: simulate each held-out unit over its fitted rows from the measured
     /// state there, not the record from t = 0 (see [`heldout_r_mse`]).
     pub from_fitted_rows: bool,
@@ -105,6 +110,7 @@ pub(crate) fn choose(
             Some((p.dominated, p.shift))
         })
         .collect();
+    let measured = measurement_floor(model, states);
     let dominated = probes.iter().flatten().filter(|p| p.0).count();
     let shifts: Vec<f64> = probes.iter().flatten().map(|p| p.1).collect();
     let resolution = if shifts.is_empty() {
@@ -122,6 +128,7 @@ pub(crate) fn choose(
             ),
             plain: false,
             resolution,
+            floor: 0.0,
             from_fitted_rows: false,
         }
     } else {
@@ -130,8 +137,42 @@ pub(crate) fn choose(
             why: "free-run simulation under the measured input".to_string(),
             plain: true,
             resolution,
+            floor: if resolution.is_finite() {
+                measured + resolution
+            } else {
+                measured
+            },
             from_fitted_rows: false,
         }
+    }
+}
+
+/// The free-run R-MSE that the measured displacement's own noise leaves to any model, the
+/// noise-free truth included: per record and DOF the variance of the displacement's
+/// measurement noise (the tool's estimate, [`tfs_refine::displacement_noise_var`]) over the
+/// measured displacement's variance, the R-MSE's own normaliser; the mean over the records
+/// and DOFs where both can be had (0 when none). A simulation carries no measurement noise, so
+/// this much of every model's R-MSE against a measured record is the record's, not the model's.
+pub(crate) fn measurement_floor(model: &Model, states: &[RecordStates]) -> f64 {
+    let shares: Vec<f64> = states
+        .iter()
+        .flat_map(|s| {
+            let noise = tfs_refine::displacement_noise_var(model, &s.record);
+            model
+                .dofs
+                .iter()
+                .zip(noise)
+                .filter_map(|(d, nv)| {
+                    let v = variance(s.record.column(d)?);
+                    (v > 0.0 && nv.is_finite()).then(|| nv / v)
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    if shares.is_empty() {
+        0.0
+    } else {
+        shares.iter().sum::<f64>() / shares.len() as f64
     }
 }
 
@@ -574,24 +615,28 @@ pub(crate) fn predicts_worse(
 pub(crate) const MOST_OF_THE_ERROR: f64 = 0.5;
 
 /// How much better the model scored `after` predicts the held-out data than the one scored
-/// `before`, as a share of the motion's RMS (the drop of `√R-MSE`: RMS prediction error over the
-/// displacement's standard deviation), when the drop is more than `judge` can resolve and either
-/// at least `min_share` — an effect's size on the motion, as `min_share` is its size on the
-/// force — or at least [`MOST_OF_THE_ERROR`] of `before`'s own RMS prediction error: most of
-/// what a model already within `min_share` of the motion misses (`None` otherwise). A stiff
+/// `before`, as a share of the motion's RMS (the drop of the models' own RMS prediction error
+/// over the displacement's standard deviation), when the drop is more than `judge` can resolve
+/// and either at least `min_share` — an effect's size on the motion, as `min_share` is its size
+/// on the force — or at least [`MOST_OF_THE_ERROR`] of `before`'s own RMS prediction error: most
+/// of what a model already within `min_share` of the motion misses (`None` otherwise). A stiff
 /// stop touched for a few samples, or a term the start library nearly holds, moves the fitted
-/// force little and the motion much. Free run: `after` shows skill and its mean R-MSE is lower
-/// by more than `resolution`. Short horizon: the paired one-sided tests over the pieces put the
-/// drop below `alpha`. The equation error judges nothing here (`None`).
+/// force little and the motion much. A model's own error is its R-MSE above `floor`, the share
+/// no model removes (the noise of the measured record and of its input, [`Choice::floor`]; 0 to
+/// read the whole R-MSE as the model's): at 40 dB that share is about 1e-4, the whole error of a
+/// model within 1–2 % of the motion, and read as the model's it hides an effect that removes
+/// most of what the model itself misses. Free run: `after` shows skill and its mean R-MSE is
+/// lower by more than `resolution`. Short horizon: the paired one-sided tests over the pieces
+/// put the drop below `alpha`. The equation error judges nothing here (`None`).
 pub(crate) fn predicts_better_by(
     judge: Judge,
-    before: &Heldout,
-    after: &Heldout,
-    resolution: f64,
+    (before, after): (&Heldout, &Heldout),
+    (resolution, floor): (f64, f64),
     alpha: f64,
     min_share: f64,
 ) -> Option<f64> {
-    let drop = before.mean.sqrt() - after.mean.sqrt();
+    let own = |r: f64| (r - floor).max(0.0).sqrt();
+    let drop = own(before.mean) - own(after.mean);
     let resolved = match judge {
         Judge::FreeRun => after.mean < 1.0 && after.mean < before.mean - resolution,
         Judge::ShortHorizon => {
@@ -600,8 +645,8 @@ pub(crate) fn predicts_better_by(
         }
         Judge::EquationError => false,
     };
-    let most = drop >= MOST_OF_THE_ERROR * before.mean.sqrt();
-    (resolved && drop.is_finite() && (drop >= min_share || most)).then_some(drop)
+    let most = drop >= MOST_OF_THE_ERROR * own(before.mean);
+    (resolved && drop.is_finite() && drop > 0.0 && (drop >= min_share || most)).then_some(drop)
 }
 
 /// Which of `scores` (per-piece errors of models scored on the same pieces) has the lowest

@@ -17,6 +17,7 @@ fn prediction(before: f64, after: Option<f64>) -> PredictionEvidence {
         after,
         worse: None,
         better_by: None,
+        floor: 0.0,
         removes_most: false,
         judged_at: None,
     }

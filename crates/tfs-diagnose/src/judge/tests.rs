@@ -67,6 +67,67 @@ fn short_horizon_vetoes_only_a_worsening_the_pieces_bear_out() {
     ));
 }
 
+/// Most of a model's error is read above the noise's floor. At 40 dB the measured record's
+/// noise alone leaves an R-MSE of about 1e-4 to any model, the true one included; a start model
+/// at 3.75e-4 whose refit with the missing effect reaches 1.28e-4 (a Duffing oscillator with a
+/// hidden Maxwell element of 1.2 % of the force) takes away 91 % of its own error, yet only 42 %
+/// of the RMS of the whole, noise included, and 1.0 % of the motion's RMS: read on the whole
+/// R-MSE it is neither large on the motion nor most of the error. A model that only fits the
+/// noise, already at the floor, gains nothing above it.
+#[test]
+fn most_of_the_error_is_read_above_the_noise_floor() {
+    let score = |mean: f64| Heldout {
+        mean,
+        parts: vec![mean],
+    };
+    let better = |b: f64, a: f64, floor: f64| {
+        predicts_better_by(
+            Judge::FreeRun,
+            (&score(b), &score(a)),
+            (0.0, floor),
+            0.01,
+            0.02,
+        )
+    };
+    assert!(better(3.75e-4, 1.28e-4, 0.0).is_none());
+    let drop = better(3.75e-4, 1.28e-4, 1.0e-4).expect("most of the model's own error");
+    assert!((drop - ((2.75e-4f64).sqrt() - (0.28e-4f64).sqrt())).abs() < 1e-15);
+    // Less than half of the model's own error taken away is not most of it.
+    assert!(better(3.75e-4, 2.5e-4, 1.0e-4).is_none());
+    // At or below the floor before: no error of the model's own to take away.
+    assert!(better(1.0e-4, 0.9e-4, 1.0e-4).is_none());
+    assert!(better(1.1e-4, 0.9e-4, 1.2e-4).is_none());
+}
+
+/// The floor of the free run: the displacement's measurement noise over its variance, which the
+/// tool's noise estimate recovers from a record at 40 dB to within its own spread.
+#[test]
+fn the_measurement_floor_is_the_records_noise_share() {
+    use tfs_data::Record;
+    let model = Model::from_json_str(
+        r#"{"format":"tfs-model/1","dofs":["x"],"inputs":["u"],"equations":[{"dof":"x","terms":[{"term":"x","coef":-39.5},{"term":"x'","coef":-0.6},{"term":"u","coef":1.0}]}]}"#,
+    )
+    .unwrap();
+    let dt = 0.005;
+    let n = 8000;
+    let t: Vec<f64> = (0..n).map(|k| k as f64 * dt).collect();
+    let u: Vec<f64> = t
+        .iter()
+        .map(|t| (3.0 * t).sin() + (11.0 * t).sin())
+        .collect();
+    let rec = Record::new("r", t.clone(), vec![("u".to_string(), u.clone())]).unwrap();
+    let run = crate::simulate::simulate(&model, &rec).unwrap();
+    let clean = run.x[0].clone();
+    let x =
+        tfs_signal::noise::add_noise_seeded(&clean, 40.0, tfs_signal::NoiseKind::White, 3).unwrap();
+    let rec = Record::new("r", t, vec![("x".to_string(), x), ("u".to_string(), u)]).unwrap();
+    let opts = DiagnoseOptions::default();
+    let states = vec![RecordStates::new(&model, &rec, &opts).unwrap()];
+    let floor = measurement_floor(&model, &states);
+    // 40 dB: noise variance 1e-4 of the signal's.
+    assert!(floor > 0.5e-4 && floor < 2.0e-4, "floor {floor}");
+}
+
 /// An effect is large on the motion when its model's RMS prediction error is lower by at least
 /// `min_share` of the motion's RMS, or by at least half of the error itself, beyond what the
 /// judge resolves.
@@ -77,7 +138,7 @@ fn a_small_force_counts_when_the_prediction_falls_by_min_share_or_by_half() {
         parts: vec![mean],
     };
     let better = |j, b: f64, a: f64, res| {
-        predicts_better_by(j, &score(b), &score(a), res, 0.01, 0.02).is_some()
+        predicts_better_by(j, (&score(b), &score(a)), (res, 0.0), 0.01, 0.02).is_some()
     };
     // √0.0468 − √0.00685 = 0.134: large; √0.0468 − √0.0420 = 0.011: under 2 %.
     assert!(better(Judge::FreeRun, 0.0468, 0.00685, 0.0));
@@ -91,9 +152,8 @@ fn a_small_force_counts_when_the_prediction_falls_by_min_share_or_by_half() {
     // The drop itself is returned: √0.0468 − √0.00685.
     let drop = predicts_better_by(
         Judge::FreeRun,
-        &score(0.0468),
-        &score(0.00685),
-        0.0,
+        (&score(0.0468), &score(0.00685)),
+        (0.0, 0.0),
         0.01,
         0.02,
     );
@@ -105,7 +165,7 @@ fn a_small_force_counts_when_the_prediction_falls_by_min_share_or_by_half() {
     assert!(!better(Judge::FreeRun, 1e-4, 1e-6, 2e-4));
     // Short horizon: the pieces must bear the drop out, and it must be large enough.
     let short = |(b, a): &(Heldout, Heldout), min_share| {
-        predicts_better_by(Judge::ShortHorizon, b, a, 0.0, 0.01, min_share).is_some()
+        predicts_better_by(Judge::ShortHorizon, (b, a), (0.0, 0.0), 0.01, min_share).is_some()
     };
     let (before, after) = pieces(60, 0.3, 0.3, 7);
     assert!(short(&(before.clone(), after.clone()), 0.02));
@@ -244,6 +304,7 @@ fn choice_of(judge: Judge, from_fitted_rows: bool) -> Choice {
         why: String::new(),
         plain: false,
         resolution: 0.0,
+        floor: 0.0,
         from_fitted_rows,
     }
 }
