@@ -115,9 +115,11 @@ fn the_measurement_floor_is_the_records_noise_share() {
         .iter()
         .map(|t| (3.0 * t).sin() + (11.0 * t).sin())
         .collect();
-    let rec = Record::new("r", t.clone(), vec![("u".to_string(), u.clone())]).unwrap();
-    let run = crate::simulate::simulate(&model, &rec).unwrap();
-    let clean = run.x[0].clone();
+    // A smooth motion (two tones), measured with white noise at 40 dB.
+    let clean: Vec<f64> = t
+        .iter()
+        .map(|t| 0.3 * (3.0 * t).sin() + 0.05 * (11.0 * t).sin())
+        .collect();
     let x =
         tfs_signal::noise::add_noise_seeded(&clean, 40.0, tfs_signal::NoiseKind::White, 3).unwrap();
     let rec = Record::new("r", t, vec![("x".to_string(), x), ("u".to_string(), u)]).unwrap();
