@@ -183,6 +183,26 @@ pub(crate) struct Reselected {
     pub error: f64,
     /// Every setting's held-out error, in grid order.
     pub scores: Vec<f64>,
+    /// `(clusters, coefficients)` when a kept term failed the term test at the lowest-error
+    /// setting, whose clusters did not outnumber the kept coefficients, and `setting` is the
+    /// best one whose clusters do.
+    pub retested: Option<(usize, usize)>,
+}
+
+/// The setting (grid position) with the lowest of `scores` among the `eligible` ones (all of
+/// them when none is), and its score.
+pub(crate) fn best_eligible(scores: &[f64], eligible: &[bool]) -> (usize, f64) {
+    let any = eligible.iter().any(|&e| e);
+    scores
+        .iter()
+        .enumerate()
+        .fold((0, f64::INFINITY), |b, (k, &e)| {
+            if (!any || eligible.get(k).copied().unwrap_or(true)) && e < b.1 {
+                (k, e)
+            } else {
+                b
+            }
+        })
 }
 
 /// The settings were chosen for selecting terms from the whole library; the chosen terms'
@@ -211,21 +231,12 @@ pub(crate) fn reselect_for_support(
     )?;
     // The lowest error among the settings whose coefficients can be resampled (all of them
     // when none can), as for the selection's setting.
-    let any = eligible.iter().any(|&e| e);
-    let (k, e) = scores
-        .iter()
-        .enumerate()
-        .fold((0, f64::INFINITY), |b, (k, &e)| {
-            if (!any || eligible.get(k).copied().unwrap_or(true)) && e < b.1 {
-                (k, e)
-            } else {
-                b
-            }
-        });
+    let (k, e) = best_eligible(&scores, eligible);
     Ok(Some(Reselected {
         setting: ctx.grid[k],
         error: e,
         scores,
+        retested: None,
     }))
 }
 

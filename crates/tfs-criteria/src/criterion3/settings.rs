@@ -197,17 +197,13 @@ pub(crate) fn choose_setting(
     (candidates, err, (wi, di))
 }
 
-/// Which settings (grid order) give coefficients that can be resampled: at least
-/// [`MIN_CLUSTERS`] independent clusters of bins over the records' windows at that window count
-/// and δ (the clusters of the intervals and the term test). A setting with fewer — one window per
-/// record and a handful of strong bins, on a short record — fits and scores, but its terms
-/// cannot be tested, so a spurious one stays; it is chosen only when no setting can be
-/// resampled (`docs/DECISIONS.md`).
-pub(crate) fn resamplable(
+/// How many independent clusters of bins (those of the intervals and the term test) each
+/// setting (grid order) gives over the records' windows at its window count and δ.
+pub(crate) fn cluster_counts(
     grid: &[(usize, usize)],
     transforms: &Transforms,
     opt: &TfsOptions,
-) -> Vec<bool> {
+) -> Vec<usize> {
     grid.iter()
         .map(|&(wi, di)| {
             let rows: Vec<(usize, usize, &WindowTransform)> = transforms[wi]
@@ -215,9 +211,31 @@ pub(crate) fn resamplable(
                 .enumerate()
                 .flat_map(|(r, wins)| wins.iter().enumerate().map(move |(w, t)| (r, w, t)))
                 .collect();
-            crate::uncertainty::cluster_count(&rows, opt.criterion3.deltas[di]) >= MIN_CLUSTERS
+            crate::uncertainty::cluster_count(&rows, opt.criterion3.deltas[di])
         })
         .collect()
+}
+
+/// Which settings (grid order, with the cluster counts `counts` of [`cluster_counts`]) give
+/// `coefficients` coefficients that can be resampled and tested: at least [`MIN_CLUSTERS`]
+/// clusters and, where some setting has them, more clusters than coefficients.
+///
+/// A setting with fewer than [`MIN_CLUSTERS`] — one window per record and a handful of strong
+/// bins, on a short record — fits and scores, but its terms cannot be tested, so a spurious one
+/// stays; it is chosen only when no setting can be resampled (`coefficients` 0: the settings
+/// for selecting the terms and, first, for their coefficients). One with at least three
+/// clusters but no more than coefficients gives a jackknife covariance of rank `C − 1`, below
+/// the number of coefficients: a term that fails the test there is tested again at the best
+/// setting with more clusters than the kept coefficients (`crate::pipeline`'s
+/// `untestable_failure`; `docs/DECISIONS.md`).
+pub(crate) fn eligible_by_clusters(counts: &[usize], coefficients: usize) -> Vec<bool> {
+    let full = MIN_CLUSTERS.max(coefficients + 1);
+    let need = if counts.iter().any(|&c| c >= full) {
+        full
+    } else {
+        MIN_CLUSTERS
+    };
+    counts.iter().map(|&c| c >= need).collect()
 }
 
 /// The fewest clusters of bins that intervals and the term test are computed from.
@@ -283,6 +301,20 @@ pub(crate) fn close_calls(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Settings need more clusters than coefficients where some setting has them, else at
+    /// least three; with none at three, none is eligible (the caller then takes them all).
+    #[test]
+    fn eligibility_prefers_more_clusters_than_coefficients() {
+        assert_eq!(
+            eligible_by_clusters(&[3, 5, 6, 8], 5),
+            [false, false, true, true]
+        );
+        assert_eq!(eligible_by_clusters(&[3, 5, 2], 5), [true, true, false]);
+        assert_eq!(eligible_by_clusters(&[1, 2], 1), [false, false]);
+        assert_eq!(eligible_by_clusters(&[3, 2], 1), [true, false]);
+        assert_eq!(eligible_by_clusters(&[3, 2, 9], 0), [true, false, true]);
+    }
 
     /// A runner-up within the margin is reported with its gap; one beyond it, an exact tie
     /// (the same rows at another δ) and a non-finite score are not.
