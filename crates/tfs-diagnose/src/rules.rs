@@ -102,7 +102,7 @@ pub fn rules() -> Vec<Rule> {
             "small on the force, large on the motion",
             "judge",
             format!(
-                "test passed and error falls, and the refitted model predicts better by ≥ `min_share` = {} of the motion's RMS, or with at most {} of the start model's RMS prediction error",
+                "test passed and error falls, and the refitted model predicts better by ≥ `min_share` = {} of the motion's RMS, or with at most {} of the start model's RMS prediction error (both read above the error the records' own noise leaves under the free run)",
                 o.min_share,
                 crate::judge::MOST_OF_THE_ERROR
             ),
