@@ -70,8 +70,8 @@ fn input_terms(model: &Model, idx: usize) -> Vec<(&str, Vec<(usize, f64)>)> {
     out
 }
 
-/// The linear terms of equation `idx` of `model` in its DOFs, as (DOF index, [(derivative order,
-/// coefficient)]): what the local gains are where they cannot be evaluated.
+/// The linear coefficients of equation `idx` of `model` in each DOF's displacement and velocity,
+/// as gains with no spread (DOF order): what the local gains are where they cannot be evaluated.
 fn linear_dof_terms(model: &Model, idx: usize) -> Vec<LocalGains> {
     let mut out = vec![LocalGains::default(); model.dofs.len()];
     for t in &model.equations[idx].terms {
