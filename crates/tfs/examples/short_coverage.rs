@@ -3,7 +3,8 @@
 //! and rate drawn from a seed), one record each with white noise on `x`, offered a library that
 //! holds terms whose true value is zero. Counts how often a kept true term's 95 % interval covers
 //! its value and how often a kept zero term's covers zero; with `--full` every library term is
-//! kept (threshold 0, no elimination), which measures the intervals without the selection.
+//! kept (threshold 0, no elimination, records used as they are), which measures the intervals
+//! without the selection.
 //!
 //! ```text
 //! cargo run --example short_coverage -- [--snr 40] [--seeds 1-6] [--noise-seeds 1-3]
@@ -15,6 +16,7 @@ mod short_systems;
 
 use short_systems::{KINDS, Tally, draw};
 use tfs::identify::{IdentifyOptions, identify, plan};
+use tfs::records::Offsets;
 
 fn range(text: &str) -> Vec<u64> {
     match text.split_once('-') {
@@ -53,8 +55,11 @@ fn main() {
             for &snr in &snrs {
                 for &ns in &noise_seeds {
                     let rec = sys.record(snr, 1000 * seed + ns);
+                    // The records have no offsets: with `--full` they are used as they are, so
+                    // that the truth is the law of the data fitted.
                     let opts = IdentifyOptions {
                         library: Some(sys.library.into()),
+                        offsets: if full { Offsets::Keep } else { Offsets::Auto },
                         ..IdentifyOptions::default()
                     };
                     let mut p = plan(&opts, rec.names(), rec.source()).unwrap();
@@ -66,6 +71,12 @@ fn main() {
                         Ok(id) => id,
                         Err(e) => {
                             println!("{} seed {seed} noise {ns}: error {e}", sys.name);
+                            let mut t = Tally::default();
+                            t.add_nothing(&truth);
+                            match totals.iter_mut().find(|(n, _)| *n == sys.name) {
+                                Some(e) => e.1 = e.1.merged(&t),
+                                None => totals.push((sys.name, t)),
+                            }
                             continue;
                         }
                     };
@@ -91,7 +102,8 @@ fn main() {
                         line.push(format!(
                             "{mark}{name} {:.4} [{}] (truth {c:.4})",
                             mt.coef,
-                            mt.interval.map_or("-".into(), |[lo, hi]| format!("{lo:.4}, {hi:.4}"))
+                            mt.interval
+                                .map_or("-".into(), |[lo, hi]| format!("{lo:.4}, {hi:.4}"))
                         ));
                     }
                     println!(
@@ -103,7 +115,7 @@ fn main() {
                         line.join("; ")
                     );
                     if show {
-                        println!("    {}", id.model.equation_string());
+                        println!("    {}\n    {}", id.model.equation_string(), id.offsets.why);
                     }
                     match totals.iter_mut().find(|(n, _)| *n == sys.name) {
                         Some(e) => e.1 = e.1.merged(&t),

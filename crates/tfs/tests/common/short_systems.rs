@@ -62,8 +62,7 @@ pub fn draw(kind: usize, seed: u64) -> System {
     let k = r.uniform(1.0, 5.0);
     let w = r.uniform(0.6, 1.5) * k.sqrt();
     let ph = r.uniform(0.0, std::f64::consts::TAU);
-    let (name, library, terms, rhs, amp, x0): (_, _, Vec<(&str, f64)>, Rhs, f64, f64) = match kind
-    {
+    let (name, library, terms, rhs, amp, x0): (_, _, Vec<(&str, f64)>, Rhs, f64, f64) = match kind {
         0 => {
             let b = r.uniform(0.2, 1.0) * k;
             let c = r.uniform(0.03, 0.15) * k.sqrt();
@@ -277,6 +276,18 @@ impl Tally {
                         self.zero_covered += usize::from(lo <= 0.0 && 0.0 <= hi);
                     }
                 }
+            }
+        }
+    }
+
+    /// Adds an identification that kept nothing (`tfs identify` refuses to write `x'' = 0`):
+    /// every true term dropped, no zero term claimed.
+    pub fn add_nothing(&mut self, truth: &[(String, f64)]) {
+        for (_, c) in truth {
+            if *c == 0.0 {
+                self.zero_offered += 1;
+            } else {
+                self.true_dropped += 1;
             }
         }
     }
