@@ -6,7 +6,7 @@
 
 use rayon::prelude::*;
 use tfs_data::Record;
-use tfs_dynamics::{SimulateOptions, Trajectory, rmse_variance, simulate_model_on_record};
+use tfs_dynamics::{SimulateOptions, Trajectory, r_mse_on_record, simulate_model_on_record};
 use tfs_library::Model;
 
 use crate::Result;
@@ -57,13 +57,21 @@ pub fn r_mse(model: &Model, record: &Record) -> Result<f64> {
     r_mse_with(model, record, &SimulateOptions::default())
 }
 
-/// [`r_mse`] with the integrator settings `sim`.
+/// [`r_mse`] with the integrator settings `sim`. The run's scores come from
+/// [`tfs_dynamics::r_mse_on_record`], which keeps them: the same model scored again on the same
+/// record (the start model under every candidate's refit, a refit kept by two decisions) is
+/// not simulated again.
 pub(crate) fn r_mse_with(model: &Model, record: &Record, sim: &SimulateOptions) -> Result<f64> {
-    let tr = simulate_with(model, record, sim)?;
+    let augmented = if computed_columns(model).is_empty() {
+        std::borrow::Cow::Borrowed(record)
+    } else {
+        std::borrow::Cow::Owned(augment_record(model, record, &DiagnoseOptions::default())?)
+    };
+    let each = r_mse_on_record(model, &augmented, sim)?;
     let mut s = 0.0;
-    for (i, d) in model.dofs.iter().enumerate() {
-        let m = record.column(d).ok_or_else(|| missing(model, record, d))?;
-        s += rmse_variance(m, &tr.x[i])?;
+    for (d, r) in model.dofs.iter().zip(each) {
+        record.column(d).ok_or_else(|| missing(model, record, d))?;
+        s += r;
     }
     Ok(s / model.dofs.len().max(1) as f64)
 }

@@ -55,7 +55,8 @@ pub use input::{Interpolation, SampledInput};
 pub use integrate::{Integrator, Stats, Trajectory};
 pub use metrics::{rms_error, rmse_ratio, rmse_variance};
 pub use model::{
-    RANGE_SPANS, RESOLVED_SPAN_ATOL, SimulateOptions, initial_velocity, simulate_model_on_record,
+    RANGE_SPANS, RESOLVED_SPAN_ATOL, SimulateOptions, initial_velocity, r_mse_on_record,
+    simulate_model_on_record,
 };
 pub use rk4::{Rk4, Rk4Scratch, rk4_step};
 pub use system::{FnSystem, SecondOrderSystem};

@@ -1,5 +1,5 @@
-//! A memo of fitted start states, so a model simulated again on the same record does not fit its
-//! start again.
+//! A memo of fitted start states and of runs' scores, so a model simulated again on the same
+//! record does not fit its start, or run at all, again.
 //!
 //! A diagnosis scores the same model on the same records many times over (the start model under
 //! every candidate's refit, the judge and the null; a refit kept by two decisions), and fitting
@@ -7,8 +7,11 @@
 //! Levenberg–Marquardt fits of a few dozen simulations of the first periods). The fit is a pure
 //! function of the model's equations, the columns the run reads, and the options, so its result
 //! is kept under a hash of all of them and a later run from the same inputs starts from it: the
-//! same state to the bit, without the fit. Only the start state is kept (a few numbers per run),
-//! so the memo costs no memory worth counting; the whole run is integrated again.
+//! same state to the bit, without the fit. So is the whole run, so its score on the record (the
+//! R-MSE of each DOF, [`crate::r_mse_on_record`]) is kept under the same key: a score asked for
+//! again is the first run's, without the run. Only the start state and the scores are kept (a few
+//! numbers per run), so the memo costs no memory worth counting; a trajectory asked for again is
+//! integrated again.
 
 use std::collections::{HashMap, VecDeque};
 use std::sync::{Mutex, OnceLock};
@@ -85,38 +88,66 @@ impl KeyHasher {
 /// A fitted start state, or the error the fit ended with.
 pub(crate) type Start = Result<(Vec<f64>, Vec<f64>)>;
 
-struct Memo {
-    map: HashMap<StartKey, Start>,
+/// A run's R-MSE on its record per DOF, or the error the run (or the score) ended with.
+pub(crate) type Scores = Result<Vec<f64>>;
+
+/// One kind of entry, the oldest forgotten past [`CAPACITY`].
+struct Memo<T> {
+    map: HashMap<StartKey, T>,
     order: VecDeque<StartKey>,
 }
 
-fn memo() -> &'static Mutex<Memo> {
-    static MEMO: OnceLock<Mutex<Memo>> = OnceLock::new();
-    MEMO.get_or_init(|| {
-        Mutex::new(Memo {
+impl<T: Clone> Memo<T> {
+    fn new() -> Self {
+        Self {
             map: HashMap::new(),
             order: VecDeque::new(),
-        })
-    })
+        }
+    }
+
+    fn put(&mut self, key: StartKey, value: &T) {
+        if self.map.insert(key, value.clone()).is_none() {
+            self.order.push_back(key);
+        }
+        while self.order.len() > CAPACITY {
+            if let Some(old) = self.order.pop_front() {
+                self.map.remove(&old);
+            }
+        }
+    }
+}
+
+fn starts() -> &'static Mutex<Memo<Start>> {
+    static MEMO: OnceLock<Mutex<Memo<Start>>> = OnceLock::new();
+    MEMO.get_or_init(|| Mutex::new(Memo::new()))
+}
+
+fn scores() -> &'static Mutex<Memo<Scores>> {
+    static MEMO: OnceLock<Mutex<Memo<Scores>>> = OnceLock::new();
+    MEMO.get_or_init(|| Mutex::new(Memo::new()))
 }
 
 /// The start kept under `key`, if any.
 pub(crate) fn get(key: &StartKey) -> Option<Start> {
-    memo().lock().ok()?.map.get(key).cloned()
+    starts().lock().ok()?.map.get(key).cloned()
 }
 
 /// Keeps `start` under `key`, forgetting the oldest entry when the memo is full.
 pub(crate) fn put(key: StartKey, start: &Start) {
-    let Ok(mut m) = memo().lock() else {
-        return;
-    };
-    if m.map.insert(key, start.clone()).is_none() {
-        m.order.push_back(key);
+    if let Ok(mut m) = starts().lock() {
+        m.put(key, start);
     }
-    while m.order.len() > CAPACITY {
-        if let Some(old) = m.order.pop_front() {
-            m.map.remove(&old);
-        }
+}
+
+/// The scores of the run kept under `key`, if any.
+pub(crate) fn get_scores(key: &StartKey) -> Option<Scores> {
+    scores().lock().ok()?.map.get(key).cloned()
+}
+
+/// Keeps a run's `scores` under `key`, forgetting the oldest entry when the memo is full.
+pub(crate) fn put_scores(key: StartKey, value: &Scores) {
+    if let Ok(mut m) = scores().lock() {
+        m.put(key, value);
     }
 }
 

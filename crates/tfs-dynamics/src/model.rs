@@ -1,9 +1,12 @@
 //! Adapter from `tfs_library` models to this crate: simulate a fitted model on a measured record.
 
 use crate::initial::{InitialState, choose_initial_state, start_of};
-use crate::memo::{self, KeyHasher};
+use crate::memo::{self, KeyHasher, StartKey};
 use crate::range::{Ranged, band};
-use crate::{Dopri5, DynError, Integrator, Result, SampledInput, SecondOrderSystem, Trajectory};
+use crate::{
+    Dopri5, DynError, Integrator, Result, SampledInput, SecondOrderSystem, Trajectory,
+    rmse_variance,
+};
 use tfs_data::Record;
 use tfs_library::{CompiledModel, Model};
 
@@ -113,6 +116,21 @@ pub fn simulate_model_on_record(
     simulate_on_record(model, record, opts, true)
 }
 
+/// The R-MSE of a run of `model` on `record` ([`simulate_model_on_record`]) for each DOF of the
+/// model, in its DOF order: [`rmse_variance`] of the run against the record's displacement. A
+/// run with a fitted start ([`InitialState::Fitted`]) keeps its scores in the memo of
+/// [`simulate_model_on_record`] (as does every such run of that function), so the same model on
+/// the same columns with the same options is scored again without a run: the same numbers to
+/// the bit, or the same error.
+pub fn r_mse_on_record(model: &Model, record: &Record, opts: &SimulateOptions) -> Result<Vec<f64>> {
+    let run = Run::new(model, record, opts, true)?;
+    if let Some(scores) = run.key.as_ref().and_then(memo::get_scores) {
+        return scores;
+    }
+    let tr = run.trajectory(opts)?;
+    run.scores(&tr)
+}
+
 /// [`simulate_model_on_record`], reading and filling the memo of fitted starts only with
 /// `memo` (the tests compare the two).
 fn simulate_on_record(
@@ -121,124 +139,187 @@ fn simulate_on_record(
     opts: &SimulateOptions,
     memo: bool,
 ) -> Result<Trajectory> {
-    let compiled = model
-        .compile()
-        .map_err(|e| DynError::Model(e.to_string()))?;
-    let missing = |column: &str| DynError::MissingColumn {
-        record: record.source().to_string(),
-        column: column.to_string(),
-        available: record.names().join(", "),
-    };
-    if record.len() < 2 {
-        return Err(DynError::InvalidParameter {
-            name: "record",
-            reason: format!(
-                "{} has {} samples; at least 2 are needed to simulate",
-                record.source(),
-                record.len()
-            ),
-        });
-    }
-    let dt = record.dt();
-    // The model is autonomous but for its input, so the record is simulated on its own clock,
-    // from 0 at its first sample: a time column of absolute time stamps (10⁶ s, or a Unix time)
-    // would otherwise cost the integrator's times their last digits, and the same measurement
-    // would simulate differently with its time column shifted. The trajectory keeps the
-    // record's times. (A record that starts at 0 is simulated exactly as before.)
-    let t_abs = record.t();
-    let t_local: Vec<f64> = t_abs.iter().map(|&v| v - t_abs[0]).collect();
-    let t = &t_local[..];
-    let mut channels = Vec::with_capacity(compiled.inputs());
-    for name in compiled.input_names() {
-        let col = record.column(name).ok_or_else(|| missing(name))?;
-        channels.push(col.to_vec());
-    }
-    let input = SampledInput::new(0.0, dt, channels)?;
-    let mut x0 = Vec::with_capacity(compiled.dofs());
-    let mut v0 = Vec::with_capacity(compiled.dofs());
-    for dof in compiled.dof_names() {
-        let col = record.column(dof).ok_or_else(|| missing(dof))?;
-        x0.push(col[0]);
-        let vel_name = format!("{dof}'");
-        let v = match record.column(&vel_name) {
-            Some(vc) if opts.use_velocity_column => vc[0],
-            _ => initial_velocity(col, dt, opts.velocity_window)?,
+    Run::new(model, record, opts, memo)?.trajectory(opts)
+}
+
+/// A run of a model on a record, its inputs resolved: the compiled model, the input, the
+/// first-samples state, the measured displacements, and the memo's key when the memo is used
+/// and the start is fitted.
+struct Run<'r> {
+    compiled: CompiledModel,
+    /// The record's own times.
+    t_abs: &'r [f64],
+    /// The times from 0 at the first sample (the run's clock).
+    t_local: Vec<f64>,
+    input: SampledInput,
+    x0: Vec<f64>,
+    v0: Vec<f64>,
+    measured: Vec<&'r [f64]>,
+    key: Option<StartKey>,
+}
+
+impl<'r> Run<'r> {
+    fn new(model: &Model, record: &'r Record, opts: &SimulateOptions, memo: bool) -> Result<Self> {
+        let compiled = model
+            .compile()
+            .map_err(|e| DynError::Model(e.to_string()))?;
+        let missing = |column: &str| DynError::MissingColumn {
+            record: record.source().to_string(),
+            column: column.to_string(),
+            available: record.names().join(", "),
         };
-        v0.push(v);
-    }
-    let measured: Vec<&[f64]> = compiled
-        .dof_names()
-        .iter()
-        .map(|d| record.column(d).ok_or_else(|| missing(d)))
-        .collect::<Result<_>>()?;
-    check_resolved(
-        record.source(),
-        compiled.dof_names(),
-        &measured,
-        &opts.integrator,
-    )?;
-    // Internal states (the auxiliary coordinates after the DOFs) start at rest, z = 0.
-    let n = compiled.dofs();
-    x0.resize(compiled.system_dofs(), 0.0);
-    v0.resize(compiled.system_dofs(), 0.0);
-    let ranged = Ranged {
-        inner: &opts.integrator,
-        bands: match opts.range {
-            Some(f) => measured.iter().map(|y| band(y, f)).collect(),
-            None => Vec::new(),
-        },
-        names: compiled.dof_names().to_vec(),
-    };
-    // The fitted start is a pure function of what the fit reads: a run of the same model on the
-    // same columns with the same options starts from the state fitted before (`memo`).
-    let key = (memo && matches!(opts.initial_state, InitialState::Fitted { .. })).then(|| {
-        let mut h = KeyHasher::new();
-        h.text(&format!(
-            "{:?}|{:?}|{:?}|{:?}|{:?}",
-            model.dofs,
-            model.inputs,
-            model.equations,
+        if record.len() < 2 {
+            return Err(DynError::InvalidParameter {
+                name: "record",
+                reason: format!(
+                    "{} has {} samples; at least 2 are needed to simulate",
+                    record.source(),
+                    record.len()
+                ),
+            });
+        }
+        let dt = record.dt();
+        // The model is autonomous but for its input, so the record is simulated on its own
+        // clock, from 0 at its first sample: a time column of absolute time stamps (10⁶ s, or a
+        // Unix time) would otherwise cost the integrator's times their last digits, and the same
+        // measurement would simulate differently with its time column shifted. The trajectory
+        // keeps the record's times. (A record that starts at 0 is simulated exactly as before.)
+        let t_abs = record.t();
+        let t_local: Vec<f64> = t_abs.iter().map(|&v| v - t_abs[0]).collect();
+        let t = &t_local[..];
+        let mut channels = Vec::with_capacity(compiled.inputs());
+        for name in compiled.input_names() {
+            let col = record.column(name).ok_or_else(|| missing(name))?;
+            channels.push(col.to_vec());
+        }
+        let input = SampledInput::new(0.0, dt, channels)?;
+        let mut x0 = Vec::with_capacity(compiled.dofs());
+        let mut v0 = Vec::with_capacity(compiled.dofs());
+        for dof in compiled.dof_names() {
+            let col = record.column(dof).ok_or_else(|| missing(dof))?;
+            x0.push(col[0]);
+            let vel_name = format!("{dof}'");
+            let v = match record.column(&vel_name) {
+                Some(vc) if opts.use_velocity_column => vc[0],
+                _ => initial_velocity(col, dt, opts.velocity_window)?,
+            };
+            v0.push(v);
+        }
+        let measured: Vec<&[f64]> = compiled
+            .dof_names()
+            .iter()
+            .map(|d| record.column(d).ok_or_else(|| missing(d)))
+            .collect::<Result<_>>()?;
+        check_resolved(
+            record.source(),
             compiled.dof_names(),
-            opts
-        ))
-        .floats(t)
-        .floats(&x0)
-        .floats(&v0);
-        for c in 0..input.channels() {
-            h.floats(input.samples(c));
-        }
-        for m in &measured {
-            h.floats(m);
-        }
-        h.key()
-    });
-    let start = match key.as_ref().and_then(memo::get) {
-        Some(start) => start,
-        None => {
-            let start = choose_initial_state(
-                opts.initial_state,
-                &compiled,
-                &ranged,
-                &input,
-                &measured,
-                t,
-                x0,
-                v0,
-            );
-            if let Some(key) = key {
-                memo::put(key, &start);
+            &measured,
+            &opts.integrator,
+        )?;
+        // Internal states (the auxiliary coordinates after the DOFs) start at rest, z = 0.
+        x0.resize(compiled.system_dofs(), 0.0);
+        v0.resize(compiled.system_dofs(), 0.0);
+        // The fitted start is a pure function of what the fit reads, and the run of the start:
+        // a run of the same model on the same columns with the same options starts from the
+        // state fitted before, and scores what it scored before (`memo`).
+        let key = (memo && matches!(opts.initial_state, InitialState::Fitted { .. })).then(|| {
+            let mut h = KeyHasher::new();
+            h.text(&format!(
+                "{:?}|{:?}|{:?}|{:?}|{:?}",
+                model.dofs,
+                model.inputs,
+                model.equations,
+                compiled.dof_names(),
+                opts
+            ))
+            .floats(t)
+            .floats(&x0)
+            .floats(&v0);
+            for c in 0..input.channels() {
+                h.floats(input.samples(c));
             }
-            start
+            for m in &measured {
+                h.floats(m);
+            }
+            h.key()
+        });
+        Ok(Self {
+            compiled,
+            t_abs,
+            t_local,
+            input,
+            x0,
+            v0,
+            measured,
+            key,
+        })
+    }
+
+    /// The run's trajectory; with a key, its scores (or its error) are kept in the memo.
+    fn trajectory(&self, opts: &SimulateOptions) -> Result<Trajectory> {
+        let tr = self.integrate(opts);
+        if let Some(key) = self.key {
+            let scores = match &tr {
+                Ok(tr) => self.scores(tr),
+                Err(e) => Err(e.clone()),
+            };
+            memo::put_scores(key, &scores);
         }
-    };
-    let (x0, v0) = start.map_err(|e| e.on_clock(t_abs[0]))?;
-    let mut tr = ranged
-        .integrate(&compiled, &input, &x0, &v0, t)
-        .map_err(|e| e.on_clock(t_abs[0]))?;
-    tr.x.truncate(n);
-    tr.v.truncate(n);
-    tr.t = t_abs.to_vec();
-    Ok(tr)
+        tr
+    }
+
+    /// The R-MSE of each DOF of trajectory `tr` against the measured displacements.
+    fn scores(&self, tr: &Trajectory) -> Result<Vec<f64>> {
+        self.measured
+            .iter()
+            .zip(&tr.x)
+            .map(|(m, x)| rmse_variance(m, x))
+            .collect()
+    }
+
+    /// Fits the start (or takes it from the memo) and integrates the record.
+    fn integrate(&self, opts: &SimulateOptions) -> Result<Trajectory> {
+        let (compiled, t_abs, input, measured) =
+            (&self.compiled, self.t_abs, &self.input, &self.measured);
+        let t = &self.t_local[..];
+        let (x0, v0, key) = (self.x0.clone(), self.v0.clone(), self.key);
+        let n = compiled.dofs();
+        let ranged = Ranged {
+            inner: &opts.integrator,
+            bands: match opts.range {
+                Some(f) => measured.iter().map(|y| band(y, f)).collect(),
+                None => Vec::new(),
+            },
+            names: compiled.dof_names().to_vec(),
+        };
+        let start = match key.as_ref().and_then(memo::get) {
+            Some(start) => start,
+            None => {
+                let start = choose_initial_state(
+                    opts.initial_state,
+                    compiled,
+                    &ranged,
+                    input,
+                    measured,
+                    t,
+                    x0,
+                    v0,
+                );
+                if let Some(key) = key {
+                    memo::put(key, &start);
+                }
+                start
+            }
+        };
+        let (x0, v0) = start.map_err(|e| e.on_clock(t_abs[0]))?;
+        let mut tr = ranged
+            .integrate(compiled, input, &x0, &v0, t)
+            .map_err(|e| e.on_clock(t_abs[0]))?;
+        tr.x.truncate(n);
+        tr.v.truncate(n);
+        tr.t = t_abs.to_vec();
+        Ok(tr)
+    }
 }
 
 /// How many absolute tolerances a displacement must span (peak to peak) for its simulation to
