@@ -431,6 +431,59 @@ mod tests {
         }
     }
 
+    /// A score from the memo is the fresh run's: the R-MSE of a run of the model on the record,
+    /// to the bit, asked once or again; a changed displacement sample (the score reads every
+    /// sample, the fit only the first periods) or coefficient scores its own run; a run that
+    /// leaves the record's range gives its error again.
+    #[test]
+    fn a_remembered_score_is_the_fresh_run_s() {
+        let model = |k: f64| {
+            Model::from_json_str(&format!(
+                r#"{{"format":"tfs-model/1","dofs":["x"],"equations":[{{"dof":"x","terms":[{{"term":"x","coef":{k}}},{{"term":"x'","coef":-0.3}},{{"term":"u","coef":1.0}}]}}]}}"#
+            ))
+            .unwrap()
+        };
+        let dt = 0.05;
+        let t: Vec<f64> = (0..400).map(|k| k as f64 * dt).collect();
+        let u: Vec<f64> = t.iter().map(|t| (0.9 * t).sin()).collect();
+        let x: Vec<f64> = t
+            .iter()
+            .map(|t| 0.8 * (0.9 * t - 0.3).sin() + 0.04 * (2.9 * t).cos())
+            .collect();
+        let rec = |x: &[f64]| {
+            Record::new(
+                "r",
+                t.clone(),
+                vec![("x".into(), x.to_vec()), ("u".into(), u.clone())],
+            )
+            .unwrap()
+        };
+        let opts = SimulateOptions::default();
+        let fresh = |m: &Model, r: &Record| {
+            let tr = simulate_on_record(m, r, &opts, false).unwrap();
+            vec![rmse_variance(r.column("x").unwrap(), &tr.x[0]).unwrap()]
+        };
+        let base = rec(&x);
+        let want = fresh(&model(-1.0), &base);
+        assert_eq!(r_mse_on_record(&model(-1.0), &base, &opts).unwrap(), want);
+        assert_eq!(r_mse_on_record(&model(-1.0), &base, &opts).unwrap(), want);
+        let mut late = x.clone();
+        late[390] += 0.3;
+        let moved = rec(&late);
+        let other = fresh(&model(-1.0), &moved);
+        assert_ne!(other, want);
+        assert_eq!(r_mse_on_record(&model(-1.0), &moved, &opts).unwrap(), other);
+        let stiffer = fresh(&model(-1.2), &base);
+        assert_ne!(stiffer, want);
+        assert_eq!(r_mse_on_record(&model(-1.2), &base, &opts).unwrap(), stiffer);
+        // Negative stiffness: the run leaves the record's span.
+        let away = model(2.0);
+        let e = simulate_on_record(&away, &base, &opts, false).unwrap_err();
+        assert!(matches!(e, DynError::LeftRange { .. }), "{e}");
+        assert_eq!(r_mse_on_record(&away, &base, &opts).unwrap_err(), e);
+        assert_eq!(r_mse_on_record(&away, &base, &opts).unwrap_err(), e);
+    }
+
     /// Quadratics are covered by `initial::tests::start_of_is_exact_for_quadratics`, which this
     /// delegates to; here the two-sample line and the argument checks.
     #[test]
