@@ -475,7 +475,10 @@ mod tests {
         assert_eq!(r_mse_on_record(&model(-1.0), &moved, &opts).unwrap(), other);
         let stiffer = fresh(&model(-1.2), &base);
         assert_ne!(stiffer, want);
-        assert_eq!(r_mse_on_record(&model(-1.2), &base, &opts).unwrap(), stiffer);
+        assert_eq!(
+            r_mse_on_record(&model(-1.2), &base, &opts).unwrap(),
+            stiffer
+        );
         // Negative stiffness: the run leaves the record's span.
         let away = model(2.0);
         let e = simulate_on_record(&away, &base, &opts, false).unwrap_err();
