@@ -27,23 +27,77 @@ pub enum TransformForm {
 /// Unbiased powers under Gaussian noise: with `y = x + e`, `e ~ N(0, s2)`, the scaled Hermite
 /// polynomial `m_k(y) = s^k He_k(y/s)` satisfies `E[m_k(y)] = x^k` (recursion
 /// `m_{k+1} = y·m_k − k·s2·m_{k−1}`, `m_0 = 1`, `m_1 = y`).
-pub fn hermite_power(y: &[f64], k: u32, s2: f64) -> Vec<f64> {
-    if k == 0 {
-        return vec![1.0; y.len()];
+#[cfg(test)]
+pub(crate) fn hermite_power(y: &[f64], k: u32, s2: f64) -> Vec<f64> {
+    HermitePowers::new(y, s2).power(k)
+}
+
+/// The scaled Hermite powers of one signal ([`hermite_power`]) made in order of degree and
+/// shared: asking for `m_k` after `m_j` (`j ≤ k`) continues the recurrence from `m_j` instead of
+/// running it from `m_0` again, so a library's powers 1..7 cost seven passes over the signal, not
+/// twenty-eight. Each power is the same bits as [`hermite_power`] alone gives (the same operations
+/// in the same order).
+pub(crate) struct HermitePowers<'y> {
+    y: &'y [f64],
+    s2: f64,
+    /// The degree `j ≥ 1` reached, `m_{j−1}` and `m_j`; `None` before the first power.
+    at: Option<(u32, Vec<f64>, Vec<f64>)>,
+}
+
+impl<'y> HermitePowers<'y> {
+    /// The powers of `y` under noise of variance `s2`.
+    pub(crate) fn new(y: &'y [f64], s2: f64) -> Self {
+        Self { y, s2, at: None }
     }
-    // The recurrence `He_{j+1} = y·He_j − j·s²·He_{j−1}` a whole column at a time (the same
-    // operations on every sample as one sample at a time, in a loop the compiler vectorises).
-    let mut a = vec![1.0; y.len()];
-    let mut b = y.to_vec();
-    for j in 1..k {
-        let js2 = j as f64 * s2;
-        for ((a, b), &v) in a.iter_mut().zip(b.iter_mut()).zip(y) {
-            let c = v * *b - js2 * *a;
-            *a = *b;
-            *b = c;
+
+    /// `m_k(y)`: continued from the last power asked for when `k` is not below it, else made
+    /// from the start.
+    pub(crate) fn power(&mut self, k: u32) -> Vec<f64> {
+        if k == 0 {
+            return vec![1.0; self.y.len()];
+        }
+        let (y, s2) = (self.y, self.s2);
+        if self.at.as_ref().is_none_or(|(j, _, _)| *j > k) {
+            self.at = Some((1, vec![1.0; y.len()], y.to_vec()));
+        }
+        let (j, a, b) = self.at.as_mut().expect("just set");
+        // The recurrence `He_{j+1} = y·He_j − j·s²·He_{j−1}` a whole column at a time (the same
+        // operations on every sample as one sample at a time, in a loop the compiler vectorises).
+        while *j < k {
+            let js2 = *j as f64 * s2;
+            for ((a, b), &v) in a.iter_mut().zip(b.iter_mut()).zip(y) {
+                let c = v * *b - js2 * *a;
+                *a = *b;
+                *b = c;
+            }
+            *j += 1;
+        }
+        b.clone()
+    }
+}
+
+/// Each DOF's [`HermitePowers`] over the reconstructions `smooth` (its displacement, its band's
+/// in-band noise variance), made on first use: the terms of one series share them.
+struct DofPowers<'s> {
+    smooth: &'s [Smoothed],
+    powers: Vec<Option<HermitePowers<'s>>>,
+}
+
+impl<'s> DofPowers<'s> {
+    fn new(smooth: &'s [Smoothed]) -> Self {
+        Self {
+            smooth,
+            powers: smooth.iter().map(|_| None).collect(),
         }
     }
-    b
+
+    /// `m_k` of DOF `i`'s displacement.
+    fn power(&mut self, i: usize, k: u32) -> Vec<f64> {
+        let s = &self.smooth[i];
+        self.powers[i]
+            .get_or_insert_with(|| HermitePowers::new(&s.x, s.band.noise_var))
+            .power(k)
+    }
 }
 
 /// The periodic `sin⁴` window of `len` samples at step `dt` with its time derivatives (see
@@ -194,6 +248,7 @@ pub(crate) fn decimated_series(
     }
     let nyq = 0.5 / (p.dt * q as f64);
     let mut full_cs = None;
+    let (mut full_powers, mut powers) = (DofPowers::new(&p.smooth), DofPowers::new(&smooth));
     let mut terms = Vec::with_capacity(lib.len());
     for t in lib.terms() {
         if t.uses_input() {
@@ -201,14 +256,14 @@ pub(crate) fn decimated_series(
                 full_cs = Some(smoothed_columns(p, dofs)?);
             }
             let fcs = full_cs.as_ref().expect("just set");
-            let ser = term_series(t, fcs, &p.smooth, dofs, weak, debias)?;
+            let ser = term_series(t, fcs, &mut full_powers, dofs, weak, debias)?;
             let lp = |v: &[f64]| low_pass_every(v, p.dt, 0.8 * nyq, q);
             terms.push(match ser {
                 Series::Plain(v) => Series::Plain(lp(&v)),
                 Series::Transfer(v) => Series::Transfer(lp(&v)),
             });
         } else {
-            terms.push(term_series(t, &cs, &smooth, dofs, weak, debias)?);
+            terms.push(term_series(t, &cs, &mut powers, dofs, weak, debias)?);
         }
     }
     let lhs = if weak {
@@ -227,24 +282,25 @@ pub(crate) fn decimated_series(
 }
 
 /// One library term as it enters the transform (weak: `G'` terms by derivative transfer; single
-/// displacement powers noise-debiased when asked), from columns `cs` and reconstructions `smooth`.
+/// displacement powers noise-debiased when asked), from columns `cs` and the Hermite powers of
+/// the reconstructions `powers` (shared by the terms of one series).
 fn term_series(
     t: &Term,
     cs: &ColumnSet<'_>,
-    smooth: &[Smoothed],
+    powers: &mut DofPowers<'_>,
     dofs: &[String],
     weak: bool,
     debias: bool,
 ) -> Result<Series> {
     // A single power of one DOF's displacement, evaluated without the noise bias.
-    let debiased = |t: &Term| -> Option<Vec<f64>> {
+    let mut debiased = |t: &Term| -> Option<Vec<f64>> {
         if !debias {
             return None;
         }
         match t.factors() {
             [Factor::Pow(Var::Disp(d), k)] => {
                 let i = dofs.iter().position(|n| n == d)?;
-                Some(hermite_power(&smooth[i].x, *k, smooth[i].band.noise_var))
+                Some(powers.power(i, *k))
             }
             _ => None,
         }
@@ -324,10 +380,11 @@ fn record_series_full(
         TransformForm::Weak | TransformForm::PlainSpectral => {
             let cs = smoothed_columns(p, dofs)?;
             let weak = form == TransformForm::Weak;
+            let mut powers = DofPowers::new(&p.smooth);
             let terms = lib
                 .terms()
                 .iter()
-                .map(|t| term_series(t, &cs, &p.smooth, dofs, weak, debias))
+                .map(|t| term_series(t, &cs, &mut powers, dofs, weak, debias))
                 .collect::<Result<Vec<_>>>()?;
             let lhs = if weak {
                 p.smooth[dof].x.clone()
@@ -444,6 +501,17 @@ mod tests {
                 let want = if k == 0 { 1.0 } else { b };
                 assert_eq!(g.to_bits(), want.to_bits(), "k = {k}");
             }
+        }
+        // Shared powers asked for in any order (ascending, repeated, descending, skipping) are
+        // the same bits as each made alone.
+        let mut shared = HermitePowers::new(&y, s2);
+        for k in [1u32, 2, 2, 5, 3, 0, 7, 8, 1, 6] {
+            let want: Vec<u64> = hermite_power(&y, k, s2)
+                .iter()
+                .map(|v| v.to_bits())
+                .collect();
+            let got: Vec<u64> = shared.power(k).iter().map(|v| v.to_bits()).collect();
+            assert_eq!(got, want, "k = {k}");
         }
         let h2 = hermite_power(&y, 2, s2);
         let h3 = hermite_power(&y, 3, s2);
