@@ -16,6 +16,7 @@ use serde::Serialize;
 use tfs_library::{Factor, Library, Var};
 use tfs_regress::{Compressed, lstsq_support};
 
+use std::sync::{Arc, Mutex};
 use tfs_signal::band::reconstruct_every;
 
 use crate::blocks::{InputBands, Prepared, td_step, td_stride, td_trim, time_domain};
@@ -302,6 +303,43 @@ fn sg_batch(taps: &SgPairs, dt: f64, fs: &[f64; LANES]) -> [[(f64, f64); 2]; LAN
     std::array::from_fn(|l| [(re1[l] / d1, im1[l] / d1), (re2[l] / d2, im2[l] / d2)])
 }
 
+/// The noise density of a band's floor at its bins `1..=mirror_len/2`
+/// ([`tfs_signal::Band::noise_psd`] at `k·bin_hz`, a logarithm and an exponential each), made
+/// once per band and step and shared: the block's shares and the band's read the same input
+/// bands, and a DOF's floor where its reconstruction at the best cut-off kept the same one. The
+/// values are the ones `noise_psd` gives there, so the sums are unchanged to the bit.
+#[derive(Default)]
+struct Densities(Mutex<Vec<(DensityKey, Arc<Vec<f64>>)>>);
+
+/// What a band's densities depend on: its floor (`ln A`, `β`), bin width and mirror length, and
+/// the sampling step (bits).
+type DensityKey = (u64, u64, u64, usize, u64);
+
+impl Densities {
+    /// The densities of `band` at step `dt` (made on first use).
+    fn of(&self, band: &tfs_signal::Band, dt: f64) -> Arc<Vec<f64>> {
+        let key = (
+            band.floor_log_a.to_bits(),
+            band.floor_beta.to_bits(),
+            band.bin_hz.to_bits(),
+            band.mirror_len,
+            dt.to_bits(),
+        );
+        // A poisoned lock still holds whole entries (each is pushed at once).
+        let lock = || self.0.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, d)) = lock().iter().find(|(k, _)| *k == key) {
+            return Arc::clone(d);
+        }
+        let d: Arc<Vec<f64>> = Arc::new(
+            (1..=band.mirror_len / 2)
+                .map(|k| band.noise_psd(k as f64 * band.bin_hz, dt))
+                .collect(),
+        );
+        lock().push((key, Arc::clone(&d)));
+        d
+    }
+}
+
 /// A channel's gains or their variances, per derivative order: (order, value).
 type Gains<'a> = &'a [(usize, f64)];
 
@@ -313,7 +351,7 @@ type Gains<'a> = &'a [(usize, f64)];
 /// enters `x''` and the library's columns coherently, through gains that vary along the
 /// records (`tfs_signal::estimate::residual_noise_var` combines them the same way).
 fn channel_noise_var(
-    band: &tfs_signal::Band,
+    (band, densities): (&tfs_signal::Band, &Densities),
     dt: f64,
     (own, dof): (bool, bool),
     (terms, spread): (Gains<'_>, Gains<'_>),
@@ -325,8 +363,13 @@ fn channel_noise_var(
     let cutoff = band.cutoff_hz;
     let bins = band.mirror_len / 2;
     let freq = |k: usize| k as f64 * band.bin_hz;
-    // A flat floor has one density at every frequency (`β = 0` adds exactly zero to its log).
+    // A flat floor has one density at every frequency (`β = 0` adds exactly zero to its log);
+    // another floor's densities are made once per band (see [`Densities`]).
     let flat = (band.floor_beta == 0.0).then(|| band.noise_psd(band.bin_hz, dt));
+    let psd = match flat {
+        Some(_) => None,
+        None => Some(densities.of(band, dt)),
+    };
     // The Savitzky–Golay responses of every bin, where a derivative reaches this channel (not
     // for an input's own column, which only the samples' response reaches).
     let derivatives = own
@@ -363,7 +406,7 @@ fn channel_noise_var(
                     power += v * (r * r + i * i);
                 }
             }
-            flat.unwrap_or_else(|| band.noise_psd(f, dt)) * power
+            flat.unwrap_or_else(|| psd.as_ref().map_or(0.0, |d| d[k - 1])) * power
         })
         .sum::<f64>()
         * 2.0
@@ -403,14 +446,14 @@ fn local_gains(
 /// as a share of `x''`'s RMS, and the share the records' estimated noise would leave through the
 /// blocks' `filters`: each displacement's noise through the fit's local gains in it along the
 /// records (`gain_states`, full-length reconstructions of the same records; see
-/// [`local_gains`]), each input's through the fit's linear terms in it. Also says whether every
-/// floor was fitted on noise alone.
+/// [`local_gains`]), each input's through the fit's linear terms in it, the floors' densities
+/// read from `densities`. Also says whether every floor was fitted on noise alone.
 fn shares(
     td: &[(Mat<f64>, Vec<f64>)],
     nonconst: &[usize],
     (preps, gain_states): (&[Prepared<'_>], &[Prepared<'_>]),
     (dofs, d, lib): (&[String], usize, &Library),
-    filters: Filters<'_>,
+    (filters, densities): (Filters<'_>, &Densities),
 ) -> Result<(f64, f64, bool)> {
     let comps = td
         .par_iter()
@@ -484,8 +527,13 @@ fn shares(
                     },
                 };
                 noise_only &= band.floor_is_noise_only();
-                var +=
-                    channel_noise_var(&band, dt, (own, dof.is_some()), (&terms, &spread), filters);
+                var += channel_noise_var(
+                    (&band, densities),
+                    dt,
+                    (own, dof.is_some()),
+                    (&terms, &spread),
+                    filters,
+                );
             }
             (var, noise_only)
         })
@@ -559,6 +607,7 @@ pub(crate) fn low_kappa_cause(
     let (h, order) = sg;
     let w1 = tfs_signal::savitzky_golay_weights(h, order, 1, h)?;
     let w2 = tfs_signal::savitzky_golay_weights(h, order, 2, h)?;
+    let densities = Densities::default();
     // Criterion 1's own block, and the records reconstructed at the cut-off that best
     // reconstructs each DOF (no guard band): where the least noise is let in for the signal kept.
     // Independent, so both at once; the reconstructions read the spectra each DOF's own band
@@ -570,7 +619,7 @@ pub(crate) fn low_kappa_cause(
                 nonconst,
                 (preps, preps),
                 (dofs, d, lib),
-                Filters::SavitzkyGolay([&w1, &w2]),
+                (Filters::SavitzkyGolay([&w1, &w2]), &densities),
             )
         },
         || -> Vec<Prepared<'_>> {
@@ -622,7 +671,7 @@ pub(crate) fn low_kappa_cause(
         nonconst,
         (&plain, preps),
         (dofs, d, lib),
-        Filters::Spectral,
+        (Filters::Spectral, &densities),
     )?;
     let band_hz = plain
         .iter()
