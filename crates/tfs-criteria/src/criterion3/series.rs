@@ -24,19 +24,20 @@ pub enum TransformForm {
     PlainSavitzkyGolay,
 }
 
-/// Unbiased powers under Gaussian noise: with `y = x + e`, `e ~ N(0, s2)`, the scaled Hermite
-/// polynomial `m_k(y) = s^k He_k(y/s)` satisfies `E[m_k(y)] = x^k` (recursion
-/// `m_{k+1} = y·m_k − k·s2·m_{k−1}`, `m_0 = 1`, `m_1 = y`).
+/// One scaled Hermite power alone ([`HermitePowers`] asked for one degree), the reference the
+/// shared powers are tested against.
 #[cfg(test)]
 pub(crate) fn hermite_power(y: &[f64], k: u32, s2: f64) -> Vec<f64> {
     HermitePowers::new(y, s2).power(k)
 }
 
-/// The scaled Hermite powers of one signal ([`hermite_power`]) made in order of degree and
-/// shared: asking for `m_k` after `m_j` (`j ≤ k`) continues the recurrence from `m_j` instead of
-/// running it from `m_0` again, so a library's powers 1..7 cost seven passes over the signal, not
-/// twenty-eight. Each power is the same bits as [`hermite_power`] alone gives (the same operations
-/// in the same order).
+/// Unbiased powers under Gaussian noise: with `y = x + e`, `e ~ N(0, s2)`, the scaled Hermite
+/// polynomial `m_k(y) = s^k He_k(y/s)` satisfies `E[m_k(y)] = x^k` (recursion
+/// `m_{k+1} = y·m_k − k·s2·m_{k−1}`, `m_0 = 1`, `m_1 = y`). The powers of one signal are made in
+/// order of degree and shared: asking for `m_k` after `m_j` (`j ≤ k`) continues the recurrence
+/// from `m_j` instead of running it from `m_0` again, so a library's powers 1..7 cost six passes
+/// of the recurrence over the signal, not twenty-one. Each power is the same bits as the
+/// recurrence run alone from `m_0` gives (the same operations in the same order).
 pub(crate) struct HermitePowers<'y> {
     y: &'y [f64],
     s2: f64,
