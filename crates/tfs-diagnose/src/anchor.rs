@@ -449,24 +449,11 @@ pub(crate) fn rulers(
 }
 
 /// How well free runs with R-MSE `each` (one per record, infinite where the simulation failed)
-/// predict the records: (records failed, geometric mean R-MSE of the others). The geometric
-/// mean weighs a factor gained on any record alike; an arithmetic mean is decided by the one
-/// record whose free run departs most (a multi-stable record whose run settles in the other
-/// well scores R-MSE ≫ 1 under every fit), so the other records' gains and losses would not
-/// count.
+/// predict the records: (records failed, geometric mean R-MSE of the others,
+/// [`crate::refit::geometric_mean_r_mse`]).
 pub(crate) fn sim_key(each: &[f64]) -> (usize, f64) {
-    let ok: Vec<f64> = each
-        .iter()
-        .copied()
-        .filter(|v| v.is_finite() && *v > 0.0)
-        .collect();
     let failed = each.iter().filter(|v| !v.is_finite()).count();
-    let g = if ok.is_empty() {
-        f64::INFINITY
-    } else {
-        (ok.iter().map(|v| v.ln()).sum::<f64>() / ok.len() as f64).exp()
-    };
-    (failed, g)
+    (failed, crate::refit::geometric_mean_r_mse(each))
 }
 
 /// Whether key `a` ([`sim_key`]) is strictly better than `b`.

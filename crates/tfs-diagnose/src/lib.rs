@@ -85,8 +85,8 @@ pub use judge::{Judge, JudgeUse};
 pub use predict::PredictionScore;
 pub use prepare::DiagnoseOptions;
 pub use refit::{
-    LadderStep, SharedTerm, add_effect, add_effect_fit, add_effect_with, error_ladder, hold_start,
-    ladder_table, refit, refit_shared, score_records,
+    LadderStep, SharedTerm, add_effect, add_effect_fit, add_effect_with, error_ladder,
+    geometric_mean_r_mse, hold_start, ladder_table, refit, refit_shared, score_records,
 };
 pub use residual::{Localisation, localise};
 pub use restoring::{RestoringLoop, restoring_loop};

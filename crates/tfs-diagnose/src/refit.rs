@@ -480,6 +480,24 @@ fn try_scores_known(
     (ok, failed)
 }
 
+/// The geometric mean of per-record free-run R-MSEs `each`, over the finite positive ones
+/// (infinite when there is none): how well a model predicts a set of records. It weighs a
+/// factor gained or lost on any record alike; an arithmetic mean is decided by the one record
+/// whose free run departs most (a multi-stable record whose run settles in the other well scores
+/// R-MSE ≫ 1 under any fit), so the other records' gains and losses would not count.
+pub fn geometric_mean_r_mse(each: &[f64]) -> f64 {
+    let logs: Vec<f64> = each
+        .iter()
+        .filter(|v| v.is_finite() && **v > 0.0)
+        .map(|v| v.ln())
+        .collect();
+    if logs.is_empty() {
+        f64::INFINITY
+    } else {
+        (logs.iter().sum::<f64>() / logs.len() as f64).exp()
+    }
+}
+
 /// One rung of the error ladder.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct LadderStep {
@@ -489,6 +507,10 @@ pub struct LadderStep {
     pub added: Vec<String>,
     /// Mean R-MSE over the step's scored records (NaN when none were scored: see `failed`).
     pub mean_r_mse: f64,
+    /// Geometric-mean R-MSE over the step's scored records ([`geometric_mean_r_mse`]; NaN when
+    /// none were scored): what the ladder prints and what every "the records support it"
+    /// comparison of the steps reads.
+    pub geo_mean_r_mse: f64,
     /// R-MSE per record.
     pub r_mse: Vec<RecordScore>,
     /// Records whose simulation failed at this step (e.g. blow-up), with the reason.
@@ -516,6 +538,11 @@ pub fn error_ladder(model: &Model) -> Vec<LadderStep> {
             } else {
                 h.r_mse.iter().map(|s| s.r_mse).sum::<f64>() / h.r_mse.len() as f64
             },
+            geo_mean_r_mse: if h.r_mse.is_empty() {
+                f64::NAN
+            } else {
+                geometric_mean_r_mse(&h.r_mse.iter().map(|s| s.r_mse).collect::<Vec<_>>())
+            },
             r_mse: h.r_mse.clone(),
             failed: h.details["failed"]
                 .as_array()
@@ -527,23 +554,24 @@ pub fn error_ladder(model: &Model) -> Vec<LadderStep> {
         .collect()
 }
 
-/// The ladder as a plain-text table (step, added terms, mean R-MSE, factor versus the previous
-/// step). A step whose simulation failed on some record says so: its mean then covers the other
-/// records only, and no factor is given against or from it.
+/// The ladder as a plain-text table (step, added terms, geometric-mean R-MSE over the records,
+/// factor versus the previous step). A step whose simulation failed on some record says so: its
+/// mean then covers the other records only, and no factor is given against or from it.
 pub fn ladder_table(ladder: &[LadderStep]) -> String {
     let mut s = format!(
         "{:<28} {:>12} {:>9}  added\n",
-        "step", "mean R-MSE", "factor"
+        "step", "R-MSE (geo)", "factor"
     );
     let mut prev: Option<f64> = None;
     for st in ladder {
-        let comparable = !st.incomplete() && st.mean_r_mse.is_finite();
+        let g = st.geo_mean_r_mse;
+        let comparable = !st.incomplete() && g.is_finite();
         let factor = match prev {
-            Some(p) if comparable && st.mean_r_mse > 0.0 => format!("{:.2}x", p / st.mean_r_mse),
+            Some(p) if comparable && g > 0.0 => format!("{}x", tfs_library::sig4(p / g)),
             _ => "-".into(),
         };
-        let mean = if st.mean_r_mse.is_finite() {
-            format!("{:.4e}", st.mean_r_mse)
+        let mean = if g.is_finite() {
+            format!("{g:.4e}")
         } else {
             "failed".into()
         };
@@ -567,7 +595,7 @@ pub fn ladder_table(ladder: &[LadderStep]) -> String {
                 st.failed[0]
             ));
         }
-        prev = comparable.then_some(st.mean_r_mse);
+        prev = comparable.then_some(g);
     }
     s
 }

@@ -175,7 +175,7 @@ fn two_hidden_effects_are_found_one_per_round() {
     let ladder = error_ladder(&m2);
     println!("{}", ladder_table(&ladder));
     assert_eq!(ladder.len(), 3);
-    assert!(ladder[2].mean_r_mse < ladder[0].mean_r_mse / 3.0);
+    assert!(ladder[2].geo_mean_r_mse < ladder[0].geo_mean_r_mse / 3.0);
     // The history survives the JSON round trip.
     let back = tfs_library::Model::from_json_str(&m2.to_json_string().unwrap()).unwrap();
     assert_eq!(back.history.len(), 3);

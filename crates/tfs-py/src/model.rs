@@ -26,7 +26,7 @@ pub struct PyModel {
     /// What the call that made it reported beyond the model (refinement, ladder), as JSON.
     pub report: Value,
     /// `refit` only: what the error ladder says about the effects added, in one sentence,
-    /// and whether the mean R-MSE fell (`None`: a step failed to simulate some record).
+    /// and whether the geometric-mean R-MSE fell (`None`: a step failed to simulate some record).
     pub verdict: Option<tfs::report::LadderVerdict>,
 }
 
@@ -180,14 +180,14 @@ impl PyModel {
     }
 
     /// `refit` only: what the error ladder says about the effects added, in one sentence (the
-    /// mean R-MSE over the records before and after, or the records whose simulation failed);
+    /// geometric-mean R-MSE over the records before and after, or the records whose simulation failed);
     /// `None` for a model that `refit` did not make.
     #[getter]
     fn verdict(&self) -> Option<String> {
         self.verdict.as_ref().map(|v| v.sentence.clone())
     }
 
-    /// `refit` only: `True` when the mean R-MSE over the records fell from the start model to
+    /// `refit` only: `True` when the geometric-mean R-MSE over the records fell from the start model to
     /// the refitted one, `False` when it rose, `None` when a step failed to simulate a record
     /// (or the model was not made by `refit`).
     #[getter]
@@ -415,7 +415,7 @@ impl PyModel {
     /// `until_clean=N`, then runs the diagnosis loop (`refit --until-clean N`): each round adds
     /// what `tfs.diagnose` finds missing, until nothing significant remains. The new model's
     /// `report` holds the error `ladder`, its `warnings`, the loop's `rounds` and the `stops`
-    /// re-scanned; its `verdict` says in one sentence whether the mean R-MSE over the records
+    /// re-scanned; its `verdict` says in one sentence whether the geometric-mean R-MSE over the records
     /// fell (`improved`), and a rise is also warned at the calling line.
     #[pyo3(signature = (records, add=Vec::new(), *, until_clean=None, refine=false, validate=None, offsets="auto", clipped="error"))]
     #[allow(clippy::too_many_arguments)]

@@ -80,7 +80,7 @@ def test_compare_scores_short_horizon_pieces_when_asked(model):
 def test_refit_carries_its_verdict(undamped):
     better = undamped.refit(TRAIN, add=["linear-damping"])
     assert better.improved is True, better.verdict
-    assert "lowered the mean R-MSE" in better.verdict
+    assert "lowered the geometric-mean R-MSE" in better.verdict
     assert better.report["verdict"] == better.verdict
     assert undamped.verdict is None and undamped.improved is None
 
@@ -93,7 +93,7 @@ def test_a_refit_that_raises_the_error_warns_at_the_callers_line(model):
         worse = model.refit(TRAIN, add=["offset"])
     if worse.improved is not False:
         pytest.skip(f"the offset did not raise the error here: {worse.verdict}")
-    assert "raised the mean R-MSE" in worse.verdict
+    assert "raised the geometric-mean R-MSE" in worse.verdict
     raised = [w for w in caught if "worse" in str(w.message)]
     assert raised, [str(w.message) for w in caught]
     assert raised[0].filename == __file__ and raised[0].lineno == line

@@ -59,7 +59,7 @@ def test_the_loop_runs_from_python_as_the_cli_runs_it(cli, tmp_path):
     # One decision: what `diagnose` names is what the loop adds first.
     assert tfs.diagnose(m, TRAIN)["named"] == rounds[0]["added"]
     ladder = looped.report["ladder"]
-    assert ladder[-1]["mean_r_mse"] < ladder[0]["mean_r_mse"] / 5, ladder
+    assert ladder[-1]["geo_mean_r_mse"] < ladder[0]["geo_mean_r_mse"] / 5, ladder
     m.save(tmp_path / "m.json")
     out = tmp_path / "looped.json"
     c = run_json(

@@ -155,18 +155,19 @@ impl Placement {
     }
 }
 
-/// A model's free-run R-MSE on the records: how many records fail to simulate, the mean R-MSE
-/// over the others, and the score of each.
+/// A model's free-run R-MSE on the records: how many records fail to simulate, the mean and the
+/// geometric-mean R-MSE over the others, and the score of each.
 #[derive(Debug, Clone)]
 pub(crate) struct Scores {
     /// Each failed record with why (`record: error`).
     failed: Vec<String>,
     mean: f64,
+    geo: f64,
     each: Vec<RecordScore>,
 }
 
 impl Scores {
-    /// Fewer failed records first, then the lower mean ([`SimScore`]'s order).
+    /// Fewer failed records first, then the lower geometric mean ([`SimScore`]'s order).
     fn better_than(&self, other: &Scores) -> bool {
         self.summary().key() < other.summary().key()
     }
@@ -177,14 +178,15 @@ impl Scores {
             failed: self.failed.len(),
             records: self.failed.len() + self.each.len(),
             mean_r_mse: self.mean,
+            geo_mean_r_mse: self.geo,
         }
     }
 
     fn describe(&self, n: usize) -> String {
         match self.failed.len() {
-            0 => format!("{:.4e}", self.mean),
+            0 => format!("{:.4e}", self.geo),
             f if f == n => format!("a failed simulation on all {n} records"),
-            f => format!("{:.4e} with {f} of {n} records failing", self.mean),
+            f => format!("{:.4e} with {f} of {n} records failing", self.geo),
         }
     }
 }
@@ -215,7 +217,13 @@ pub(crate) fn score(model: &Model, records: &[Record]) -> Scores {
     } else {
         each.iter().map(|s| s.r_mse).sum::<f64>() / each.len() as f64
     };
-    Scores { failed, mean, each }
+    let geo = tfs_diagnose::geometric_mean_r_mse(&each.iter().map(|s| s.r_mse).collect::<Vec<_>>());
+    Scores {
+        failed,
+        mean,
+        geo,
+        each,
+    }
 }
 
 /// How the model is re-identified: the DOFs, each DOF's library (without the stop), the tie
@@ -447,7 +455,7 @@ pub fn rescan_stop(
     let kept = none_simulate || (!ours.each.is_empty() && ours.better_than(&theirs));
     let n = records.len();
     let why = format!(
-        "T-F-S{} with the stop {} at {} positions from the data's extreme ({extreme:.4}) to {:.4} in from it: of the {SHORTLIST} with the lowest held-out residual, c = {c} simulates the records best (σ = {sigma:.4}), stiffness {coef:.4e}; mean R-MSE {} against {} for the equation-error fit ({stop}), so {}",
+        "T-F-S{} with the stop {} at {} positions from the data's extreme ({extreme:.4}) to {:.4} in from it: of the {SHORTLIST} with the lowest held-out residual, c = {c} simulates the records best (σ = {sigma:.4}), stiffness {coef:.4e}; geometric-mean R-MSE {} against {} for the equation-error fit ({stop}), so {}",
         if tied { " (tied)" } else { "" },
         place.term(c),
         positions,

@@ -7,7 +7,7 @@
 //! 1. **Failures.** When the model fails to simulate some records (blows up, leaves the range, a
 //!    non-finite R-MSE), every candidate whose held-out equation error falls is added (as
 //!    `refit --add` adds it, a stop re-scanned by T-F-S) and simulated; the one that leaves the
-//!    fewest records failing (then the lowest mean R-MSE of the others, then the ranking's order)
+//!    fewest records failing (then the lowest geometric-mean R-MSE of the others, then the ranking's order)
 //!    is chosen ([`Reason::CuresFailures`]) if it leaves fewer failing than the model and than the
 //!    model's own terms refitted with nothing added (a failure the refit alone cures was the start
 //!    fit's, and any candidate would seem to cure it). A failed simulation of a measured record is
@@ -17,7 +17,7 @@
 //! 2. **Significant candidates.** Otherwise the significant candidates are added in the ranking's
 //!    order, and the first with which the records simulate no worse than without it
 //!    ([`Reason::Supported`]) is chosen; one with which they simulate worse (more records fail, or
-//!    as many and the mean R-MSE of the others rises: [`Reason::WorsensSimulation`]) or that
+//!    as many and the geometric-mean R-MSE of the others rises: [`Reason::WorsensSimulation`]) or that
 //!    cannot be added ([`Reason::CouldNotAdd`]) is passed over. Every significant candidate is
 //!    held to this, whichever judge ranked it: the question is the same for all (does the model
 //!    with it reproduce the records it is fitted on no worse?), and a candidate the ranking put
@@ -68,7 +68,7 @@ pub enum Reason {
     /// Significant by equation error, and the records simulate no worse with it.
     Supported,
     /// Significant by equation error, but the records simulate worse with it (more fail, or as
-    /// many and the mean R-MSE of the others rises): passed over.
+    /// many and the geometric-mean R-MSE of the others rises): passed over.
     WorsensSimulation,
     /// Its refit could not be made: passed over.
     CouldNotAdd,

@@ -21,7 +21,8 @@ use crate::contact::StopRescan;
 use crate::error::Result;
 
 /// How a model simulates the records: how many fail (blow up, leave the range, give a
-/// non-finite R-MSE), and the mean R-MSE of the others.
+/// non-finite R-MSE), and the geometric-mean R-MSE of the others (what is compared:
+/// [`tfs_diagnose::geometric_mean_r_mse`]) beside their arithmetic mean.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct SimScore {
     /// Records whose simulation failed.
@@ -30,37 +31,40 @@ pub struct SimScore {
     pub records: usize,
     /// Mean R-MSE over the records that simulate (infinite when none does).
     pub mean_r_mse: f64,
+    /// Geometric-mean R-MSE over the records that simulate (infinite when none does): the
+    /// score [`SimScore::key`] orders by and the sentences print.
+    pub geo_mean_r_mse: f64,
 }
 
 impl SimScore {
-    /// Fewer failures first, then the lower mean R-MSE.
+    /// Fewer failures first, then the lower geometric-mean R-MSE.
     pub(crate) fn key(&self) -> (usize, f64) {
         (
             self.failed,
-            if self.mean_r_mse.is_finite() {
-                self.mean_r_mse
+            if self.geo_mean_r_mse.is_finite() {
+                self.geo_mean_r_mse
             } else {
                 f64::INFINITY
             },
         )
     }
 
-    /// In words: `2 of 4 records fail` or `all 4 simulate (mean R-MSE …)` (`the record …`
-    /// when there is one).
+    /// In words: `2 of 4 records fail` or `all 4 simulate (geometric-mean R-MSE …)` (`the
+    /// record …` when there is one).
     pub fn describe(&self) -> String {
         match self.failed {
             0 if self.records == 1 => {
-                format!("the record simulates (R-MSE {:.4e})", self.mean_r_mse)
+                format!("the record simulates (R-MSE {:.4e})", self.geo_mean_r_mse)
             }
             1 if self.records == 1 => "the record fails to simulate".to_string(),
             0 => format!(
-                "all {} records simulate (mean R-MSE {:.4e})",
-                self.records, self.mean_r_mse
+                "all {} records simulate (geometric-mean R-MSE {:.4e})",
+                self.records, self.geo_mean_r_mse
             ),
             f if f == self.records => format!("all {f} records fail to simulate"),
             f => format!(
-                "{f} of {} records fail to simulate (mean R-MSE {:.4e} on the others)",
-                self.records, self.mean_r_mse
+                "{f} of {} records fail to simulate (geometric-mean R-MSE {:.4e} on the others)",
+                self.records, self.geo_mean_r_mse
             ),
         }
     }
@@ -100,6 +104,7 @@ impl SimScore {
             } else {
                 ok.iter().sum::<f64>() / ok.len() as f64
             },
+            geo_mean_r_mse: tfs_diagnose::geometric_mean_r_mse(ok),
         }
     }
 }

@@ -325,7 +325,8 @@ pub fn with_computed_inputs(model: &Model, records: &mut [Record]) -> Result<()>
 }
 
 /// What the error ladder says against the steps just taken: an added effect under which some
-/// record's simulation fails, or one that makes the mean R-MSE worse than the step before it
+/// record's simulation fails, or one that makes the geometric-mean R-MSE over the records
+/// ([`tfs_diagnose::geometric_mean_r_mse`]) worse than the step before it
 /// (the records do not support it; `tfs diagnose` tests that before anything is added).
 pub fn ladder_warnings(ladder: &[LadderStep]) -> Vec<String> {
     let mut out = Vec::new();
@@ -353,13 +354,13 @@ pub fn ladder_warnings(ladder: &[LadderStep]) -> Vec<String> {
                 after.failed[0]
             ));
         } else if !before.incomplete()
-            && before.mean_r_mse.is_finite()
-            && after.mean_r_mse > before.mean_r_mse
+            && before.geo_mean_r_mse.is_finite()
+            && after.geo_mean_r_mse > before.geo_mean_r_mse
         {
             out.push(format!(
-                "'{}' made the mean R-MSE worse ({:.4e} -> {:.4e}): the records do not support \
-                 it. `tfs diagnose` says which effects they do",
-                after.step, before.mean_r_mse, after.mean_r_mse
+                "'{}' made the geometric-mean R-MSE over the records worse ({:.4e} -> {:.4e}): \
+                 the records do not support it. `tfs diagnose` says which effects they do",
+                after.step, before.geo_mean_r_mse, after.geo_mean_r_mse
             ));
         }
     }
@@ -488,6 +489,11 @@ mod tests {
             } else {
                 scores.iter().sum::<f64>() / scores.len() as f64
             },
+            geo_mean_r_mse: if r_mse.is_empty() {
+                f64::NAN
+            } else {
+                tfs_diagnose::geometric_mean_r_mse(scores)
+            },
             r_mse,
             failed: failed.iter().map(|s| s.to_string()).collect(),
         }
@@ -502,7 +508,25 @@ mod tests {
         let worse = [step("start", &[0.01], &[]), step("add a", &[0.02], &[])];
         let w = ladder_warnings(&worse);
         assert_eq!(w.len(), 1);
-        assert!(w[0].contains("'add a' made the mean R-MSE worse"), "{w:?}");
+        assert!(
+            w[0].contains("'add a' made the geometric-mean R-MSE over the records worse"),
+            "{w:?}"
+        );
+        // A multi-stable record whose free run settles in the other well under either model
+        // (R-MSE ≫ 1) does not outvote the records the effect predicts far better: the
+        // arithmetic mean rises (1.5e1 against 4.0), the geometric mean falls 60x.
+        let lost_record = [
+            step("start", &[5.06, 5.22, 1.71], &[]),
+            step("add a", &[1.05e-2, 4.1e-4, 47.4], &[]),
+        ];
+        assert!(lost_record[1].mean_r_mse > lost_record[0].mean_r_mse);
+        assert!(ladder_warnings(&lost_record).is_empty());
+        // Worse on every record by the same factor is worse whatever the mean.
+        let all_worse = [
+            step("start", &[5.06, 5.22, 1.71], &[]),
+            step("add a", &[10.12, 10.44, 3.42], &[]),
+        ];
+        assert_eq!(ladder_warnings(&all_worse).len(), 1);
         // A stop's equation-error rung replaced by its T-F-S re-scan is not warned about; the
         // re-scan's rung is judged against the rung before the stop.
         let rescanned = [
@@ -519,7 +543,7 @@ mod tests {
         let w = ladder_warnings(&rescanned_worse);
         assert_eq!(w.len(), 1, "{w:?}");
         assert!(
-            w[0].contains("made the mean R-MSE worse (5.0000e-2"),
+            w[0].contains("made the geometric-mean R-MSE over the records worse (5.0000e-2"),
             "{w:?}"
         );
         let broke = [

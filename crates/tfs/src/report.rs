@@ -318,9 +318,10 @@ pub fn interval_notes(trace: &Trace, model: &Model) -> Vec<String> {
 /// What the error ladder of a refit says about the effects added, in one sentence.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LadderVerdict {
-    /// The sentence: the mean R-MSE over the records before and after, or which step failed.
+    /// The sentence: the geometric-mean R-MSE over the records before and after, or which step
+    /// failed.
     pub sentence: String,
-    /// True when the mean R-MSE fell from the first step to the last, false when it rose;
+    /// True when the geometric-mean R-MSE fell from the first step to the last, false when it rose;
     /// `None` when a step could not simulate every record (the means are not comparable).
     pub improved: Option<bool>,
 }
@@ -355,21 +356,21 @@ pub fn ladder_verdict(ladder: &[LadderStep]) -> LadderVerdict {
             improved: None,
         };
     }
-    if first.incomplete() || !first.mean_r_mse.is_finite() {
+    if first.incomplete() || !first.geo_mean_r_mse.is_finite() {
         return LadderVerdict {
             sentence: format!(
-                "after adding {added}, every record simulates (mean R-MSE {:.4e}; the start model failed on {} record(s))",
-                last.mean_r_mse,
+                "after adding {added}, every record simulates (geometric-mean R-MSE {:.4e}; the start model failed on {} record(s))",
+                last.geo_mean_r_mse,
                 first.failed.len()
             ),
             improved: Some(true),
         };
     }
-    let (a, b) = (first.mean_r_mse, last.mean_r_mse);
+    let (a, b) = (first.geo_mean_r_mse, last.geo_mean_r_mse);
     if b < a {
         LadderVerdict {
             sentence: format!(
-                "adding {added} lowered the mean R-MSE over the records from {a:.4e} to {b:.4e} ({}x)",
+                "adding {added} lowered the geometric-mean R-MSE over the records from {a:.4e} to {b:.4e} ({}x)",
                 tfs_library::sig4(a / b)
             ),
             improved: Some(true),
@@ -377,7 +378,7 @@ pub fn ladder_verdict(ladder: &[LadderStep]) -> LadderVerdict {
     } else {
         LadderVerdict {
             sentence: format!(
-                "adding {added} raised the mean R-MSE over the records from {a:.4e} to {b:.4e}: the records do not support it (`diagnose` names the effects they do)"
+                "adding {added} raised the geometric-mean R-MSE over the records from {a:.4e} to {b:.4e}: the records do not support it (`diagnose` names the effects they do)"
             ),
             improved: Some(false),
         }
@@ -423,6 +424,7 @@ mod tests {
             step: name.into(),
             added: vec!["x'".into()],
             mean_r_mse: mean,
+            geo_mean_r_mse: mean,
             r_mse: Vec::new(),
             failed: Vec::new(),
         };

@@ -159,7 +159,7 @@ fn compare_diagnose_and_refit_are_short_by_default() {
         &b,
     ]);
     assert!(lines(&r) <= 8, "{} lines:\n{r}", lines(&r));
-    assert!(r.contains("lowered the mean R-MSE"), "{r}");
+    assert!(r.contains("lowered the geometric-mean R-MSE"), "{r}");
 }
 
 /// The README's loop, run as written (its `/tmp/` files in a temporary folder, its globs

@@ -88,7 +88,7 @@ fn refit_add_stop_finds_the_truss_contact() {
             ladder
                 .iter()
                 .find(|s| s["step"] == name)
-                .and_then(|s| s["mean_r_mse"].as_f64())
+                .and_then(|s| s["geo_mean_r_mse"].as_f64())
                 .unwrap_or_else(|| panic!("seed {seed}: no rung '{name}' in {ladder:?}"))
         };
         assert!(

@@ -64,13 +64,13 @@ fn until_clean_adds_effects_until_none_is_significant() {
     let rounds = v["rounds"].as_array().unwrap();
     let added: Vec<&str> = rounds.iter().filter_map(|r| r["added"].as_str()).collect();
     assert!(!added.is_empty(), "no effect added: {rounds:?}");
-    // Each added effect lowers the mean R-MSE, and the loop ends because nothing is significant
+    // Each added effect lowers the geometric-mean R-MSE, and the loop ends because nothing is significant
     // (a round that adds nothing), not because it ran out of rounds.
     let ladder: Vec<f64> = v["ladder"]
         .as_array()
         .unwrap()
         .iter()
-        .map(|s| s["mean_r_mse"].as_f64().unwrap())
+        .map(|s| s["geo_mean_r_mse"].as_f64().unwrap())
         .collect();
     assert_eq!(ladder.len(), added.len() + 1, "{ladder:?}");
     assert!(

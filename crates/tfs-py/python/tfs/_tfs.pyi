@@ -65,10 +65,10 @@ class Model:
         """The inputs the equations use."""
     @property
     def verdict(self) -> str | None:
-        """``refit`` only: whether the mean R-MSE over the records fell, in one sentence."""
+        """``refit`` only: whether the geometric-mean R-MSE over the records fell, in one sentence."""
     @property
     def improved(self) -> bool | None:
-        """``refit`` only: True when the mean R-MSE fell, False when it rose."""
+        """``refit`` only: True when the geometric-mean R-MSE fell, False when it rose."""
     @property
     def method(self) -> str: ...
     @property

@@ -115,11 +115,11 @@ pub fn run(args: Args) -> Result<()> {
     }
     if let Some(dir) = &args.plots {
         let chart = tfs::plot::BarChart {
-            title: "Error ladder: mean R-MSE of the records after each step".into(),
+            title: "Error ladder: geometric-mean R-MSE of the records after each step".into(),
             x_label: "step".into(),
             y_label: "R-MSE (dimensionless, log scale)".into(),
             labels: ladder.iter().map(|s| s.step.clone()).collect(),
-            values: ladder.iter().map(|s| s.mean_r_mse).collect(),
+            values: ladder.iter().map(|s| s.geo_mean_r_mse).collect(),
             log_y: true,
             color: None,
         };

@@ -241,6 +241,7 @@ fn a_contact_is_outdone_only_by_a_rival_that_simulates_strictly_better() {
         failed,
         records: 2,
         mean_r_mse,
+        geo_mean_r_mse: mean_r_mse,
     };
     let chosen = |name: &str, s: SimScore| Chosen {
         effect: name.into(),

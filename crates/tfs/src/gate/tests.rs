@@ -13,10 +13,11 @@ fn s(failed: usize, mean: f64) -> SimScore {
         failed,
         records: 4,
         mean_r_mse: mean,
+        geo_mean_r_mse: mean,
     }
 }
 
-/// The candidate with the fewest failing records wins over one with a lower mean R-MSE on
+/// The candidate with the fewest failing records wins over one with a lower geometric-mean R-MSE on
 /// fewer records; among equals the first (the diagnosis's order) wins; one that leaves as
 /// many failing as the model without it is not chosen; candidates that could not be added
 /// are skipped.
@@ -41,7 +42,7 @@ fn the_candidate_that_makes_the_most_records_simulate_is_chosen() {
 }
 
 /// A candidate that makes a record fail which simulated before worsens the model whatever
-/// the others' R-MSE; so does one that raises the mean R-MSE with as many failing; one
+/// the others' R-MSE; so does one that raises the geometric-mean R-MSE with as many failing; one
 /// that makes a record simulate, or lowers the mean, does not.
 #[test]
 fn a_candidate_that_makes_a_record_fail_or_the_error_rise_worsens_the_model() {
@@ -110,6 +111,7 @@ fn the_score_is_described_in_words() {
         failed: 0,
         records: 1,
         mean_r_mse: 0.25,
+        geo_mean_r_mse: 0.25,
     };
     assert_eq!(one.describe(), "the record simulates (R-MSE 2.5000e-1)");
     let one = SimScore { failed: 1, ..one };
@@ -119,4 +121,20 @@ fn the_score_is_described_in_words() {
         two.starts_with("2 of 4 records fail") && two.contains("5.0000e-1"),
         "{two}"
     );
+}
+
+/// A candidate that predicts two multi-stable records hundreds of times better and loses a
+/// third one further than the model without it does not worsen the model: every record's factor
+/// counts alike (the geometric mean falls about 60x), where the arithmetic mean (4.0 → 15.8) would
+/// be decided by the record whose run settles in the other well either way.
+#[test]
+fn one_lost_record_does_not_outvote_the_others() {
+    let before = SimScore::from_parts(3, &[5.06, 5.22, 1.71]);
+    let after = SimScore::from_parts(3, &[1.05e-2, 4.1e-4, 47.4]);
+    assert!(after.mean_r_mse > before.mean_r_mse);
+    assert!(!worsens(&before, &after));
+    assert!(after.describe().contains("geometric-mean R-MSE"));
+    // The same factor lost on every record worsens it.
+    let doubled = SimScore::from_parts(3, &[10.12, 10.44, 3.42]);
+    assert!(worsens(&before, &doubled));
 }
