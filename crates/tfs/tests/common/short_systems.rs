@@ -235,13 +235,25 @@ pub struct Tally {
     pub zero_no_interval: usize,
     /// Zero terms offered (kept or not).
     pub zero_offered: usize,
+    /// True terms kept within [`TOLERANCE`] of their value (relative).
+    pub true_within: usize,
+    /// Zero terms kept whose interval excludes zero, or that have none (spurious terms).
+    pub spurious: usize,
+    /// Records, and those with every true term kept within [`TOLERANCE`] and no spurious term.
+    pub records: usize,
+    pub records_right: usize,
 }
+
+/// The relative error within which a kept true term counts as right.
+pub const TOLERANCE: f64 = 0.05;
 
 impl Tally {
     /// Adds the terms of `model` against `truth` (every library term, zero where not in the law;
     /// a constant term, when the fit adds one, counts as a zero term).
     pub fn add(&mut self, truth: &[(String, f64)], model: &Model) {
         let eq = model.equation("x").unwrap();
+        let before = (self.true_within, self.spurious);
+        self.records += 1;
         for (name, c) in truth {
             let kept = eq.terms.iter().find(|t| t.term.to_string() == *name);
             if *c == 0.0 {
@@ -250,31 +262,44 @@ impl Tally {
             match (kept, *c == 0.0) {
                 (None, false) => self.true_dropped += 1,
                 (None, true) => {}
-                (Some(t), zero) => match t.interval {
-                    None if zero => self.zero_no_interval += 1,
-                    None => self.true_no_interval += 1,
-                    Some([lo, hi]) => {
-                        let covered = usize::from(lo <= *c && *c <= hi);
-                        if zero {
-                            self.zero_with_interval += 1;
-                            self.zero_covered += covered;
-                        } else {
-                            self.true_with_interval += 1;
-                            self.true_covered += covered;
-                        }
+                (Some(t), zero) => {
+                    if !zero && ((t.coef - c) / c).abs() <= TOLERANCE {
+                        self.true_within += 1;
                     }
-                },
+                    self.add_interval(t.interval, *c, zero);
+                }
             }
         }
         for t in &eq.terms {
             if t.term.is_constant() {
                 self.zero_offered += 1;
-                match t.interval {
-                    None => self.zero_no_interval += 1,
-                    Some([lo, hi]) => {
-                        self.zero_with_interval += 1;
-                        self.zero_covered += usize::from(lo <= 0.0 && 0.0 <= hi);
-                    }
+                self.add_interval(t.interval, 0.0, true);
+            }
+        }
+        let n_true = truth.iter().filter(|(_, c)| *c != 0.0).count();
+        if self.true_within - before.0 == n_true && self.spurious == before.1 {
+            self.records_right += 1;
+        }
+    }
+
+    /// Adds one kept term's interval `iv` against its true value `c` (`zero`: a term not in the
+    /// law, spurious when its interval excludes zero or it has none).
+    fn add_interval(&mut self, iv: Option<[f64; 2]>, c: f64, zero: bool) {
+        match iv {
+            None if zero => {
+                self.zero_no_interval += 1;
+                self.spurious += 1;
+            }
+            None => self.true_no_interval += 1,
+            Some([lo, hi]) => {
+                let covered = usize::from(lo <= c && c <= hi);
+                if zero {
+                    self.zero_with_interval += 1;
+                    self.zero_covered += covered;
+                    self.spurious += 1 - covered;
+                } else {
+                    self.true_with_interval += 1;
+                    self.true_covered += covered;
                 }
             }
         }
@@ -283,6 +308,7 @@ impl Tally {
     /// Adds an identification that kept nothing (`tfs identify` refuses to write `x'' = 0`):
     /// every true term dropped, no zero term claimed.
     pub fn add_nothing(&mut self, truth: &[(String, f64)]) {
+        self.records += 1;
         for (_, c) in truth {
             if *c == 0.0 {
                 self.zero_offered += 1;
@@ -302,6 +328,10 @@ impl Tally {
         self.zero_covered += o.zero_covered;
         self.zero_no_interval += o.zero_no_interval;
         self.zero_offered += o.zero_offered;
+        self.true_within += o.true_within;
+        self.spurious += o.spurious;
+        self.records += o.records;
+        self.records_right += o.records_right;
         self
     }
 }
