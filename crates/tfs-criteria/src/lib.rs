@@ -62,6 +62,7 @@ mod fit;
 mod options;
 mod pipeline;
 mod prepared;
+mod swap;
 mod tied;
 mod trace;
 mod uncertainty;

@@ -26,10 +26,11 @@ use crate::elimination::{FirstPass, Shared};
 use crate::error::Result;
 use crate::fit::{
     FinalFit, Reselected, Selection, Setting, best_eligible, constant_position, eiv_why,
-    fill_constant, final_fit, fit_select, reselect_for_support,
+    fill_constant, final_fit, reselect_for_support,
 };
 use crate::options::{Checked, IdentifySpec};
 use crate::prepared::Preparation;
+use crate::swap::fit_select_swapped;
 use crate::trace::{
     AssemblyStep, AssemblyVerdict, ChosenSettings, Criterion4Outcome, DofTrace, Identified, Method,
     Trace,
@@ -282,7 +283,16 @@ fn search(ctx: &DofContext<'_>, reg: &Regression) -> Result<Search> {
         &ctx.data.td,
         &reg.td_keep,
         reg.const_j,
-        &|train, held| Ok(fit_select(train, held, opt.fit.threshold, opt.fit.n_thresholds)?.0),
+        &|train, held| {
+            Ok(fit_select_swapped(
+                train,
+                held,
+                opt.fit.threshold,
+                opt.fit.n_thresholds,
+                reg.const_j,
+            )?
+            .0)
+        },
     )?;
     let clusters = cluster_counts(&ctx.grid, &transforms, opt);
     Ok(Search {
@@ -635,11 +645,12 @@ fn criterion4_stage(ctx: &DofContext<'_>, reg: &Regression, cb: &[BlockRows]) ->
     let hak = columns_of(ha, &reg.td_keep);
     // Step k: the model from the first k records, scored on the held-out one.
     let step = |k: usize| -> StepResult<Selection> {
-        let (mut coef, thr) = fit_select(
+        let (mut coef, thr) = fit_select_swapped(
             &merged(&cb[..k])?,
             &cb[hold].rows,
             opt.fit.threshold,
             opt.fit.n_thresholds,
+            reg.const_j,
         )?;
         if let Some(cj) = reg.const_j {
             fill_constant(&mut coef, cj, &ctx.data.td[..k], &reg.td_keep);

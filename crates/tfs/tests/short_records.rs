@@ -329,3 +329,52 @@ fn a_short_stiff_record_keeps_its_cubic() {
     }
     assert!(failures.is_empty(), "{failures:#?}");
 }
+
+#[path = "common/short_systems.rs"]
+mod short_systems;
+
+/// On a short record the damping `x'` and a velocity term of the library that is nearly collinear
+/// with it (`x^2*x'`, `x'*abs(x')`) are hard to tell apart, and STLSQ's thresholds drop whichever
+/// has the smaller scaled coefficient first: on some noise draws the path kept the stand-in and
+/// dropped `x'`, a support no threshold corrects. The swap step after the path scores the swap on
+/// the held-out rows. Over the family of `tests/common/short_systems.rs` with an `x'` term (five
+/// oscillators, six parameter draws, six noise draws at 30 dB: 180 records) a stand-in whose true
+/// value is zero replaced `x'` in 3 records without the step and in 1 with it.
+#[test]
+fn a_stand_in_rarely_replaces_the_damping_at_30_db() {
+    let mut replaced = Vec::new();
+    for kind in 0..short_systems::KINDS {
+        for seed in 1..=6 {
+            let sys = short_systems::draw(kind, seed);
+            if !sys.terms.iter().any(|(t, _)| *t == "x'") {
+                continue;
+            }
+            for ns in 1..=6 {
+                let rec = sys.record(30.0, 1000 * seed + ns);
+                let opts = IdentifyOptions {
+                    library: Some(sys.library.into()),
+                    ..IdentifyOptions::default()
+                };
+                let p = plan(&opts, rec.names(), rec.source()).unwrap();
+                let Ok(id) = identify(vec![rec], Vec::new(), &opts, &p) else {
+                    continue;
+                };
+                let kept: Vec<String> = id
+                    .model
+                    .equation("x")
+                    .unwrap()
+                    .terms
+                    .iter()
+                    .map(|t| t.term.to_string())
+                    .collect();
+                let has = |n: &str| kept.iter().any(|k| k == n);
+                // A stand-in is a velocity term kept whose true value is zero.
+                let stand_in = |n: &str| has(n) && !sys.terms.iter().any(|(t, _)| *t == n);
+                if !has("x'") && (stand_in("x^2*x'") || stand_in("x'*abs(x')")) {
+                    replaced.push(format!("{} seed {seed} noise {ns}: {kept:?}", sys.name));
+                }
+            }
+        }
+    }
+    assert!(replaced.len() <= 1, "{replaced:#?}");
+}
