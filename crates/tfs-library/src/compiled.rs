@@ -564,32 +564,7 @@ impl CompiledModel {
                 };
                 let mut prod = 1.0;
                 for (m, f) in fs.iter().enumerate() {
-                    let s = Self::value(f.src, x, v, u, n0);
-                    let (val, der) = match f.kind {
-                        Kind::Pow(0) => (1.0, 0.0),
-                        Kind::Pow(1) => (s, 1.0),
-                        Kind::Pow(k) => (pow_u(s, k), k as f64 * pow_u(s, k - 1)),
-                        Kind::Abs => (s.abs(), sign0(s)),
-                        Kind::Sign => (sign0(s), 0.0),
-                        Kind::Tanh(inv) => {
-                            let th = (s * inv).tanh();
-                            (th, inv * (1.0 - th * th))
-                        }
-                        Kind::Below(c) => {
-                            if s < c {
-                                (c - s, -1.0)
-                            } else {
-                                (0.0, 0.0)
-                            }
-                        }
-                        Kind::Above(c) => {
-                            if s > c {
-                                (s - c, 1.0)
-                            } else {
-                                (0.0, 0.0)
-                            }
-                        }
-                    };
+                    let (val, der) = factor_and_derivative(f.kind, Self::value(f.src, x, v, u, n0));
                     fv[m] = val;
                     fd[m] = der;
                     prod *= val;
@@ -650,6 +625,136 @@ impl CompiledModel {
         }
     }
 
+    /// The accelerations with the compiled coefficients, as [`CompiledModel::accel`] gives
+    /// them (the same value to rounding: a power `s^k` is taken as `s^(k−1)·s`, beside its
+    /// derivative `k·s^(k−1)`),
+    /// and their Jacobians over the `N = system_dofs()` coordinates, row-major:
+    /// `ax[i·N + k] = ∂a_i/∂x_k`, `av[i·N + k] = ∂a_i/∂v_k`, with the derivatives of
+    /// [`CompiledModel::eval_jacobian`] (internal states' rows included). For integrating a
+    /// run's sensitivities beside it, at every stage of every step: a term that is one power of
+    /// a coordinate takes its value and derivative without the general factor loop, and nothing
+    /// is kept of the regressors.
+    ///
+    /// # Panics
+    /// On slices shorter than the model needs (`N` coordinates and accelerations, `N²`
+    /// Jacobian entries): a programming error.
+    #[inline]
+    pub fn accel_jacobian(
+        &self,
+        x: &[f64],
+        v: &[f64],
+        u: &[f64],
+        out: &mut [f64],
+        ax: &mut [f64],
+        av: &mut [f64],
+    ) {
+        let n0 = self.dofs();
+        let n = self.system_dofs();
+        ax[..n * n].fill(0.0);
+        av[..n * n].fill(0.0);
+        let power = |s: f64, k: u32| match k {
+            0 => (1.0, 0.0),
+            1 => (s, 1.0),
+            _ => {
+                let below = pow_u(s, k - 1);
+                (below * s, k as f64 * below)
+            }
+        };
+        for (i, &(t0, t1)) in self.equations.iter().enumerate() {
+            let mut acc = 0.0;
+            for (&(coef, f0, f1), mono) in self.terms[t0..t1].iter().zip(&self.mono[t0..t1]) {
+                match *mono {
+                    Mono::X(k, p) => {
+                        let (val, der) = power(x[k], p);
+                        acc += coef * val;
+                        ax[i * n + k] += coef * der;
+                        continue;
+                    }
+                    Mono::V(k, p) => {
+                        let (val, der) = power(v[k], p);
+                        acc += coef * val;
+                        av[i * n + k] += coef * der;
+                        continue;
+                    }
+                    Mono::U(k, p) => {
+                        acc += coef * pow_u(u[k], p);
+                        continue;
+                    }
+                    Mono::Other => {}
+                }
+                // Each factor's value and derivative; a factor's partial is the coefficient
+                // times its derivative times the product of the others (before and after it).
+                let fs = &self.factors[f0..f1];
+                let mut vals = [0.0f64; 8];
+                let mut ders = [0.0f64; 8];
+                let mut big = Vec::new();
+                let (fv, fd): (&mut [f64], &mut [f64]) = if fs.len() <= 8 {
+                    (&mut vals[..fs.len()], &mut ders[..fs.len()])
+                } else {
+                    big.resize(2 * fs.len(), 0.0);
+                    big.split_at_mut(fs.len())
+                };
+                let mut p = coef;
+                for (m, f) in fs.iter().enumerate() {
+                    let (val, der) = factor_and_derivative(f.kind, Self::value(f.src, x, v, u, n0));
+                    fv[m] = val;
+                    fd[m] = der;
+                    p *= val;
+                }
+                acc += p;
+                for (m, f) in fs.iter().enumerate() {
+                    if fd[m] == 0.0 {
+                        continue;
+                    }
+                    let mut g = coef * fd[m];
+                    for (l, w) in fv.iter().enumerate() {
+                        if l != m {
+                            g *= w;
+                        }
+                    }
+                    match f.src {
+                        Src::X(k) => ax[i * n + k] += g,
+                        Src::V(k) => av[i * n + k] += g,
+                        Src::Z(k) => av[i * n + n0 + k] += g,
+                        Src::U(_) => {}
+                        Src::RelX(k, b) => {
+                            ax[i * n + k] += g;
+                            if let Base::X(l) = b {
+                                ax[i * n + l] -= g;
+                            }
+                        }
+                        Src::RelV(k, b) => {
+                            av[i * n + k] += g;
+                            if let Base::X(l) = b {
+                                av[i * n + l] -= g;
+                            }
+                        }
+                    }
+                }
+            }
+            out[i] = acc;
+        }
+        for (j, st) in self.states.iter().enumerate() {
+            let r = n0 + j;
+            let q = Self::value(st.drive, x, v, u, n0);
+            let z = v[r];
+            out[r] = st.law.rate(q, z);
+            let (dq, dz) = st.law.rate_jacobian(q, z);
+            av[r * n + r] += dz;
+            match st.drive {
+                Src::V(k) => av[r * n + k] += dq,
+                Src::RelV(k, b) => {
+                    av[r * n + k] += dq;
+                    if let Base::X(l) = b {
+                        av[r * n + l] -= dq;
+                    }
+                }
+                // A drive is a velocity coordinate (checked when the term was parsed).
+                _ => {}
+            }
+        }
+    }
+
     /// Checked form of [`CompiledModel::accel`]: errors on wrong slice lengths.
     pub fn try_accel(&self, x: &[f64], v: &[f64], u: &[f64], out: &mut [f64]) -> Result<()> {
         let n = self.system_dofs();
@@ -668,5 +773,37 @@ impl CompiledModel {
         }
         self.accel(x, v, u, out);
         Ok(())
+    }
+}
+
+/// A factor's value at `s` and its derivative there, as [`CompiledModel::eval_jacobian`] takes
+/// them (`|s|` has derivative `sign(s)`, `sign(s)` derivative 0, a stop's derivative is 0 off
+/// contact).
+#[inline(always)]
+fn factor_and_derivative(kind: Kind, s: f64) -> (f64, f64) {
+    match kind {
+        Kind::Pow(0) => (1.0, 0.0),
+        Kind::Pow(1) => (s, 1.0),
+        Kind::Pow(k) => (pow_u(s, k), k as f64 * pow_u(s, k - 1)),
+        Kind::Abs => (s.abs(), sign0(s)),
+        Kind::Sign => (sign0(s), 0.0),
+        Kind::Tanh(inv) => {
+            let th = (s * inv).tanh();
+            (th, inv * (1.0 - th * th))
+        }
+        Kind::Below(c) => {
+            if s < c {
+                (c - s, -1.0)
+            } else {
+                (0.0, 0.0)
+            }
+        }
+        Kind::Above(c) => {
+            if s > c {
+                (s - c, 1.0)
+            } else {
+                (0.0, 0.0)
+            }
+        }
     }
 }

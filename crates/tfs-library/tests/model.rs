@@ -3,8 +3,8 @@
 use proptest::prelude::*;
 use tfs_data::Record;
 use tfs_library::{
-    ColumnSet, Equation, HistoryEntry, Library, LibraryError, Model, ModelTerm, RecordScore,
-    StateLaw, Term,
+    ColumnSet, CompiledModel, Equation, HistoryEntry, Library, LibraryError, Model, ModelTerm,
+    RecordScore, StateLaw, Term,
 };
 
 fn record() -> Record {
@@ -327,6 +327,32 @@ fn model_new_orders_equations_and_checks_dofs() {
     assert!(Model::new(vec!["x1".into(), "x2".into(), "x3".into()], eqs, "t").is_err());
 }
 
+/// `accel_jacobian` (the compiled coefficients, no regressors) gives what `eval_jacobian`
+/// gives at the state `(x, v, u)`: the accelerations `a` and the Jacobians `ax`, `av`, to
+/// rounding (a power is taken as `s^(k−1)·s` there).
+fn same_as_accel_jacobian(
+    cm: &CompiledModel,
+    (x, v, u): (&[f64], &[f64], &[f64]),
+    a: &[f64],
+    ax: &[f64],
+    av: &[f64],
+) {
+    let n = cm.system_dofs();
+    let (mut a2, mut ax2, mut av2) = (vec![0.0; n], vec![0.0; n * n], vec![0.0; n * n]);
+    cm.accel_jacobian(x, v, u, &mut a2, &mut ax2, &mut av2);
+    let pairs = a2
+        .iter()
+        .zip(a)
+        .chain(ax2.iter().zip(ax))
+        .chain(av2.iter().zip(av));
+    for (k, (p, q)) in pairs.enumerate() {
+        assert!(
+            (p - q).abs() <= 1e-12 * (1.0 + q.abs()),
+            "entry {k}: {p} against {q}"
+        );
+    }
+}
+
 /// `eval_jacobian` agrees with `accel` (value), with the regressors times the coefficients, and
 /// with central differences of `accel` (Jacobians), on a chain with relative, abs and tanh terms.
 #[test]
@@ -361,6 +387,7 @@ fn compiled_jacobian_matches_central_differences() {
         vec![0.0; n * n],
     );
     cm.eval_jacobian(&coefs, &x, &v, &u, &mut a, &mut th, &mut ax, &mut av);
+    same_as_accel_jacobian(&cm, (&x, &v, &u), &a, &ax, &av);
     let mut a_ref = vec![0.0; n];
     cm.accel(&x, &v, &u, &mut a_ref);
     let mut a_lin = vec![0.0; n];
@@ -552,6 +579,7 @@ fn internal_states_round_trip_and_differentiate() {
         vec![0.0; nn * nn],
     );
     cm.eval_jacobian(&coefs, &x, &v, &u, &mut aj, &mut th, &mut ax, &mut av);
+    same_as_accel_jacobian(&cm, (&x, &v, &u), &aj, &ax, &av);
     for i in 0..nn {
         assert!((aj[i] - a[i]).abs() < 1e-12, "a[{i}]");
     }
