@@ -10,7 +10,7 @@
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
-use crate::{DynError, Integrator, Result, SampledInput, SecondOrderSystem};
+use crate::{DynError, Integrator, Result, SampledInput, SecondOrderSystem, Trajectory};
 
 /// How a simulation of a measured record chooses its initial state.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -156,11 +156,15 @@ pub fn fit_horizon(measured: &[&[f64]], periods: f64) -> usize {
 /// Fits the initial displacements and velocities of the first `measured.len()` DOFs of `sys` so
 /// that its simulation under `input` matches `measured` at the times `t` (one slice per DOF, each
 /// at least `t.len()` long): Levenberg–Marquardt on residuals scaled by each DOF's standard
-/// deviation, Jacobian by forward differences, Marquardt's damping ladder and NL2SOL's secant
-/// estimate of the Hessian's second-order part (the residuals of a wrong model are as large as
-/// the motion), starting from `(x0, v0)` (all DOFs; the others stay as given). It ends where a
-/// step's fall, actual or predicted, is below a share √ε (1.49e-8) of the cost. A start that blows
-/// up has cost `+∞` and is returned unchanged.
+/// deviation, Marquardt's damping ladder and NL2SOL's secant estimate of the Hessian's
+/// second-order part (the residuals of a wrong model are as large as the motion), starting from
+/// `(x0, v0)` (all DOFs; the others stay as given). When the system has the Jacobian of its
+/// acceleration ([`SecondOrderSystem::accel_jacobian`]), the residuals' Jacobian comes from the
+/// variational equation integrated along the samples of the run it is taken at (two
+/// evaluations of the acceleration's Jacobian per sample), so an iteration costs its trial runs
+/// and little more; otherwise by forward differences (two more whole runs per fitted DOF and
+/// iteration). It ends where a step's fall, actual or predicted, is below a share √ε (1.49e-8)
+/// of the cost. A start that blows up has cost `+∞` and is returned unchanged.
 ///
 /// Errors: `measured` longer than the system's DOFs, or a slice shorter than `t`; a run that
 /// exhausts the integrator's step budget ([`DynError::TooManySteps`]: the model is too stiff or
@@ -175,67 +179,156 @@ pub fn fit_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
     x0: &[f64],
     v0: &[f64],
 ) -> Result<InitialFit> {
-    let m = measured.len();
-    if m > sys.dofs() || x0.len() != sys.dofs() || v0.len() != sys.dofs() {
-        return Err(DynError::Dimension {
-            name: "measured",
-            got: m,
-            expected: sys.dofs(),
-            hint: "give at most one measured displacement per DOF and a full initial state",
-        });
-    }
-    if let Some(short) = measured.iter().find(|y| y.len() < t.len()) {
-        return Err(DynError::Dimension {
-            name: "measured",
-            got: short.len(),
-            expected: t.len(),
-            hint: "every measured displacement needs a sample at every fitted time",
-        });
-    }
-    // Scales: each DOF's standard deviation over the stretch (its mean magnitude if constant);
-    // velocities by the same over the stretch's duration.
-    let dur = (t.last().copied().unwrap_or(0.0) - t.first().copied().unwrap_or(0.0))
-        .max(f64::MIN_POSITIVE);
-    let sx: Vec<f64> = measured
-        .iter()
-        .map(|y| {
-            let y = &y[..t.len()];
-            let n = y.len() as f64;
-            let mean = y.iter().sum::<f64>() / n;
-            let sd = (y.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n).sqrt();
-            if sd > 0.0 && sd.is_finite() {
-                sd
-            } else {
-                mean.abs().max(1.0)
-            }
+    let fit = StartFit::new(sys, integrator, input, measured, t, x0, v0)?;
+    let derivatives = if fit.has_sensitivities() {
+        Derivatives::Sensitivities
+    } else {
+        Derivatives::Differences
+    };
+    fit.solve(derivatives)
+}
+
+/// How [`StartFit`] takes the Jacobian of its residuals.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Derivatives {
+    /// The variational equation along the run's own samples ([`StartFit::along`]).
+    Sensitivities,
+    /// Forward differences of whole runs ([`StartFit::differences`]).
+    Differences,
+}
+
+/// One start-state fit of [`fit_initial_state`]: the system, the stretch it is fitted on, and
+/// the scales of its unknowns (each fitted displacement by its DOF's standard deviation over the
+/// stretch, each velocity by the same over the stretch's duration).
+pub(crate) struct StartFit<'a, S: ?Sized, I> {
+    sys: &'a S,
+    integrator: &'a I,
+    input: &'a SampledInput,
+    measured: &'a [&'a [f64]],
+    t: &'a [f64],
+    x0: &'a [f64],
+    v0: &'a [f64],
+    sx: Vec<f64>,
+    sv: Vec<f64>,
+    /// A run that exhausted its step budget: the model cannot be simulated at this tolerance
+    /// (stiff or discontinuous), whatever its start, so the fit stops and returns that error at
+    /// once rather than spending a budget on every trial start.
+    over_budget: std::sync::Mutex<Option<DynError>>,
+}
+
+impl<'a, S: SecondOrderSystem + ?Sized, I: Integrator + Sync> StartFit<'a, S, I> {
+    /// Checks the dimensions and sets the scales.
+    pub(crate) fn new(
+        sys: &'a S,
+        integrator: &'a I,
+        input: &'a SampledInput,
+        measured: &'a [&'a [f64]],
+        t: &'a [f64],
+        x0: &'a [f64],
+        v0: &'a [f64],
+    ) -> Result<Self> {
+        let m = measured.len();
+        if m > sys.dofs() || x0.len() != sys.dofs() || v0.len() != sys.dofs() {
+            return Err(DynError::Dimension {
+                name: "measured",
+                got: m,
+                expected: sys.dofs(),
+                hint: "give at most one measured displacement per DOF and a full initial state",
+            });
+        }
+        if let Some(short) = measured.iter().find(|y| y.len() < t.len()) {
+            return Err(DynError::Dimension {
+                name: "measured",
+                got: short.len(),
+                expected: t.len(),
+                hint: "every measured displacement needs a sample at every fitted time",
+            });
+        }
+        // Scales: each DOF's standard deviation over the stretch (its mean magnitude if
+        // constant); velocities by the same over the stretch's duration.
+        let dur = (t.last().copied().unwrap_or(0.0) - t.first().copied().unwrap_or(0.0))
+            .max(f64::MIN_POSITIVE);
+        let sx: Vec<f64> = measured
+            .iter()
+            .map(|y| {
+                let y = &y[..t.len()];
+                let n = y.len() as f64;
+                let mean = y.iter().sum::<f64>() / n;
+                let sd = (y.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n).sqrt();
+                if sd > 0.0 && sd.is_finite() {
+                    sd
+                } else {
+                    mean.abs().max(1.0)
+                }
+            })
+            .collect();
+        let sv: Vec<f64> = sx.iter().map(|s| s * std::f64::consts::TAU / dur).collect();
+        Ok(Self {
+            sys,
+            integrator,
+            input,
+            measured,
+            t,
+            x0,
+            v0,
+            sx,
+            sv,
+            over_budget: std::sync::Mutex::new(None),
         })
-        .collect();
-    let sv: Vec<f64> = sx.iter().map(|s| s * std::f64::consts::TAU / dur).collect();
-    let to_state = |p: &[f64]| -> (Vec<f64>, Vec<f64>) {
-        let (mut x, mut v) = (x0.to_vec(), v0.to_vec());
+    }
+
+    /// Whether the system gives the Jacobian of its acceleration (asked at the given start).
+    pub(crate) fn has_sensitivities(&self) -> bool {
+        let n = self.sys.dofs();
+        if n == 0 || self.t.len() < 2 {
+            return false;
+        }
+        let mut u = vec![0.0; self.input.channels()];
+        self.input.eval(self.t[0], &mut u);
+        let (mut a, mut ax, mut av) = (vec![0.0; n], vec![0.0; n * n], vec![0.0; n * n]);
+        self.sys
+            .accel_jacobian(self.t[0], self.x0, self.v0, &u, &mut a, &mut ax, &mut av)
+    }
+
+    /// Fitted DOFs.
+    fn m(&self) -> usize {
+        self.measured.len()
+    }
+
+    /// The full initial state of the scaled unknowns `p`.
+    fn to_state(&self, p: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        let m = self.m();
+        let (mut x, mut v) = (self.x0.to_vec(), self.v0.to_vec());
         for i in 0..m {
-            x[i] = p[i] * sx[i];
-            v[i] = p[m + i] * sv[i];
+            x[i] = p[i] * self.sx[i];
+            v[i] = p[m + i] * self.sv[i];
         }
         (x, v)
-    };
-    // A run that exhausts its step budget says the model cannot be simulated at this tolerance
-    // (stiff or discontinuous), whatever its start: the fit stops and returns that error at
-    // once rather than spending a budget on every trial start.
-    let over_budget: std::sync::Mutex<Option<DynError>> = std::sync::Mutex::new(None);
-    // The scaled residuals of the run from `p`, or `None` when it fails or when its mean squared
-    // residual is sure to reach `bound` (a trial step's current cost; infinite for the runs that
-    // are always used whole): the sum of squares only grows, so a trial is given up at the
-    // first sample where one DOF's running sum reaches it, with the same accept/reject as the
-    // whole run would get (`cost_of`'s sum runs DOF by DOF, each from the one before, so it is
-    // at least any one DOF's running sum).
-    let nr = (m * t.len()).max(1) as f64;
-    let residuals = |p: &[f64], bound: f64| -> Option<Vec<f64>> {
-        match over_budget.lock() {
+    }
+
+    /// The scaled unknowns of the given start.
+    fn start(&self) -> Vec<f64> {
+        let m = self.m();
+        (0..m)
+            .map(|i| self.x0[i] / self.sx[i])
+            .chain((0..m).map(|i| self.v0[i] / self.sv[i]))
+            .collect()
+    }
+
+    /// The scaled residuals of the run from `p` and the run, or `None` when it fails or when
+    /// its mean squared residual is sure to reach `bound` (a trial step's current cost;
+    /// infinite for the runs that are always used whole): the sum of squares only grows, so a
+    /// trial is given up at the first sample where one DOF's running sum reaches it, with the
+    /// same accept/reject as the whole run would get (the cost's sum runs DOF by DOF, each from
+    /// the one before, so it is at least any one DOF's running sum).
+    pub(crate) fn run(&self, p: &[f64], bound: f64) -> Option<(Vec<f64>, Trajectory)> {
+        match self.over_budget.lock() {
             Ok(e) if e.is_none() => {}
             _ => return None,
         }
-        let (x, v) = to_state(p);
+        let (m, t, measured, sx) = (self.m(), self.t, self.measured, &self.sx);
+        let nr = (m * t.len()).max(1) as f64;
+        let (x, v) = self.to_state(p);
         let run = if bound.is_finite() {
             let mut sums = vec![0.0f64; m];
             let keep_going = |k: usize, x: &[f64]| {
@@ -248,15 +341,18 @@ pub fn fit_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
                 }
                 true
             };
-            integrator.integrate_until(sys, input, &x, &v, t, keep_going)
+            self.integrator
+                .integrate_until(self.sys, self.input, &x, &v, t, keep_going)
         } else {
-            integrator.integrate(sys, input, &x, &v, t).map(Some)
+            self.integrator
+                .integrate(self.sys, self.input, &x, &v, t)
+                .map(Some)
         };
         let tr = match run {
             Ok(Some(tr)) => tr,
             Ok(None) => return None,
             Err(e @ DynError::TooManySteps { .. }) => {
-                if let Ok(mut slot) = over_budget.lock() {
+                if let Ok(mut slot) = self.over_budget.lock() {
                     slot.get_or_insert(e);
                 }
                 return None;
@@ -269,49 +365,192 @@ pub fn fit_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
                 r.push((a - b) / sx[i]);
             }
         }
-        r.iter().all(|v| v.is_finite()).then_some(r)
-    };
-    let cost_of = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>() / r.len().max(1) as f64;
-    let p: Vec<f64> = (0..m)
-        .map(|i| x0[i] / sx[i])
-        .chain((0..m).map(|i| v0[i] / sv[i]))
-        .collect();
-    let over = |slot: std::sync::Mutex<Option<DynError>>| -> Result<()> {
-        match slot.into_inner() {
-            Ok(Some(e)) => Err(e),
-            _ => Ok(()),
+        r.iter().all(|v| v.is_finite()).then_some((r, tr))
+    }
+
+    /// The forward-difference Jacobian at `p` (residuals `r`): its columns' runs side by side
+    /// (a fit is otherwise the last, serial, piece of work while a core idles).
+    pub(crate) fn differences(&self, p: &[f64], r: &[f64]) -> Option<DMatrix<f64>> {
+        let np = p.len();
+        let columns: Vec<Option<(f64, Vec<f64>)>> = (0..np)
+            .into_par_iter()
+            .map(|j| {
+                let mut q = p.to_vec();
+                let h = STEP * p[j].abs().max(1.0);
+                q[j] += h;
+                self.run(&q, f64::INFINITY).map(|(rq, _)| (h, rq))
+            })
+            .collect();
+        let columns = columns.into_iter().collect::<Option<Vec<_>>>()?;
+        let mut jac = DMatrix::<f64>::zeros(r.len(), np);
+        for (j, (h, rq)) in columns.into_iter().enumerate() {
+            for (k, (a, b)) in rq.iter().zip(r).enumerate() {
+                jac[(k, j)] = (a - b) / h;
+            }
         }
-    };
-    let Some(r) = residuals(&p, f64::INFINITY) else {
-        over(over_budget)?;
-        return Ok(InitialFit {
-            x0: x0.to_vec(),
-            v0: v0.to_vec(),
-            cost_start: f64::INFINITY,
-            cost: f64::INFINITY,
-        });
-    };
-    let cost_start = cost_of(&r);
-    let (p, cost) = minimise(p, r, &residuals);
-    over(over_budget)?;
-    let (x, v) = to_state(&p);
-    Ok(InitialFit {
-        x0: x,
-        v0: v,
-        cost_start,
-        cost,
-    })
+        Some(jac)
+    }
+
+    /// The Jacobian of the residuals of the run `tr` (from the unknowns `p`) by the variational
+    /// equation along its own samples: the sensitivities `S = ∂(x, v)/∂p` start as the scales
+    /// of the unknowns in their coordinates and go from sample to sample by the classical
+    /// Runge–Kutta step of `S' = [[0, I], [A_x, A_v]]·S`, the acceleration's Jacobians
+    /// ([`SecondOrderSystem::accel_jacobian`]) taken at the run's samples and at the midpoint
+    /// state of the cubic through the two samples' states and accelerations (Hermite's: an
+    /// error of the fourth order in the sample interval). No run beyond the run itself: per
+    /// sample two evaluations of the Jacobians, where forward differences take two more whole
+    /// runs (each several evaluations of the acceleration per sample) per fitted DOF. `None`
+    /// when a sensitivity is not finite.
+    pub(crate) fn along(&self, tr: &Trajectory) -> Option<DMatrix<f64>> {
+        let (m, t) = (self.m(), self.t);
+        let n = self.sys.dofs();
+        let (len, q, n2) = (t.len(), 2 * m, 2 * n);
+        let mut jac = DMatrix::<f64>::zeros(m * len, q);
+        // S row-major, 2n rows (displacements, then velocities) by q columns.
+        let mut s = vec![0.0; n2 * q];
+        for i in 0..m {
+            s[i * q + i] = self.sx[i];
+            s[(n + i) * q + m + i] = self.sv[i];
+        }
+        let mut u = vec![0.0; self.input.channels()];
+        // The Jacobians at the interval's start, middle and end; the accelerations at its ends.
+        let mut jx = [vec![0.0; n * n], vec![0.0; n * n], vec![0.0; n * n]];
+        let mut jv = [vec![0.0; n * n], vec![0.0; n * n], vec![0.0; n * n]];
+        let (mut a0, mut a1, mut am) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        let (mut x, mut v) = (vec![0.0; n], vec![0.0; n]);
+        let state = |k: usize, x: &mut [f64], v: &mut [f64]| {
+            for d in 0..n {
+                x[d] = tr.x[d][k];
+                v[d] = tr.v[d][k];
+            }
+        };
+        state(0, &mut x, &mut v);
+        self.input.eval(t[0], &mut u);
+        let [jx0, jxm, jx1] = &mut jx;
+        let [jv0, jvm, jv1] = &mut jv;
+        if !self.sys.accel_jacobian(t[0], &x, &v, &u, &mut a0, jx0, jv0) {
+            return None;
+        }
+        // One stage of the linear system: `out = M(jx, jv)·(s + c·k)`.
+        let stage =
+            |jx: &[f64], jv: &[f64], base: &[f64], k: Option<(&[f64], f64)>, out: &mut [f64]| {
+                let at = |r: usize, c: usize| match k {
+                    Some((k, h)) => base[r * q + c] + h * k[r * q + c],
+                    None => base[r * q + c],
+                };
+                for c in 0..q {
+                    for i in 0..n {
+                        out[i * q + c] = at(n + i, c);
+                        let mut acc = 0.0;
+                        for d in 0..n {
+                            acc += jx[i * n + d] * at(d, c) + jv[i * n + d] * at(n + d, c);
+                        }
+                        out[(n + i) * q + c] = acc;
+                    }
+                }
+            };
+        let (mut k1, mut k2, mut k3, mut k4) = (
+            vec![0.0; n2 * q],
+            vec![0.0; n2 * q],
+            vec![0.0; n2 * q],
+            vec![0.0; n2 * q],
+        );
+        let (mut xm, mut vm) = (vec![0.0; n], vec![0.0; n]);
+        let (mut x1, mut v1) = (vec![0.0; n], vec![0.0; n]);
+        for k in 0..len {
+            for i in 0..m {
+                for c in 0..q {
+                    jac[(i * len + k, c)] = s[i * q + c] / self.sx[i];
+                }
+            }
+            if k + 1 == len {
+                break;
+            }
+            let h = t[k + 1] - t[k];
+            // The next sample's state, acceleration and Jacobians.
+            state(k + 1, &mut x1, &mut v1);
+            self.input.eval(t[k + 1], &mut u);
+            self.sys
+                .accel_jacobian(t[k + 1], &x1, &v1, &u, &mut a1, jx1, jv1);
+            // The midpoint of the cubic Hermite interpolant of the run between them.
+            for d in 0..n {
+                xm[d] = 0.5 * (x[d] + x1[d]) + h / 8.0 * (v[d] - v1[d]);
+                vm[d] = 0.5 * (v[d] + v1[d]) + h / 8.0 * (a0[d] - a1[d]);
+            }
+            let tm = t[k] + 0.5 * h;
+            self.input.eval(tm, &mut u);
+            self.sys.accel_jacobian(tm, &xm, &vm, &u, &mut am, jxm, jvm);
+            stage(jx0, jv0, &s, None, &mut k1);
+            stage(jxm, jvm, &s, Some((&k1, 0.5 * h)), &mut k2);
+            stage(jxm, jvm, &s, Some((&k2, 0.5 * h)), &mut k3);
+            stage(jx1, jv1, &s, Some((&k3, h)), &mut k4);
+            for (e, si) in s.iter_mut().enumerate() {
+                *si += h / 6.0 * (k1[e] + 2.0 * k2[e] + 2.0 * k3[e] + k4[e]);
+            }
+            std::mem::swap(jx0, jx1);
+            std::mem::swap(jv0, jv1);
+            std::mem::swap(&mut a0, &mut a1);
+            std::mem::swap(&mut x, &mut x1);
+            std::mem::swap(&mut v, &mut v1);
+        }
+        jac.iter().all(|v| v.is_finite()).then_some(jac)
+    }
+
+    /// The fit from the given start, its Jacobian taken as `derivatives` says.
+    pub(crate) fn solve(self, derivatives: Derivatives) -> Result<InitialFit> {
+        let p = self.start();
+        let over = |slot: std::sync::Mutex<Option<DynError>>| -> Result<()> {
+            match slot.into_inner() {
+                Ok(Some(e)) => Err(e),
+                _ => Ok(()),
+            }
+        };
+        let Some((r, tr)) = self.run(&p, f64::INFINITY) else {
+            over(self.over_budget)?;
+            return Ok(InitialFit {
+                x0: self.x0.to_vec(),
+                v0: self.v0.to_vec(),
+                cost_start: f64::INFINITY,
+                cost: f64::INFINITY,
+            });
+        };
+        let cost_start = r.iter().map(|v| v * v).sum::<f64>() / r.len().max(1) as f64;
+        let run = |q: &[f64], bound: f64| self.run(q, bound);
+        let (p, cost) = match derivatives {
+            Derivatives::Sensitivities => minimise(p, r, tr, &run, &|_, _, tr| self.along(tr)),
+            Derivatives::Differences => minimise(p, r, tr, &run, &|p, r, _| self.differences(p, r)),
+        };
+        let (x, v) = self.to_state(&p);
+        over(self.over_budget)?;
+        Ok(InitialFit {
+            x0: x,
+            v0: v,
+            cost_start,
+            cost,
+        })
+    }
 }
 
-/// Levenberg–Marquardt on the scaled unknowns `p` of [`fit_initial_state`], from the
-/// residuals `r` of `p`: `residuals(q, bound)` simulates from `q` (`None` when the run fails or
-/// its mean squared residual is sure to reach `bound`). Jacobians by forward differences,
-/// Marquardt's damping ladder (÷3 after an accepted step, ×4 after a rejected one) on the
-/// model Hessian of [`Secant`]; it ends where no step could remove [`END_FALL`] of the cost,
-/// or after 50 iterations. Returns the last point and its mean squared residual.
-fn minimise<R>(mut p: Vec<f64>, mut r: Vec<f64>, residuals: &R) -> (Vec<f64>, f64)
+/// Relative forward-difference step of [`StartFit::differences`] in the scaled unknowns.
+const STEP: f64 = 1e-6;
+
+/// Levenberg–Marquardt on the scaled unknowns `p` of [`fit_initial_state`], from the residuals
+/// `r` of `p` and the run `tr` they come from: `run(q, bound)` simulates from `q` (`None` when
+/// the run fails or its mean squared residual is sure to reach `bound`), `jacobian(p, r, tr)`
+/// gives the Jacobian at `p`. Marquardt's damping ladder (÷3 after an accepted step, ×4 after a
+/// rejected one) on the model Hessian of [`Secant`]; it ends where no step could remove
+/// [`END_FALL`] of the cost, or after 50 iterations. Returns the last point and its mean squared
+/// residual.
+fn minimise<R, J, T>(
+    mut p: Vec<f64>,
+    mut r: Vec<f64>,
+    mut tr: T,
+    run: &R,
+    jacobian: &J,
+) -> (Vec<f64>, f64)
 where
-    R: Fn(&[f64], f64) -> Option<Vec<f64>> + Sync,
+    R: Fn(&[f64], f64) -> Option<(Vec<f64>, T)>,
+    J: Fn(&[f64], &[f64], &T) -> Option<DMatrix<f64>>,
 {
     let nr = r.len().max(1) as f64;
     let cost_of = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>() / nr;
@@ -319,28 +558,10 @@ where
     let np = p.len();
     let mut mu = 1e-3;
     let mut secant = Secant::new(np);
-    const STEP: f64 = 1e-6;
     for _ in 0..50 {
-        // Forward-difference Jacobian in the scaled parameters: its columns' simulations side
-        // by side (a fit is otherwise the last, serial, piece of work while a core idles).
-        let columns: Vec<Option<(f64, Vec<f64>)>> = (0..np)
-            .into_par_iter()
-            .map(|j| {
-                let mut q = p.clone();
-                let h = STEP * p[j].abs().max(1.0);
-                q[j] += h;
-                residuals(&q, f64::INFINITY).map(|rq| (h, rq))
-            })
-            .collect();
-        let Some(columns) = columns.into_iter().collect::<Option<Vec<_>>>() else {
+        let Some(jac) = jacobian(&p, &r, &tr) else {
             break;
         };
-        let mut jac = DMatrix::<f64>::zeros(r.len(), np);
-        for (j, (h, rq)) in columns.into_iter().enumerate() {
-            for (k, (a, b)) in rq.iter().zip(&r).enumerate() {
-                jac[(k, j)] = (a - b) / h;
-            }
-        }
         let rv = DVector::from_column_slice(&r);
         let g = jac.transpose() * &rv;
         let jtj = jac.transpose() * &jac;
@@ -366,14 +587,15 @@ where
                 break;
             }
             let q: Vec<f64> = p.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
-            match residuals(&q, cost) {
-                Some(rq) if cost_of(&rq) < cost => {
+            match run(&q, cost) {
+                Some((rq, tq)) if cost_of(&rq) < cost => {
                     let c = cost_of(&rq);
                     mu = (mu / 3.0).max(1e-12);
                     secant.accepted(&p, jac, g, jtj, 0.5 * nr * (cost - c));
                     accepted = (cost - c) / cost.max(f64::MIN_POSITIVE) > END_FALL;
                     p = q;
                     r = rq;
+                    tr = tq;
                     cost = c;
                     break;
                 }

@@ -8,7 +8,7 @@ use crate::{
     rmse_variance,
 };
 use tfs_data::Record;
-use tfs_library::{CompiledModel, Model};
+use tfs_library::{CompiledModel, Factor, Model, StateLaw};
 
 impl SecondOrderSystem for CompiledModel {
     fn dofs(&self) -> usize {
@@ -26,6 +26,61 @@ impl SecondOrderSystem for CompiledModel {
     #[inline(always)]
     fn accel_lanes(&self, _t: f64, x: &[f64], v: &[f64], u: &[f64], a: &mut [f64]) {
         CompiledModel::accel_lanes(self, x, v, u, a)
+    }
+}
+
+/// A compiled model whose start-state fit takes its Jacobian from the variational equation
+/// along each run ([`SecondOrderSystem::accel_jacobian`], [`CompiledModel::accel_jacobian`])
+/// when the model is smooth ([`smooth`]); otherwise the fit takes differences of whole runs.
+struct Differentiable<'a> {
+    compiled: &'a CompiledModel,
+    smooth: bool,
+}
+
+/// Whether `model`'s accelerations have a continuous derivative in the state, so that the
+/// variational equation stepped from sample to sample gives its runs' sensitivities to the
+/// fit's precision: no `sign(·)` (a jump: Coulomb friction), `|·|`, `below`/`above` (a kink:
+/// a stop's contact, whose crossing between two samples the sampled Jacobians do not place)
+/// and no Bouc–Wen or Dahl state (whose rates have `|q'|`). Powers, `tanh` and Maxwell
+/// elements are smooth.
+fn smooth(model: &Model) -> bool {
+    model.equations.iter().flat_map(|e| &e.terms).all(|t| {
+        t.term.factors().iter().all(|f| match f {
+            Factor::Pow(..) | Factor::Tanh(..) => true,
+            Factor::State(_, law) => matches!(law, StateLaw::Maxwell { .. }),
+            Factor::Sign(_) | Factor::Abs(_) | Factor::Below(..) | Factor::Above(..) => false,
+        })
+    })
+}
+
+impl SecondOrderSystem for Differentiable<'_> {
+    fn dofs(&self) -> usize {
+        self.compiled.system_dofs()
+    }
+    fn internal_states(&self) -> usize {
+        self.compiled.states()
+    }
+    fn inputs(&self) -> usize {
+        self.compiled.inputs()
+    }
+    fn accel(&self, _t: f64, x: &[f64], v: &[f64], u: &[f64], a: &mut [f64]) {
+        self.compiled.accel(x, v, u, a)
+    }
+    fn accel_jacobian(
+        &self,
+        _t: f64,
+        x: &[f64],
+        v: &[f64],
+        u: &[f64],
+        a: &mut [f64],
+        ax: &mut [f64],
+        av: &mut [f64],
+    ) -> bool {
+        if !self.smooth {
+            return false;
+        }
+        self.compiled.accel_jacobian(x, v, u, a, ax, av);
+        true
     }
 }
 
@@ -156,6 +211,8 @@ struct Run<'r> {
     v0: Vec<f64>,
     measured: Vec<&'r [f64]>,
     key: Option<StartKey>,
+    /// Whether the model is smooth ([`smooth`]).
+    smooth: bool,
 }
 
 impl<'r> Run<'r> {
@@ -252,6 +309,7 @@ impl<'r> Run<'r> {
             v0,
             measured,
             key,
+            smooth: smooth(model),
         })
     }
 
@@ -295,9 +353,13 @@ impl<'r> Run<'r> {
         let start = match key.as_ref().and_then(memo::get) {
             Some(start) => start,
             None => {
+                let sys = Differentiable {
+                    compiled,
+                    smooth: self.smooth,
+                };
                 let start = choose_initial_state(
                     opts.initial_state,
-                    compiled,
+                    &sys,
                     &ranged,
                     input,
                     measured,
@@ -494,5 +556,218 @@ mod tests {
         let v = initial_velocity(&[1.0, 3.0], 0.5, 5).unwrap();
         assert!((v - 4.0).abs() < 1e-12);
         assert!(initial_velocity(&[1.0], 0.5, 5).is_err());
+    }
+
+    /// The models of [`sensitivities_are_the_runs_differences`] and
+    /// [`sensitivities_reach_the_differences_optimum`]: a forced Duffing oscillator, a Maxwell
+    /// element (an internal state) and a two-DOF chain with a relative cubic spring and smoothed
+    /// dry friction, each with the record it is fitted to (a displacement the model does not
+    /// quite reproduce, so the residuals are not small).
+    fn differentiable_cases() -> Vec<(&'static str, Model, Record)> {
+        let json = |dofs: &str, eqs: &str| {
+            Model::from_json_str(&format!(
+                r#"{{"format":"tfs-model/1","dofs":[{dofs}],"equations":[{eqs}]}}"#
+            ))
+            .unwrap()
+        };
+        let eq = |dof: &str, terms: &[(&str, f64)]| {
+            let terms: Vec<String> = terms
+                .iter()
+                .map(|(t, c)| format!(r#"{{"term":"{t}","coef":{c}}}"#))
+                .collect();
+            format!(r#"{{"dof":"{dof}","terms":[{}]}}"#, terms.join(","))
+        };
+        let dt = 0.05;
+        let t: Vec<f64> = (0..400).map(|k| k as f64 * dt).collect();
+        let u: Vec<f64> = t.iter().map(|t| 0.8 * (1.1 * t).sin()).collect();
+        let wave = |phase: f64| -> Vec<f64> {
+            t.iter()
+                .map(|t| 0.6 * (1.1 * t - phase).sin() + 0.05 * (3.7 * t).cos() + 0.1)
+                .collect()
+        };
+        let rec = |cols: Vec<(&str, Vec<f64>)>| {
+            let mut cols: Vec<(String, Vec<f64>)> =
+                cols.into_iter().map(|(n, c)| (n.to_string(), c)).collect();
+            cols.push(("u".into(), u.clone()));
+            Record::new("r", t.clone(), cols).unwrap()
+        };
+        let one = rec(vec![("x", wave(0.4))]);
+        vec![
+            (
+                "duffing",
+                json(
+                    r#""x""#,
+                    &eq("x", &[("x", -1.0), ("x^3", -0.5), ("x'", -0.2), ("u", 1.0)]),
+                ),
+                one.clone(),
+            ),
+            (
+                "maxwell",
+                json(
+                    r#""x""#,
+                    &eq(
+                        "x",
+                        &[
+                            ("x", -1.0),
+                            ("maxwell(x', 0.7)", -0.6),
+                            ("x'", -0.1),
+                            ("u", 1.0),
+                        ],
+                    ),
+                ),
+                one,
+            ),
+            (
+                "chain",
+                json(
+                    r#""x1","x2""#,
+                    &format!(
+                        "{},{}",
+                        eq(
+                            "x1",
+                            &[
+                                ("x1", -2.0),
+                                ("(x2-x1)^3", 0.7),
+                                ("tanh(x1'/0.3)", -0.3),
+                                ("u", 1.0)
+                            ]
+                        ),
+                        eq("x2", &[("(x2-x1)", -1.5), ("x2'", -0.15)])
+                    ),
+                ),
+                rec(vec![("x1", wave(0.4)), ("x2", wave(0.9))]),
+            ),
+        ]
+    }
+
+    /// The Jacobian of a run's residuals by the variational equation along its samples is the
+    /// one forward differences of whole runs give, on each of [`differentiable_cases`], at the
+    /// first-samples start and away from it, to the differences' own error: their step, 1e-6 of
+    /// the unknown, leaves a truncation error of about that share of the Jacobian (the runs are
+    /// at a tolerance of 1e-12 here, so their rounding adds little), and the sampled variational
+    /// equation's error is of the fourth order in the sample interval times the motion's
+    /// frequency (0.05 s at about 1 rad/s: a few parts in a million).
+    #[test]
+    fn sensitivities_are_the_runs_differences() {
+        use crate::initial::StartFit;
+        let integrator = Dopri5::with_tol(1e-12, 1e-14);
+        for (what, model, record) in differentiable_cases() {
+            let run = Run::new(&model, &record, &SimulateOptions::default(), false).unwrap();
+            let sys = Differentiable {
+                compiled: &run.compiled,
+                smooth: smooth(&model),
+            };
+            let t = &run.t_local[..120];
+            let fit = StartFit::new(
+                &sys,
+                &integrator,
+                &run.input,
+                &run.measured,
+                t,
+                &run.x0,
+                &run.v0,
+            )
+            .unwrap();
+            assert!(fit.has_sensitivities(), "{what}");
+            let m = run.measured.len();
+            for shift in [0.0, 0.3] {
+                let p: Vec<f64> = (0..2 * m).map(|j| shift * (j as f64 - 0.5)).collect();
+                let (r, tr) = fit.run(&p, f64::INFINITY).unwrap();
+                let jac = fit.along(&tr).unwrap();
+                let fd = fit.differences(&p, &r).unwrap();
+                let size = fd.amax();
+                let worst = (&jac - &fd).amax();
+                assert!(size > 0.1, "{what}: a Jacobian of size {size}");
+                assert!(worst < 1e-5 * size, "{what} at {shift}: {worst} of {size}");
+            }
+        }
+    }
+
+    /// A start-state fit whose Jacobian comes from the runs' sensitivities ends where the
+    /// fit by differences of runs ends, on each of [`differentiable_cases`] from a poor start,
+    /// at the default tolerance: the same cost to a few parts in a million (both end once an
+    /// iteration removes less than √ε of it), the same state to the fit's precision.
+    #[test]
+    fn sensitivities_reach_the_differences_optimum() {
+        use crate::initial::{Derivatives, StartFit};
+        let integrator = Dopri5::default();
+        for (what, model, record) in differentiable_cases() {
+            let run = Run::new(&model, &record, &SimulateOptions::default(), false).unwrap();
+            let sys = Differentiable {
+                compiled: &run.compiled,
+                smooth: smooth(&model),
+            };
+            let t = &run.t_local[..200];
+            let (mut x0, mut v0) = (run.x0.clone(), run.v0.clone());
+            x0[0] += 0.2;
+            v0[0] -= 0.3;
+            let fit = |how| {
+                StartFit::new(&sys, &integrator, &run.input, &run.measured, t, &x0, &v0)
+                    .unwrap()
+                    .solve(how)
+                    .unwrap()
+            };
+            let (sens, diff) = (
+                fit(Derivatives::Sensitivities),
+                fit(Derivatives::Differences),
+            );
+            assert!(sens.cost < sens.cost_start, "{what}: {sens:?}");
+            let rel = (sens.cost - diff.cost).abs() / diff.cost;
+            assert!(
+                rel < 1e-5,
+                "{what}: cost {} against {}",
+                sens.cost,
+                diff.cost
+            );
+            for (a, b) in sens
+                .x0
+                .iter()
+                .chain(&sens.v0)
+                .zip(diff.x0.iter().chain(&diff.v0))
+            {
+                assert!(
+                    (a - b).abs() < 1e-4 * (1.0 + b.abs()),
+                    "{what}: {a} against {b}"
+                );
+            }
+        }
+    }
+
+    /// A model with a `sign(·)` factor (a jump in its acceleration), a stop (a kink) or a
+    /// Bouc–Wen state (`|q'|` in its rate) has no Jacobian for the fit, which then takes
+    /// differences of runs; one of powers, `tanh` and a Maxwell element has.
+    #[test]
+    fn only_smooth_models_have_sensitivities() {
+        let model = |term: &str| {
+            Model::from_json_str(&format!(
+                r#"{{"format":"tfs-model/1","dofs":["x"],"equations":[{{"dof":"x","terms":[{{"term":"x","coef":-1.0}},{{"term":"{term}","coef":-0.1}}]}}]}}"#
+            ))
+            .unwrap()
+        };
+        for (term, want) in [
+            ("sign(x')", false),
+            ("below(x, -0.3)", false),
+            ("x'*abs(x')", false),
+            ("bouc_wen(x', 0.5, 0.5)", false),
+            ("x^3", true),
+            ("tanh(x'/0.2)", true),
+            ("maxwell(x', 0.5)", true),
+        ] {
+            let model = model(term);
+            assert_eq!(smooth(&model), want, "{term}");
+            let compiled = model.compile().unwrap();
+            let sys = Differentiable {
+                compiled: &compiled,
+                smooth: smooth(&model),
+            };
+            let n = compiled.system_dofs();
+            let (mut a, mut ax, mut av) = (vec![0.0; n], vec![0.0; n * n], vec![0.0; n * n]);
+            let (x, v) = (vec![0.1; n], vec![0.2; n]);
+            assert_eq!(
+                sys.accel_jacobian(0.0, &x, &v, &[], &mut a, &mut ax, &mut av),
+                want,
+                "{term}"
+            );
+        }
     }
 }

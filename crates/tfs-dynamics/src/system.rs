@@ -54,6 +54,28 @@ pub trait SecondOrderSystem: Sync {
     fn internal_states(&self) -> usize {
         0
     }
+
+    /// The accelerations `a` that [`SecondOrderSystem::accel`] gives (to rounding) and their
+    /// Jacobians over the system's `N = dofs()` coordinates, row-major: `ax[i * N + k] =
+    /// ∂a_i/∂x_k`, `av[i * N + k] = ∂a_i/∂v_k` (`ax`, `av` hold `N²` entries). Returns `false`,
+    /// writing nothing, when the system has no analytic derivative (the default): callers then
+    /// take differences of whole runs. A system returns `true` only where its acceleration is
+    /// continuous in the state (a kink such as a stop's contact or `|v|` is fine: the flow's
+    /// derivative is still the variational equation's solution; a jump such as `sign(v)` is
+    /// not, since crossing it moves the run by a step the derivative does not see).
+    #[allow(clippy::too_many_arguments)]
+    fn accel_jacobian(
+        &self,
+        _t: f64,
+        _x: &[f64],
+        _v: &[f64],
+        _u: &[f64],
+        _a: &mut [f64],
+        _ax: &mut [f64],
+        _av: &mut [f64],
+    ) -> bool {
+        false
+    }
 }
 
 /// A [`SecondOrderSystem`] built from a closure `f(t, x, v, u, a)`.
