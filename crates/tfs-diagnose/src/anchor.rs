@@ -450,10 +450,10 @@ pub(crate) fn rulers(
 
 /// How well free runs with R-MSE `each` (one per record, infinite where the simulation failed)
 /// predict the records: (records failed, geometric mean R-MSE of the others,
-/// [`crate::refit::geometric_mean_r_mse`]).
+/// [`crate::stats::geometric_mean_r_mse`]).
 pub(crate) fn sim_key(each: &[f64]) -> (usize, f64) {
     let failed = each.iter().filter(|v| !v.is_finite()).count();
-    (failed, crate::refit::geometric_mean_r_mse(each))
+    (failed, crate::stats::geometric_mean_r_mse(each))
 }
 
 /// Whether key `a` ([`sim_key`]) is strictly better than `b`.

@@ -85,14 +85,14 @@ pub use judge::{Judge, JudgeUse};
 pub use predict::PredictionScore;
 pub use prepare::DiagnoseOptions;
 pub use refit::{
-    LadderStep, SharedTerm, add_effect, add_effect_fit, add_effect_with, error_ladder,
-    geometric_mean_r_mse, hold_start, ladder_table, refit, refit_shared, score_records,
+    LadderStep, SharedTerm, add_effect, add_effect_fit, add_effect_with, error_ladder, hold_start,
+    ladder_table, refit, refit_shared, score_records,
 };
 pub use residual::{Localisation, localise};
 pub use restoring::{RestoringLoop, restoring_loop};
 pub use rules::{Rule, rules, rules_table};
 pub use simulate::{augment_record, r_mse, simulate};
-pub use stats::paired_p_value;
+pub use stats::{geometric_mean_r_mse, paired_p_value};
 
 use serde::Serialize;
 use tfs_data::Record;

@@ -480,24 +480,6 @@ fn try_scores_known(
     (ok, failed)
 }
 
-/// The geometric mean of per-record free-run R-MSEs `each`, over the finite positive ones
-/// (infinite when there is none): how well a model predicts a set of records. It weighs a
-/// factor gained or lost on any record alike; an arithmetic mean is decided by the one record
-/// whose free run departs most (a multi-stable record whose run settles in the other well scores
-/// R-MSE ≫ 1 under any fit), so the other records' gains and losses would not count.
-pub fn geometric_mean_r_mse(each: &[f64]) -> f64 {
-    let logs: Vec<f64> = each
-        .iter()
-        .filter(|v| v.is_finite() && **v > 0.0)
-        .map(|v| v.ln())
-        .collect();
-    if logs.is_empty() {
-        f64::INFINITY
-    } else {
-        (logs.iter().sum::<f64>() / logs.len() as f64).exp()
-    }
-}
-
 /// One rung of the error ladder.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct LadderStep {
@@ -507,7 +489,7 @@ pub struct LadderStep {
     pub added: Vec<String>,
     /// Mean R-MSE over the step's scored records (NaN when none were scored: see `failed`).
     pub mean_r_mse: f64,
-    /// Geometric-mean R-MSE over the step's scored records ([`geometric_mean_r_mse`]; NaN when
+    /// Geometric-mean R-MSE over the step's scored records ([`crate::stats::geometric_mean_r_mse`]; NaN when
     /// none were scored): what the ladder prints and what every "the records support it"
     /// comparison of the steps reads.
     pub geo_mean_r_mse: f64,
@@ -541,7 +523,9 @@ pub fn error_ladder(model: &Model) -> Vec<LadderStep> {
             geo_mean_r_mse: if h.r_mse.is_empty() {
                 f64::NAN
             } else {
-                geometric_mean_r_mse(&h.r_mse.iter().map(|s| s.r_mse).collect::<Vec<_>>())
+                crate::stats::geometric_mean_r_mse(
+                    &h.r_mse.iter().map(|s| s.r_mse).collect::<Vec<_>>(),
+                )
             },
             r_mse: h.r_mse.clone(),
             failed: h.details["failed"]

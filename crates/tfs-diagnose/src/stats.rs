@@ -187,6 +187,24 @@ pub(crate) fn first_lowest<V: Sync, T: Send, E: Send>(
     }))
 }
 
+/// The geometric mean of per-record free-run R-MSEs `each`, over the finite positive ones
+/// (infinite when there is none): how well a model predicts a set of records. It weighs a
+/// factor gained or lost on any record alike; an arithmetic mean is decided by the one record
+/// whose free run departs most (a multi-stable record whose run settles in the other well scores
+/// R-MSE ≫ 1 under any fit), so the other records' gains and losses would not count.
+pub fn geometric_mean_r_mse(each: &[f64]) -> f64 {
+    let logs: Vec<f64> = each
+        .iter()
+        .filter(|v| v.is_finite() && **v > 0.0)
+        .map(|v| v.ln())
+        .collect();
+    if logs.is_empty() {
+        f64::INFINITY
+    } else {
+        (logs.iter().sum::<f64>() / logs.len() as f64).exp()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
