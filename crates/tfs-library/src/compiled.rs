@@ -583,46 +583,11 @@ impl CompiledModel {
                         .map(|(_, w)| w)
                         .product();
                     let g = c * fd[m] * others;
-                    match f.src {
-                        Src::X(k) => ax[i * n + k] += g,
-                        Src::V(k) => av[i * n + k] += g,
-                        Src::Z(k) => av[i * n + n0 + k] += g,
-                        Src::U(_) => {}
-                        Src::RelX(k, b) => {
-                            ax[i * n + k] += g;
-                            if let Base::X(l) = b {
-                                ax[i * n + l] -= g;
-                            }
-                        }
-                        Src::RelV(k, b) => {
-                            av[i * n + k] += g;
-                            if let Base::X(l) = b {
-                                av[i * n + l] -= g;
-                            }
-                        }
-                    }
+                    add_derivative(f.src, g, (i, n, n0), ax, av);
                 }
             }
         }
-        for (j, st) in self.states.iter().enumerate() {
-            let r = n0 + j;
-            let q = Self::value(st.drive, x, v, u, n0);
-            let z = v[r];
-            a[r] = st.law.rate(q, z);
-            let (dq, dz) = st.law.rate_jacobian(q, z);
-            av[r * n + r] += dz;
-            match st.drive {
-                Src::V(k) => av[r * n + k] += dq,
-                Src::RelV(k, b) => {
-                    av[r * n + k] += dq;
-                    if let Base::X(l) = b {
-                        av[r * n + l] -= dq;
-                    }
-                }
-                // A drive is a velocity coordinate (checked when the term was parsed).
-                _ => {}
-            }
-        }
+        self.state_rows((x, v, u), a, av);
     }
 
     /// The accelerations with the compiled coefficients, as [`CompiledModel::accel`] gives
@@ -712,28 +677,20 @@ impl CompiledModel {
                             g *= w;
                         }
                     }
-                    match f.src {
-                        Src::X(k) => ax[i * n + k] += g,
-                        Src::V(k) => av[i * n + k] += g,
-                        Src::Z(k) => av[i * n + n0 + k] += g,
-                        Src::U(_) => {}
-                        Src::RelX(k, b) => {
-                            ax[i * n + k] += g;
-                            if let Base::X(l) = b {
-                                ax[i * n + l] -= g;
-                            }
-                        }
-                        Src::RelV(k, b) => {
-                            av[i * n + k] += g;
-                            if let Base::X(l) = b {
-                                av[i * n + l] -= g;
-                            }
-                        }
-                    }
+                    add_derivative(f.src, g, (i, n, n0), ax, av);
                 }
             }
             out[i] = acc;
         }
+        self.state_rows((x, v, u), out, av);
+    }
+
+    /// The internal states' rows of [`CompiledModel::eval_jacobian`] and
+    /// [`CompiledModel::accel_jacobian`]: each state's rate into `out` and its derivatives
+    /// over its own value and its drive's velocity into `av` (row-major, `N` columns).
+    fn state_rows(&self, (x, v, u): (&[f64], &[f64], &[f64]), out: &mut [f64], av: &mut [f64]) {
+        let n0 = self.dofs();
+        let n = self.system_dofs();
         for (j, st) in self.states.iter().enumerate() {
             let r = n0 + j;
             let q = Self::value(st.drive, x, v, u, n0);
@@ -773,6 +730,37 @@ impl CompiledModel {
         }
         self.accel(x, v, u, out);
         Ok(())
+    }
+}
+
+/// Adds `g`, the derivative of acceleration `i` through a factor read from `src`, to the
+/// Jacobians `ax` (over positions) and `av` (over velocities and internal states), row-major
+/// with `n` columns, `n0` the model's own DOFs; a relative coordinate's base gets `−g`.
+#[inline(always)]
+fn add_derivative(
+    src: Src,
+    g: f64,
+    (i, n, n0): (usize, usize, usize),
+    ax: &mut [f64],
+    av: &mut [f64],
+) {
+    match src {
+        Src::X(k) => ax[i * n + k] += g,
+        Src::V(k) => av[i * n + k] += g,
+        Src::Z(k) => av[i * n + n0 + k] += g,
+        Src::U(_) => {}
+        Src::RelX(k, b) => {
+            ax[i * n + k] += g;
+            if let Base::X(l) = b {
+                ax[i * n + l] -= g;
+            }
+        }
+        Src::RelV(k, b) => {
+            av[i * n + k] += g;
+            if let Base::X(l) = b {
+                av[i * n + l] -= g;
+            }
+        }
     }
 }
 
