@@ -489,9 +489,9 @@ pub struct LadderStep {
     pub added: Vec<String>,
     /// Mean R-MSE over the step's scored records (NaN when none were scored: see `failed`).
     pub mean_r_mse: f64,
-    /// Geometric-mean R-MSE over the step's scored records ([`crate::stats::geometric_mean_r_mse`]; NaN when
-    /// none were scored): what the ladder prints and what every "the records support it"
-    /// comparison of the steps reads.
+    /// Geometric-mean R-MSE over the step's scored records ([`crate::geometric_mean_r_mse`];
+    /// NaN when none were scored): what the ladder prints and what every "the records support
+    /// it" comparison of the steps reads.
     pub geo_mean_r_mse: f64,
     /// R-MSE per record.
     pub r_mse: Vec<RecordScore>,
