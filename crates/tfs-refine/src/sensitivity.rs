@@ -13,7 +13,7 @@ use rayon::prelude::*;
 use tfs_data::Record;
 use tfs_dynamics::{SimulateOptions, Trajectory, simulate_model_on_record};
 use tfs_library::Model;
-use tfs_signal::band::{noise_draw, reconstruct};
+use tfs_signal::band::{band_guarded, noise_draw_with};
 
 use crate::Result;
 
@@ -63,13 +63,14 @@ pub fn input_noise_spread_from(
     base: &Trajectory,
 ) -> Result<Option<Vec<f64>>> {
     let dt = record.dt();
-    // Each input's noise band, reconstructed once: the draws differ only in their seeds.
+    // Each input's noise band, found once (the band a reconstruction would use, without the
+    // reconstruction): the draws differ only in their seeds.
     let bands: Vec<Option<_>> = model
         .inputs
         .iter()
         .map(|name| {
             record.column(name).and_then(|col| {
-                let mut band = reconstruct(col, dt, None).band;
+                let mut band = band_guarded(col, dt, None, 0.0);
                 // The whole band: a draw of the noise the raw channel carries, not its in-band
                 // part.
                 band.floor_is_noise_only().then(|| {
@@ -89,7 +90,8 @@ pub fn input_noise_spread_from(
                 continue;
             };
             let seed = 0x5eed_0000 + 97 * ci as u64 + draw;
-            let Some(noise) = noise_draw(band, col.len(), seed) else {
+            // The draw's samples only: its derivatives are not used.
+            let Some(noise) = noise_draw_with(band, col.len(), seed, false) else {
                 continue;
             };
             let v: Vec<f64> = col.iter().zip(&noise.x).map(|(a, b)| a + b).collect();
@@ -160,7 +162,7 @@ pub fn displacement_noise_var(model: &Model, record: &Record) -> Vec<f64> {
         .iter()
         .map(|d| {
             record.column(d).map_or(0.0, |x| {
-                let band = reconstruct(x, record.dt(), None).band;
+                let band = band_guarded(x, record.dt(), None, 0.0);
                 if band.floor_is_noise_only() {
                     band.total_noise_var()
                 } else {
