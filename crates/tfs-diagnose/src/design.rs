@@ -449,6 +449,16 @@ mod tests {
         }
         assert_eq!(bits(&second, 4), bits(&anew, 4));
         assert_eq!(first.target(0), anew.target(0));
+        // Forgotten once the scan is over: the states hold no column, and a design made after
+        // makes them again, to the bit, without touching the designs that still hold theirs.
+        states[0].forget_designs();
+        assert_eq!(kept(&states[0]), "BandCache(0 columns, 0 targets)");
+        let after = design(&states, 0, &cols).unwrap();
+        assert_eq!(kept(&states[0]), "BandCache(4 columns, 1 targets)");
+        for j in 0..cols.len() {
+            assert!(!Arc::ptr_eq(&first.cols[0][j], &after.cols[0][j]));
+            assert_eq!(bits(&first, j), bits(&after, j), "column {j}");
+        }
         // A block is the rows of the design, to the bit.
         let blk = second.block(0, 7, 20);
         for j in 0..more.len() {

@@ -231,12 +231,12 @@ impl BandCache {
         }
     }
 
-    /// Forgets every column.
-    fn clear(&mut self) {
-        if let Ok(slots) = self.columns.get_mut() {
+    /// Forgets every column and target (their memory is freed once no design holds them).
+    fn clear(&self) {
+        if let Ok(mut slots) = self.columns.lock() {
             slots.clear();
         }
-        if let Ok(slots) = self.targets.get_mut() {
+        if let Ok(mut slots) = self.targets.lock() {
             slots.clear();
         }
     }
@@ -348,6 +348,13 @@ impl RecordStates {
             Some(slot) => slot.1 = values,
             None => self.cols.push((name, values)),
         }
+    }
+
+    /// Forgets the design columns and targets made so far ([`BandCache`]): for a stage after the
+    /// scan, which reads none of them again (a design made later makes its own, to the bit the
+    /// same), so that they do not outlive it; at 640,000 samples they are 5 MB a column.
+    pub(crate) fn forget_designs(&self) {
+        self.band_cache.clear();
     }
 
     /// Rows `lo..lo + n` of the smoothed acceleration of DOF `dof`, made once
