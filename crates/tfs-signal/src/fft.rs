@@ -149,7 +149,8 @@ fn long_plan<P: ?Sized>(
     made
 }
 
-/// The (cached) forward real FFT of length `n` (see [`Plans`] for what is kept).
+/// The (cached) forward real FFT of length `n`: plans of up to 65,536 points are kept for the
+/// process, longer ones within a budget of their estimated size, least recently used dropped first.
 pub fn plan_forward(n: usize) -> Arc<dyn RealToComplex<f64>> {
     if n <= KEEP_LEN {
         return plans().short.plan_fft_forward(n);
@@ -165,7 +166,7 @@ pub fn plan_forward(n: usize) -> Arc<dyn RealToComplex<f64>> {
     )
 }
 
-/// The (cached) inverse real FFT of length `n` (see [`Plans`] for what is kept).
+/// The (cached) inverse real FFT of length `n` (kept as [`plan_forward`] says).
 pub fn plan_inverse(n: usize) -> Arc<dyn ComplexToReal<f64>> {
     if n <= KEEP_LEN {
         return plans().short.plan_fft_inverse(n);
