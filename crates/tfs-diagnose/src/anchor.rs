@@ -158,8 +158,11 @@ pub(crate) struct Anchored {
     pub(crate) step: f64,
     /// Each anchor's R-MSE on each fit record (`null`: the simulation failed).
     pub(crate) scores: Vec<(String, Vec<f64>)>,
-    /// The kept model's R-MSE on each fit record (infinite where the simulation failed or
-    /// was not finite).
+    /// The kept model's R-MSE on each fit record by its own free run (infinite where the
+    /// simulation failed or was not finite, where the record was scored by pieces, and on every
+    /// record when the kept model is a refit: its runs here started warm from the start
+    /// model's fitted start, and the history reports the run a user of the model gets, whose
+    /// start is fitted cold).
     pub(crate) each: Vec<f64>,
 }
 
@@ -222,16 +225,14 @@ pub(crate) fn choose_anchor(
         }
     }
     let rulers = rulers(model, records, opts);
-    // Side by side; the choice is made in anchor order, as a serial loop would. The start
-    // model is scored under the same rulers: the kept fit is compared with it.
-    let (mut each, start) = rayon::join(
-        || {
-            fits.par_iter()
-                .map(|(_, m, _)| r_mse_each(m, records, &rulers, opts))
-                .collect::<Vec<Vec<f64>>>()
-        },
-        || r_mse_each(model, records, &rulers, opts),
-    );
+    // The start model is scored under the same rulers (the kept fit is compared with it), and
+    // first: its fitted starts warm the fits' runs ([`r_mse_each`]). Then the fits side by
+    // side; the choice is made in anchor order, as a serial loop would.
+    let start = r_mse_each(model, None, records, &rulers, opts);
+    let mut each: Vec<Vec<f64>> = fits
+        .par_iter()
+        .map(|(_, m, _)| r_mse_each(m, Some(model), records, &rulers, opts))
+        .collect();
     let mut pick = 0;
     for (k, e) in each.iter().enumerate() {
         if better(sim_key(e), sim_key(&each[pick])) {
@@ -239,7 +240,7 @@ pub(crate) fn choose_anchor(
         }
     }
     if opts.refine_added
-        && let Some((m, e)) = refined(&fits[pick].1, records, &rulers, opts)
+        && let Some((m, e)) = refined(&fits[pick].1, model, records, &rulers, opts)
     {
         let w = fits[pick].2;
         let label = if w {
@@ -267,7 +268,7 @@ pub(crate) fn choose_anchor(
             each: e,
             tried,
         } = line_search(model, &fits[pick].1, &each[pick], &start, |m| {
-            r_mse_each(m, records, &rulers, opts)
+            r_mse_each(m, Some(model), records, &rulers, opts)
         })?;
         scores.extend(tried);
         step = a;
@@ -280,20 +281,23 @@ pub(crate) fn choose_anchor(
         each.push(e);
         pick = fits.len() - 1;
     }
-    let (anchor, model, whole) = fits.swap_remove(pick);
-    // The history holds free-run R-MSEs: a record scored by pieces is simulated again for it.
+    let (anchor, kept, whole) = fits.swap_remove(pick);
+    // The history holds free-run R-MSEs of cold-started runs: a record scored by pieces, or a
+    // refit's warm-started run, is simulated again for it.
+    let cold = kept.equations == model.equations;
     let each = each
         .swap_remove(pick)
         .into_iter()
         .zip(&rulers)
         .map(|(v, r)| {
-            if r.horizon.is_none() {
+            if r.horizon.is_none() && cold {
                 v
             } else {
                 f64::INFINITY
             }
         })
         .collect();
+    let model = kept;
     Ok(Anchored {
         model,
         anchor,
@@ -465,9 +469,10 @@ pub(crate) fn better(a: (usize, f64), b: (usize, f64)) -> bool {
 /// ([`tfs_refine::refine`]: multiple shooting from the records' own states, records whose
 /// free-run error the input's noise dominates left out), with its R-MSE on each record; `None`
 /// when refinement cannot run on this model or returns it unchanged. Each record is scored by
-/// its ruler in `rulers`.
+/// its ruler in `rulers`, the run warmed by the start model `start`'s ([`r_mse_each`]).
 fn refined(
     model: &Model,
+    start: &Model,
     records: &[Record],
     rulers: &[PredictionScore],
     opts: &DiagnoseOptions,
@@ -484,22 +489,25 @@ fn refined(
     // The refinement's own history step is not the ladder's: the added effect's step is.
     let mut m = out.model;
     m.history = model.history.clone();
-    let each = r_mse_each(&m, records, rulers, opts);
+    let each = r_mse_each(&m, Some(start), records, rulers, opts);
     Some((m, each))
 }
 
 /// R-MSE of `model` on each of `records`, each under its ruler in `rulers` (infinite where a
-/// simulation fails).
+/// simulation fails), the records side by side. With `near` (the start model `model` is a refit
+/// of), a free run's start-state fit begins at `near`'s fitted start on the record
+/// ([`PredictionScore::r_mse_near`]): one fit instead of two.
 pub(crate) fn r_mse_each(
     model: &Model,
+    near: Option<&Model>,
     records: &[Record],
     rulers: &[PredictionScore],
     opts: &DiagnoseOptions,
 ) -> Vec<f64> {
     records
-        .iter()
+        .par_iter()
         .zip(rulers)
-        .map(|(r, ruler)| match ruler.r_mse(model, r, opts) {
+        .map(|(r, ruler)| match ruler.r_mse_near(model, near, r, opts) {
             Ok(v) if v.is_finite() => v,
             _ => f64::INFINITY,
         })

@@ -256,7 +256,8 @@ fn heldout_r_mse(
                 integrator: judge_integrator(m, || RecordScale::of(m, s).map(|sc| sc.peak()))?,
                 ..SimulateOptions::default()
             };
-            crate::simulate::r_mse_with(m, &u, &sim).ok()
+            // A fold model is a refit of `model`: its start-state fit begins at `model`'s.
+            crate::simulate::r_mse_near(m, &u, &sim, Some(model)).ok()
         })
         .collect::<Option<_>>()?;
     let mut sum = 0.0;

@@ -17,6 +17,7 @@
 
 use serde::{Deserialize, Serialize};
 use tfs_data::Record;
+use tfs_dynamics::SimulateOptions;
 use tfs_library::Model;
 
 use crate::prepare::{DiagnoseOptions, RecordStates, dominant_period};
@@ -95,8 +96,21 @@ impl PredictionScore {
     /// summed squared error over the measured displacement's summed squared deviation from its
     /// mean). An error when the model cannot be simulated on the record.
     pub fn r_mse(&self, model: &Model, record: &Record, opts: &DiagnoseOptions) -> Result<f64> {
+        self.r_mse_near(model, None, record, opts)
+    }
+
+    /// [`PredictionScore::r_mse`] of a model close to `near` (a refit of it): a free run's
+    /// start-state fit begins at `near`'s fitted start ([`crate::simulate::r_mse_near`]);
+    /// pieces start from the record's smoothed states and do not use it.
+    pub(crate) fn r_mse_near(
+        &self,
+        model: &Model,
+        near: Option<&Model>,
+        record: &Record,
+        opts: &DiagnoseOptions,
+    ) -> Result<f64> {
         let Some(h) = self.horizon else {
-            return crate::simulate::r_mse(model, record);
+            return crate::simulate::r_mse_near(model, record, &SimulateOptions::default(), near);
         };
         let states = RecordStates::new(model, record, opts)?;
         let rows = states.margin..states.margin + states.usable();

@@ -251,15 +251,14 @@ pub fn hold_start(
 ) -> Result<Model> {
     use crate::anchor::{better, holds, line_search, r_mse_each, rulers, sim_key};
     let rulers = rulers(start, records, opts);
-    let (s0, s1) = rayon::join(
-        || r_mse_each(start, records, &rulers, opts),
-        || r_mse_each(fitted, records, &rulers, opts),
-    );
+    // The start first: its fitted starts warm the refit's runs ([`r_mse_each`]).
+    let s0 = r_mse_each(start, None, records, &rulers, opts);
+    let s1 = r_mse_each(fitted, Some(start), records, &rulers, opts);
     let (step, mut out) = if !holds(&s0) || better(sim_key(&s1), sim_key(&s0)) {
         (1.0, fitted.clone())
     } else {
         let s = line_search(start, fitted, &s1, &s0, |m| {
-            r_mse_each(m, records, &rulers, opts)
+            r_mse_each(m, Some(start), records, &rulers, opts)
         })?;
         (s.step, s.model)
     };

@@ -6,7 +6,9 @@
 
 use rayon::prelude::*;
 use tfs_data::Record;
-use tfs_dynamics::{SimulateOptions, Trajectory, r_mse_on_record, simulate_model_on_record};
+use tfs_dynamics::{
+    SimulateOptions, Trajectory, r_mse_on_record, r_mse_on_record_warm, simulate_model_on_record,
+};
 use tfs_library::Model;
 
 use crate::Result;
@@ -62,12 +64,28 @@ pub fn r_mse(model: &Model, record: &Record) -> Result<f64> {
 /// record (the start model under every candidate's refit, a refit kept by two decisions) is
 /// not simulated again.
 pub(crate) fn r_mse_with(model: &Model, record: &Record, sim: &SimulateOptions) -> Result<f64> {
+    r_mse_near(model, record, sim, None)
+}
+
+/// [`r_mse_with`] for a model close to `near` (a refit of it, one of its fold models): the
+/// run's start-state fit begins at `near`'s fitted start on the same record
+/// ([`tfs_dynamics::r_mse_on_record_warm`]: one fit instead of two; the two cold ones when it
+/// does not converge or ends above the record's own starts). `None` is [`r_mse_with`].
+pub(crate) fn r_mse_near(
+    model: &Model,
+    record: &Record,
+    sim: &SimulateOptions,
+    near: Option<&Model>,
+) -> Result<f64> {
     let augmented = if computed_columns(model).is_empty() {
         std::borrow::Cow::Borrowed(record)
     } else {
         std::borrow::Cow::Owned(augment_record(model, record, &DiagnoseOptions::default())?)
     };
-    let each = r_mse_on_record(model, &augmented, sim)?;
+    let each = match near {
+        Some(near) => r_mse_on_record_warm(model, &augmented, sim, near)?,
+        None => r_mse_on_record(model, &augmented, sim)?,
+    };
     let mut s = 0.0;
     for (d, r) in model.dofs.iter().zip(each) {
         record.column(d).ok_or_else(|| missing(model, record, d))?;

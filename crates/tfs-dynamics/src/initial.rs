@@ -48,6 +48,10 @@ pub struct InitialFit {
     pub cost_start: f64,
     /// The same for the fitted start; never above `cost_start`.
     pub cost: f64,
+    /// Whether the fit ended at a minimum: no step could remove a share √ε of the cost. False
+    /// when it stopped at its iteration limit, where the Jacobian could not be taken, or where
+    /// the start blew up.
+    pub converged: bool,
 }
 
 /// Least-squares quadratic through the first `m` samples of `y` (a line for `m = 2`), in
@@ -512,11 +516,12 @@ impl<'a, S: SecondOrderSystem + ?Sized, I: Integrator + Sync> StartFit<'a, S, I>
                 v0: self.v0.to_vec(),
                 cost_start: f64::INFINITY,
                 cost: f64::INFINITY,
+                converged: false,
             });
         };
         let cost_start = r.iter().map(|v| v * v).sum::<f64>() / r.len().max(1) as f64;
         let run = |q: &[f64], bound: f64| self.run(q, bound);
-        let (p, cost) = match derivatives {
+        let (p, cost, converged) = match derivatives {
             Derivatives::Sensitivities => minimise(p, r, tr, &run, &|_, _, tr| self.along(tr)),
             Derivatives::Differences => minimise(p, r, tr, &run, &|p, r, _| self.differences(p, r)),
         };
@@ -527,6 +532,7 @@ impl<'a, S: SecondOrderSystem + ?Sized, I: Integrator + Sync> StartFit<'a, S, I>
             v0: v,
             cost_start,
             cost,
+            converged,
         })
     }
 }
@@ -539,15 +545,16 @@ const STEP: f64 = 1e-6;
 /// the run fails or its mean squared residual is sure to reach `bound`), `jacobian(p, r, tr)`
 /// gives the Jacobian at `p`. Marquardt's damping ladder (÷3 after an accepted step, ×4 after a
 /// rejected one) on the model Hessian of [`Secant`]; it ends where no step could remove
-/// [`END_FALL`] of the cost, or after 50 iterations. Returns the last point and its mean squared
-/// residual.
+/// [`END_FALL`] of the cost, or after 50 iterations. Returns the last point, its mean squared
+/// residual, and whether it ended at a minimum (not at the iteration limit, nor where the
+/// Jacobian could not be taken, nor with the ladder's damping exhausted).
 fn minimise<R, J, T>(
     mut p: Vec<f64>,
     mut r: Vec<f64>,
     mut tr: T,
     run: &R,
     jacobian: &J,
-) -> (Vec<f64>, f64)
+) -> (Vec<f64>, f64, bool)
 where
     R: Fn(&[f64], f64) -> Option<(Vec<f64>, T)>,
     J: Fn(&[f64], &[f64], &T) -> Option<DMatrix<f64>>,
@@ -560,7 +567,7 @@ where
     let mut secant = Secant::new(np);
     for _ in 0..50 {
         let Some(jac) = jacobian(&p, &r, &tr) else {
-            break;
+            return (p, cost, false);
         };
         let rv = DVector::from_column_slice(&r);
         let g = jac.transpose() * &rv;
@@ -568,6 +575,7 @@ where
         let hessian = secant.model(&p, &jac, &rv, &g, &jtj);
         let d: Vec<f64> = (0..np).map(|j| jtj[(j, j)].max(1e-12)).collect();
         let mut accepted = false;
+        let mut ended = false;
         while mu < 1e12 {
             let mut a = hessian.clone();
             for j in 0..np {
@@ -584,6 +592,7 @@ where
             let predicted =
                 (mu * (0..np).map(|j| d[j] * step[j] * step[j]).sum::<f64>() - step.dot(&g)) / nr;
             if predicted.is_nan() || predicted <= END_FALL * cost {
+                ended = !predicted.is_nan();
                 break;
             }
             let q: Vec<f64> = p.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
@@ -593,6 +602,7 @@ where
                     mu = (mu / 3.0).max(1e-12);
                     secant.accepted(&p, jac, g, jtj, 0.5 * nr * (cost - c));
                     accepted = (cost - c) / cost.max(f64::MIN_POSITIVE) > END_FALL;
+                    ended = !accepted;
                     p = q;
                     r = rq;
                     tr = tq;
@@ -603,10 +613,10 @@ where
             }
         }
         if !accepted {
-            break;
+            return (p, cost, ended);
         }
     }
-    (p, cost)
+    (p, cost, false)
 }
 
 /// The smallest share of the cost an iteration of [`fit_initial_state`] must remove for the
@@ -733,15 +743,7 @@ pub fn choose_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>
     if h < 2 || measured.is_empty() {
         return Ok((x0, v0));
     }
-    let dt = t[1] - t[0];
-    // The smoothed start: a quadratic through the first quarter period (at least 5 samples).
-    let w = (h as f64 / (4.0 * periods)).round().max(5.0) as usize;
-    let (mut xs, mut vs) = (x0.clone(), v0.clone());
-    for (i, y) in measured.iter().enumerate() {
-        let (a, b) = start_of(y, dt, w);
-        xs[i] = a;
-        vs[i] = b;
-    }
+    let (xs, vs) = smoothed_start(measured, t, periods, h, (&x0, &v0));
     // A model that blows up within the horizon from both guesses (one that is unstable for this
     // record) has no finite cost to fit there: the horizon is halved until it has one, so the
     // simulation starts from a fitted state and fails where the model does, not within a few
@@ -766,6 +768,93 @@ pub fn choose_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>
     }
     // No stretch could be fitted: the smoothed start is the better guess of the two.
     Ok((xs, vs))
+}
+
+/// The smoothed start of [`choose_initial_state`]: each measured DOF's value and slope at the
+/// first sample of a quadratic through the first quarter period (at least 5 samples) of its
+/// `h`-sample fitted stretch of `periods` periods; the other DOFs as in `(x0, v0)`.
+fn smoothed_start(
+    measured: &[&[f64]],
+    t: &[f64],
+    periods: f64,
+    h: usize,
+    (x0, v0): (&[f64], &[f64]),
+) -> (Vec<f64>, Vec<f64>) {
+    let dt = t[1] - t[0];
+    let w = (h as f64 / (4.0 * periods)).round().max(5.0) as usize;
+    let (mut xs, mut vs) = (x0.to_vec(), v0.to_vec());
+    for (i, y) in measured.iter().enumerate() {
+        let (a, b) = start_of(y, dt, w);
+        xs[i] = a;
+        vs[i] = b;
+    }
+    (xs, vs)
+}
+
+/// The initial state of a simulation of `sys` fitted from a warm start: `warm`, the fitted
+/// start of a model close to `sys` on the same record (a refit of it, one of its fold models),
+/// whose optimum is near this one's. One fit ([`fit_initial_state`]) from `warm` over
+/// [`fit_horizon`] samples, where [`choose_initial_state`] fits from two starts; when that fit
+/// does not end at a minimum (it blows up, stops at its iteration limit or cannot take its
+/// Jacobian), or ends no lower than either cold start of [`choose_initial_state`] (the
+/// first-samples start `(x0, v0)` and the smoothed start) already is before any fit, the two
+/// cold fits decide as if there had been no warm start. That check costs a run of the stretch
+/// from each cold start, each given up once its misfit reaches the warm fit's: a warm start
+/// from a model that does not follow the record's start (a model missing an effect fits a start
+/// far from the measured one) can end in a valley the record's own start is below. `warm` holds the measured DOFs' displacements and velocities (its
+/// other entries are not read); DOFs beyond `measured` keep the state in `(x0, v0)`.
+///
+/// Errors: those of [`choose_initial_state`], and a `warm` shorter than `measured`.
+#[allow(clippy::too_many_arguments)]
+pub fn warm_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
+    how: InitialState,
+    sys: &S,
+    integrator: &I,
+    input: &SampledInput,
+    measured: &[&[f64]],
+    t: &[f64],
+    (x0, v0): (Vec<f64>, Vec<f64>),
+    warm: (&[f64], &[f64]),
+) -> Result<(Vec<f64>, Vec<f64>)> {
+    let cold = |x0, v0| choose_initial_state(how, sys, integrator, input, measured, t, x0, v0);
+    let InitialState::Fitted { periods } = how else {
+        return cold(x0, v0);
+    };
+    let m = measured.len();
+    if warm.0.len() < m || warm.1.len() < m {
+        return Err(DynError::Dimension {
+            name: "warm",
+            got: warm.0.len().min(warm.1.len()),
+            expected: m,
+            hint: "a warm start needs a displacement and a velocity per measured DOF",
+        });
+    }
+    if !(periods.is_finite() && periods > 0.0) || measured.is_empty() {
+        return cold(x0, v0);
+    }
+    let h = fit_horizon(measured, periods).min(t.len());
+    if h < 2 {
+        return cold(x0, v0);
+    }
+    let (mut xw, mut vw) = (x0.clone(), v0.clone());
+    if xw.len() < m || vw.len() < m {
+        return cold(x0, v0);
+    }
+    xw[..m].copy_from_slice(&warm.0[..m]);
+    vw[..m].copy_from_slice(&warm.1[..m]);
+    let th = &t[..h];
+    let f = fit_initial_state(sys, integrator, input, measured, th, &xw, &vw)?;
+    if f.converged && f.cost.is_finite() {
+        let smoothed = smoothed_start(measured, t, periods, h, (&x0, &v0));
+        let warm_is_lower = |(x, v): (&[f64], &[f64])| -> Result<bool> {
+            let fit = StartFit::new(sys, integrator, input, measured, th, x, v)?;
+            Ok(fit.run(&fit.start(), f.cost).is_none())
+        };
+        if warm_is_lower((&x0, &v0))? && warm_is_lower((&smoothed.0, &smoothed.1))? {
+            return Ok((f.x0, f.v0));
+        }
+    }
+    cold(x0, v0)
 }
 
 /// Fewest samples a shortened fit horizon of [`choose_initial_state`] keeps.

@@ -50,13 +50,16 @@ mod system;
 pub use dopri5::{BUDGET_BASE, Dopri5, Dopri5Solver, STEPS_PER_STOP};
 pub use equilibria::{Barrier, Equilibrium, barriers, equilibria, potential_from_force};
 pub use error::{DynError, Result};
-pub use initial::{InitialFit, InitialState, choose_initial_state, fit_horizon, fit_initial_state};
+pub use initial::{
+    InitialFit, InitialState, choose_initial_state, fit_horizon, fit_initial_state,
+    warm_initial_state,
+};
 pub use input::{Interpolation, SampledInput};
 pub use integrate::{Integrator, Stats, Trajectory};
 pub use metrics::{rms_error, rmse_ratio, rmse_variance};
 pub use model::{
     RANGE_SPANS, RESOLVED_SPAN_ATOL, SimulateOptions, initial_velocity, r_mse_on_record,
-    simulate_model_on_record,
+    r_mse_on_record_warm, simulate_model_on_record, simulate_model_on_record_warm,
 };
 pub use rk4::{Rk4, Rk4Scratch, rk4_step};
 pub use system::{FnSystem, SecondOrderSystem};

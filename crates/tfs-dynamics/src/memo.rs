@@ -74,6 +74,13 @@ impl KeyHasher {
         self
     }
 
+    /// Adds another key's two lanes.
+    pub(crate) fn key_words(&mut self, k: &StartKey) -> &mut Self {
+        self.word(k.0[0]);
+        self.word(k.0[1]);
+        self
+    }
+
     /// The key: each lane finished by SplitMix64's mixer with the count of words.
     pub(crate) fn key(&self) -> StartKey {
         let mix = |mut z: u64| {

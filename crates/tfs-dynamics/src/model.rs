@@ -1,6 +1,6 @@
 //! Adapter from `tfs_library` models to this crate: simulate a fitted model on a measured record.
 
-use crate::initial::{InitialState, choose_initial_state, start_of};
+use crate::initial::{InitialState, choose_initial_state, start_of, warm_initial_state};
 use crate::memo::{self, KeyHasher, StartKey};
 use crate::range::{Ranged, band};
 use crate::{
@@ -178,7 +178,39 @@ pub fn simulate_model_on_record(
 /// the same columns with the same options is scored again without a run: the same numbers to
 /// the bit, or the same error.
 pub fn r_mse_on_record(model: &Model, record: &Record, opts: &SimulateOptions) -> Result<Vec<f64>> {
-    let run = Run::new(model, record, opts, true)?;
+    scored(Run::new(model, record, opts, true, None)?, opts)
+}
+
+/// [`simulate_model_on_record`] for a model close to `near` (a refit of it, one of its fold
+/// models): the start-state fit begins at `near`'s fitted start on the same record and options
+/// (from the memo, or fitted now and kept there) and fits once from it
+/// ([`crate::warm_initial_state`]), falling back to the two cold starts when that fit does not
+/// end at a minimum. Where `near` cannot warm the fit (its equations are `model`'s, its DOFs
+/// differ, the record lacks its inputs, or the start is not fitted), the run is
+/// [`simulate_model_on_record`]'s. A warm run is remembered under its own key (`near`'s
+/// equations included), apart from the cold run of the same model.
+pub fn simulate_model_on_record_warm(
+    model: &Model,
+    record: &Record,
+    opts: &SimulateOptions,
+    near: &Model,
+) -> Result<Trajectory> {
+    Run::new(model, record, opts, true, Some(near))?.trajectory(opts)
+}
+
+/// [`r_mse_on_record`] of a run warmed by `near`'s fitted start
+/// ([`simulate_model_on_record_warm`]); its scores are kept in the memo as a cold run's are.
+pub fn r_mse_on_record_warm(
+    model: &Model,
+    record: &Record,
+    opts: &SimulateOptions,
+    near: &Model,
+) -> Result<Vec<f64>> {
+    scored(Run::new(model, record, opts, true, Some(near))?, opts)
+}
+
+/// The scores of `run`: from the memo, or from its trajectory.
+fn scored(run: Run<'_>, opts: &SimulateOptions) -> Result<Vec<f64>> {
     if let Some(scores) = run.key.as_ref().and_then(memo::get_scores) {
         return scores;
     }
@@ -194,7 +226,7 @@ fn simulate_on_record(
     opts: &SimulateOptions,
     memo: bool,
 ) -> Result<Trajectory> {
-    Run::new(model, record, opts, memo)?.trajectory(opts)
+    Run::new(model, record, opts, memo, None)?.trajectory(opts)
 }
 
 /// A run of a model on a record, its inputs resolved: the compiled model, the input, the
@@ -213,10 +245,20 @@ struct Run<'r> {
     key: Option<StartKey>,
     /// Whether the model is smooth ([`smooth`]).
     smooth: bool,
+    /// The run of the model whose fitted start warms this run's fit, when there is one.
+    near: Option<Box<Run<'r>>>,
 }
 
 impl<'r> Run<'r> {
-    fn new(model: &Model, record: &'r Record, opts: &SimulateOptions, memo: bool) -> Result<Self> {
+    /// The run of `model` on `record`; with `near`, warmed by `near`'s fitted start where it
+    /// can be ([`simulate_model_on_record_warm`]).
+    fn new(
+        model: &Model,
+        record: &'r Record,
+        opts: &SimulateOptions,
+        memo: bool,
+        near: Option<&Model>,
+    ) -> Result<Self> {
         let compiled = model
             .compile()
             .map_err(|e| DynError::Model(e.to_string()))?;
@@ -276,10 +318,18 @@ impl<'r> Run<'r> {
         // Internal states (the auxiliary coordinates after the DOFs) start at rest, z = 0.
         x0.resize(compiled.system_dofs(), 0.0);
         v0.resize(compiled.system_dofs(), 0.0);
+        // A near model warms the fit when it differs from this one (the same equations fit the
+        // same start cold), has the same DOFs and can run on the record.
+        let fitted = matches!(opts.initial_state, InitialState::Fitted { .. });
+        let near = near
+            .filter(|n| fitted && n.equations != model.equations && n.dofs == model.dofs)
+            .and_then(|n| Run::new(n, record, opts, memo, None).ok())
+            .filter(|n| n.compiled.dof_names() == compiled.dof_names())
+            .map(Box::new);
         // The fitted start is a pure function of what the fit reads, and the run of the start:
         // a run of the same model on the same columns with the same options starts from the
         // state fitted before, and scores what it scored before (`memo`).
-        let key = (memo && matches!(opts.initial_state, InitialState::Fitted { .. })).then(|| {
+        let key = (memo && fitted).then(|| {
             let mut h = KeyHasher::new();
             h.text(&format!(
                 "{:?}|{:?}|{:?}|{:?}|{:?}",
@@ -298,6 +348,10 @@ impl<'r> Run<'r> {
             for m in &measured {
                 h.floats(m);
             }
+            // A warm run's start depends on the near model's: its key is part of this one.
+            if let Some(k) = near.as_ref().and_then(|n| n.key) {
+                h.text("warm").key_words(&k);
+            }
             h.key()
         });
         Ok(Self {
@@ -310,6 +364,7 @@ impl<'r> Run<'r> {
             measured,
             key,
             smooth: smooth(model),
+            near,
         })
     }
 
@@ -335,47 +390,52 @@ impl<'r> Run<'r> {
             .collect()
     }
 
-    /// Fits the start (or takes it from the memo) and integrates the record.
-    fn integrate(&self, opts: &SimulateOptions) -> Result<Trajectory> {
-        let (compiled, t_abs, input, measured) =
-            (&self.compiled, self.t_abs, &self.input, &self.measured);
-        let t = &self.t_local[..];
-        let (x0, v0, key) = (self.x0.clone(), self.v0.clone(), self.key);
-        let n = compiled.dofs();
-        let ranged = Ranged {
+    /// The integrator bounded by the record's range ([`SimulateOptions::range`]).
+    fn ranged<'o>(&self, opts: &'o SimulateOptions) -> Ranged<'o, Dopri5> {
+        Ranged {
             inner: &opts.integrator,
             bands: match opts.range {
-                Some(f) => measured.iter().map(|y| band(y, f)).collect(),
+                Some(f) => self.measured.iter().map(|y| band(y, f)).collect(),
                 None => Vec::new(),
             },
-            names: compiled.dof_names().to_vec(),
+            names: self.compiled.dof_names().to_vec(),
+        }
+    }
+
+    /// The fitted start: from the memo, or fitted now ([`choose_initial_state`], or
+    /// [`warm_initial_state`] from the near model's start) and kept there under the run's key.
+    fn start(&self, opts: &SimulateOptions) -> memo::Start {
+        if let Some(start) = self.key.as_ref().and_then(memo::get) {
+            return start;
+        }
+        let sys = Differentiable {
+            compiled: &self.compiled,
+            smooth: self.smooth,
         };
-        let start = match key.as_ref().and_then(memo::get) {
-            Some(start) => start,
-            None => {
-                let sys = Differentiable {
-                    compiled,
-                    smooth: self.smooth,
-                };
-                let start = choose_initial_state(
-                    opts.initial_state,
-                    &sys,
-                    &ranged,
-                    input,
-                    measured,
-                    t,
-                    x0,
-                    v0,
-                );
-                if let Some(key) = key {
-                    memo::put(key, &start);
-                }
-                start
+        let ranged = self.ranged(opts);
+        let (t, input, measured) = (&self.t_local[..], &self.input, &self.measured[..]);
+        let cold = (self.x0.clone(), self.v0.clone());
+        let how = opts.initial_state;
+        let start = match self.near.as_ref().map(|n| n.start(opts)) {
+            Some(Ok((xn, vn))) => {
+                warm_initial_state(how, &sys, &ranged, input, measured, t, cold, (&xn, &vn))
             }
+            _ => choose_initial_state(how, &sys, &ranged, input, measured, t, cold.0, cold.1),
         };
-        let (x0, v0) = start.map_err(|e| e.on_clock(t_abs[0]))?;
+        if let Some(key) = self.key {
+            memo::put(key, &start);
+        }
+        start
+    }
+
+    /// Fits the start (or takes it from the memo) and integrates the record.
+    fn integrate(&self, opts: &SimulateOptions) -> Result<Trajectory> {
+        let t_abs = self.t_abs;
+        let n = self.compiled.dofs();
+        let ranged = self.ranged(opts);
+        let (x0, v0) = self.start(opts).map_err(|e| e.on_clock(t_abs[0]))?;
         let mut tr = ranged
-            .integrate(compiled, input, &x0, &v0, t)
+            .integrate(&self.compiled, &self.input, &x0, &v0, &self.t_local)
             .map_err(|e| e.on_clock(t_abs[0]))?;
         tr.x.truncate(n);
         tr.v.truncate(n);
@@ -652,7 +712,7 @@ mod tests {
         use crate::initial::StartFit;
         let integrator = Dopri5::with_tol(1e-12, 1e-14);
         for (what, model, record) in differentiable_cases() {
-            let run = Run::new(&model, &record, &SimulateOptions::default(), false).unwrap();
+            let run = Run::new(&model, &record, &SimulateOptions::default(), false, None).unwrap();
             let sys = Differentiable {
                 compiled: &run.compiled,
                 smooth: smooth(&model),
@@ -692,7 +752,7 @@ mod tests {
         use crate::initial::{Derivatives, StartFit};
         let integrator = Dopri5::default();
         for (what, model, record) in differentiable_cases() {
-            let run = Run::new(&model, &record, &SimulateOptions::default(), false).unwrap();
+            let run = Run::new(&model, &record, &SimulateOptions::default(), false, None).unwrap();
             let sys = Differentiable {
                 compiled: &run.compiled,
                 smooth: smooth(&model),
@@ -730,6 +790,53 @@ mod tests {
                     "{what}: {a} against {b}"
                 );
             }
+        }
+    }
+
+    /// A run warmed by a near model's fitted start ([`r_mse_on_record_warm`]) scores what the
+    /// cold run scores, on each of [`differentiable_cases`] refitted (every coefficient 5 % off,
+    /// warmed by the case's own model): both fits end at the same minimum, to the fit's
+    /// precision, so the runs' R-MSE agree to a few parts in a million. The warm and the cold run
+    /// of one model are remembered apart (each asked again is itself, to the bit), and a near
+    /// model with the run's own equations leaves the run cold, to the bit.
+    #[test]
+    fn a_warm_run_scores_the_cold_run_s_r_mse() {
+        let opts = SimulateOptions::default();
+        for (what, model, record) in differentiable_cases() {
+            let mut refit = model.clone();
+            for e in &mut refit.equations {
+                for term in &mut e.terms {
+                    term.coef *= 1.05;
+                }
+            }
+            let cold_run = simulate_on_record(&refit, &record, &opts, false).unwrap();
+            let cold: Vec<f64> = refit
+                .dofs
+                .iter()
+                .zip(&cold_run.x)
+                .map(|(d, x)| rmse_variance(record.column(d).unwrap(), x).unwrap())
+                .collect();
+            let warm = r_mse_on_record_warm(&refit, &record, &opts, &model).unwrap();
+            for (w, c) in warm.iter().zip(&cold) {
+                assert!(
+                    (w - c).abs() < 1e-5 * c,
+                    "{what}: warm {w} against cold {c}"
+                );
+            }
+            assert_eq!(
+                r_mse_on_record_warm(&refit, &record, &opts, &model).unwrap(),
+                warm
+            );
+            assert_eq!(
+                r_mse_on_record(&refit, &record, &opts).unwrap(),
+                cold,
+                "{what}"
+            );
+            let own = r_mse_on_record(&model, &record, &opts).unwrap();
+            assert_eq!(
+                r_mse_on_record_warm(&model, &record, &opts, &model).unwrap(),
+                own
+            );
         }
     }
 

@@ -383,3 +383,173 @@ fn wrong_models_fit_to_their_minimum_in_few_runs() {
         assert!(runs <= 40, "model ({k1}, {k3}, {c}, {g}): {runs} runs");
     }
 }
+
+/// The double well's equation with stiffness `k1`, cubic `k3`, damping `c` and input gain `g`.
+fn well(k1: f64, k3: f64, c: f64, g: f64) -> impl tfs_dynamics::SecondOrderSystem {
+    tfs_dynamics::FnSystem::new(
+        1,
+        1,
+        move |_t, x: &[f64], v: &[f64], u: &[f64], a: &mut [f64]| {
+            a[0] = k1 * x[0] + k3 * x[0] * x[0] * x[0] + c * v[0] + g * u[0];
+        },
+    )
+}
+
+/// A start-state fit warmed by a near model's fitted start (the double well's own equation;
+/// the fitted models are refits of it, off by 10–20 % in one or more coefficients, as a
+/// candidate's refit or a fold model is) ends where the two cold fits end: the same misfit to
+/// a few parts in a million (each ends once an iteration removes less than √ε of it) and the
+/// same state to the fit's precision, from one fit instead of two, so in fewer runs.
+#[test]
+fn a_warm_fit_reaches_the_cold_optimum_in_fewer_runs() {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use tfs_dynamics::{
+        Dopri5, Integrator, SampledInput, choose_initial_state, fit_horizon, initial_velocity,
+        warm_initial_state,
+    };
+    let (_, rec) = record(40.0, 2);
+    let (t, x) = (rec.t(), rec.column("x").unwrap());
+    let input = SampledInput::new(0.0, rec.dt(), vec![rec.column("u").unwrap().to_vec()]).unwrap();
+    let how = InitialState::default();
+    let first = (vec![x[0]], vec![initial_velocity(x, rec.dt(), 5).unwrap()]);
+    let (xn, vn) = choose_initial_state(
+        how,
+        &well(1.0, -1.0, -0.3, 1.0),
+        &Dopri5::default(),
+        &input,
+        &[x],
+        t,
+        first.0.clone(),
+        first.1.clone(),
+    )
+    .unwrap();
+    let n = fit_horizon(&[x], 2.0);
+    for (k1, k3, c, g) in [
+        (1.1, -1.0, -0.3, 1.0),
+        (1.0, -0.85, -0.35, 1.0),
+        (0.9, -1.1, -0.25, 1.15),
+    ] {
+        let sys = well(k1, k3, c, g);
+        let (cold_runs, warm_runs) = (AtomicUsize::new(0), AtomicUsize::new(0));
+        let cold = choose_initial_state(
+            how,
+            &sys,
+            &Counted(Dopri5::default(), &cold_runs),
+            &input,
+            &[x],
+            t,
+            first.0.clone(),
+            first.1.clone(),
+        )
+        .unwrap();
+        let warm = warm_initial_state(
+            how,
+            &sys,
+            &Counted(Dopri5::default(), &warm_runs),
+            &input,
+            &[x],
+            t,
+            first.clone(),
+            (&xn, &vn),
+        )
+        .unwrap();
+        let misfit = |(x0, v0): &(Vec<f64>, Vec<f64>)| {
+            let tr = Dopri5::default()
+                .integrate(&sys, &input, x0, v0, &t[..n])
+                .unwrap();
+            tr.x[0]
+                .iter()
+                .zip(x)
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>()
+        };
+        let (mc, mw) = (misfit(&cold), misfit(&warm));
+        let what = format!("model ({k1}, {k3}, {c}, {g})");
+        assert!(
+            (mw - mc).abs() < 1e-5 * mc,
+            "{what}: misfit {mw} against {mc}"
+        );
+        assert!(
+            (warm.0[0] - cold.0[0]).abs() < 1e-4,
+            "{what}: {warm:?} against {cold:?}"
+        );
+        assert!(
+            (warm.1[0] - cold.1[0]).abs() < 1e-3,
+            "{what}: {warm:?} against {cold:?}"
+        );
+        let (cr, wr) = (
+            cold_runs.load(Ordering::Relaxed),
+            warm_runs.load(Ordering::Relaxed),
+        );
+        assert!(wr < cr, "{what}: {wr} runs warm against {cr} cold");
+    }
+}
+
+/// A warm start the model cannot be fitted from gives way to the two cold fits, which decide
+/// as if there had been no warm start (the same state to the bit, after the warm attempt's
+/// runs): from a start a softening spring escapes from (it blows up at once: one run), and
+/// from a start in the other well of the double well, whose fit settles there, above the
+/// misfit the record's own start already has (the fit, then a run of the stretch from each
+/// cold start, the first given up at the warm fit's misfit).
+#[test]
+fn a_warm_start_that_fails_falls_back_to_the_cold_fits() {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use tfs_dynamics::{
+        Dopri5, SampledInput, choose_initial_state, initial_velocity, warm_initial_state,
+    };
+    let (_, rec) = record(40.0, 4);
+    let (t, x) = (rec.t(), rec.column("x").unwrap());
+    let input = SampledInput::new(0.0, rec.dt(), vec![rec.column("u").unwrap().to_vec()]).unwrap();
+    let how = InitialState::default();
+    let first = (vec![x[0]], vec![initial_velocity(x, rec.dt(), 5).unwrap()]);
+    // Stiffness 2 softened by a cubic: a barrier at |x| = 2, which the record's motion about
+    // +1 stays inside; from x = 5 the run escapes in finite time. The double well itself,
+    // started in its other well at -1.
+    let cases = [
+        ("escape", well(-2.0, 0.5, -0.3, 1.0), [5.0, 0.0]),
+        ("other well", well(1.0, -1.0, -0.3, 1.0), [-1.0, 0.0]),
+    ];
+    for (what, sys, start) in cases {
+        let (cold_runs, warm_runs) = (AtomicUsize::new(0), AtomicUsize::new(0));
+        let cold = choose_initial_state(
+            how,
+            &sys,
+            &Counted(Dopri5::default(), &cold_runs),
+            &input,
+            &[x],
+            t,
+            first.0.clone(),
+            first.1.clone(),
+        )
+        .unwrap();
+        let warm = warm_initial_state(
+            how,
+            &sys,
+            &Counted(Dopri5::default(), &warm_runs),
+            &input,
+            &[x],
+            t,
+            first.clone(),
+            (&start[..1], &start[1..]),
+        )
+        .unwrap();
+        assert!(
+            cold.0[0] > 0.0 && cold.0[0] != first.0[0],
+            "{what}: {cold:?}"
+        );
+        assert_eq!(warm.0[0].to_bits(), cold.0[0].to_bits(), "{what}");
+        assert_eq!(warm.1[0].to_bits(), cold.1[0].to_bits(), "{what}");
+        let (cr, wr) = (
+            cold_runs.load(Ordering::Relaxed),
+            warm_runs.load(Ordering::Relaxed),
+        );
+        assert!(wr > cr, "{what}: {wr} runs warm against {cr} cold");
+        if what == "escape" {
+            assert_eq!(
+                wr,
+                cr + 1,
+                "{what}: the warm fit's one run, then the cold fits'"
+            );
+        }
+    }
+}
