@@ -395,6 +395,49 @@ fn well(k1: f64, k3: f64, c: f64, g: f64) -> impl tfs_dynamics::SecondOrderSyste
     )
 }
 
+/// The start of `sys` on `rec` (displacement `x`, input `u`) by the default two cold fits from
+/// `first` and warmed by `warm` ([`tfs_dynamics::warm_initial_state`]), each with the runs it took.
+#[allow(clippy::type_complexity)]
+fn cold_and_warm(
+    sys: &impl tfs_dynamics::SecondOrderSystem,
+    rec: &Record,
+    first: &(Vec<f64>, Vec<f64>),
+    warm: (&[f64], &[f64]),
+) -> (((Vec<f64>, Vec<f64>), usize), ((Vec<f64>, Vec<f64>), usize)) {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use tfs_dynamics::{Dopri5, SampledInput, choose_initial_state, warm_initial_state};
+    let (t, x) = (rec.t(), rec.column("x").unwrap());
+    let input = SampledInput::new(0.0, rec.dt(), vec![rec.column("u").unwrap().to_vec()]).unwrap();
+    let how = InitialState::default();
+    let (cold_runs, warm_runs) = (AtomicUsize::new(0), AtomicUsize::new(0));
+    let cold = choose_initial_state(
+        how,
+        sys,
+        &Counted(Dopri5::default(), &cold_runs),
+        &input,
+        &[x],
+        t,
+        first.0.clone(),
+        first.1.clone(),
+    )
+    .unwrap();
+    let warmed = warm_initial_state(
+        how,
+        sys,
+        &Counted(Dopri5::default(), &warm_runs),
+        &input,
+        &[x],
+        t,
+        first.clone(),
+        warm,
+    )
+    .unwrap();
+    (
+        (cold, cold_runs.load(Ordering::Relaxed)),
+        (warmed, warm_runs.load(Ordering::Relaxed)),
+    )
+}
+
 /// A start-state fit warmed by a near model's fitted start (the double well's own equation;
 /// the fitted models are refits of it, off by 10–20 % in one or more coefficients, as a
 /// candidate's refit or a fold model is) ends where the two cold fits end: the same misfit to
@@ -402,10 +445,8 @@ fn well(k1: f64, k3: f64, c: f64, g: f64) -> impl tfs_dynamics::SecondOrderSyste
 /// same state to the fit's precision, from one fit instead of two, so in fewer runs.
 #[test]
 fn a_warm_fit_reaches_the_cold_optimum_in_fewer_runs() {
-    use std::sync::atomic::{AtomicUsize, Ordering};
     use tfs_dynamics::{
         Dopri5, Integrator, SampledInput, choose_initial_state, fit_horizon, initial_velocity,
-        warm_initial_state,
     };
     let (_, rec) = record(40.0, 2);
     let (t, x) = (rec.t(), rec.column("x").unwrap());
@@ -430,29 +471,7 @@ fn a_warm_fit_reaches_the_cold_optimum_in_fewer_runs() {
         (0.9, -1.1, -0.25, 1.15),
     ] {
         let sys = well(k1, k3, c, g);
-        let (cold_runs, warm_runs) = (AtomicUsize::new(0), AtomicUsize::new(0));
-        let cold = choose_initial_state(
-            how,
-            &sys,
-            &Counted(Dopri5::default(), &cold_runs),
-            &input,
-            &[x],
-            t,
-            first.0.clone(),
-            first.1.clone(),
-        )
-        .unwrap();
-        let warm = warm_initial_state(
-            how,
-            &sys,
-            &Counted(Dopri5::default(), &warm_runs),
-            &input,
-            &[x],
-            t,
-            first.clone(),
-            (&xn, &vn),
-        )
-        .unwrap();
+        let ((cold, cr), (warm, wr)) = cold_and_warm(&sys, &rec, &first, (&xn, &vn));
         let misfit = |(x0, v0): &(Vec<f64>, Vec<f64>)| {
             let tr = Dopri5::default()
                 .integrate(&sys, &input, x0, v0, &t[..n])
@@ -477,10 +496,6 @@ fn a_warm_fit_reaches_the_cold_optimum_in_fewer_runs() {
             (warm.1[0] - cold.1[0]).abs() < 1e-3,
             "{what}: {warm:?} against {cold:?}"
         );
-        let (cr, wr) = (
-            cold_runs.load(Ordering::Relaxed),
-            warm_runs.load(Ordering::Relaxed),
-        );
         assert!(wr < cr, "{what}: {wr} runs warm against {cr} cold");
     }
 }
@@ -493,14 +508,9 @@ fn a_warm_fit_reaches_the_cold_optimum_in_fewer_runs() {
 /// cold start, the first given up at the warm fit's misfit).
 #[test]
 fn a_warm_start_that_fails_falls_back_to_the_cold_fits() {
-    use std::sync::atomic::{AtomicUsize, Ordering};
-    use tfs_dynamics::{
-        Dopri5, SampledInput, choose_initial_state, initial_velocity, warm_initial_state,
-    };
+    use tfs_dynamics::initial_velocity;
     let (_, rec) = record(40.0, 4);
-    let (t, x) = (rec.t(), rec.column("x").unwrap());
-    let input = SampledInput::new(0.0, rec.dt(), vec![rec.column("u").unwrap().to_vec()]).unwrap();
-    let how = InitialState::default();
+    let x = rec.column("x").unwrap();
     let first = (vec![x[0]], vec![initial_velocity(x, rec.dt(), 5).unwrap()]);
     // Stiffness 2 softened by a cubic: a barrier at |x| = 2, which the record's motion about
     // +1 stays inside; from x = 5 the run escapes in finite time. The double well itself,
@@ -510,39 +520,14 @@ fn a_warm_start_that_fails_falls_back_to_the_cold_fits() {
         ("other well", well(1.0, -1.0, -0.3, 1.0), [-1.0, 0.0]),
     ];
     for (what, sys, start) in cases {
-        let (cold_runs, warm_runs) = (AtomicUsize::new(0), AtomicUsize::new(0));
-        let cold = choose_initial_state(
-            how,
-            &sys,
-            &Counted(Dopri5::default(), &cold_runs),
-            &input,
-            &[x],
-            t,
-            first.0.clone(),
-            first.1.clone(),
-        )
-        .unwrap();
-        let warm = warm_initial_state(
-            how,
-            &sys,
-            &Counted(Dopri5::default(), &warm_runs),
-            &input,
-            &[x],
-            t,
-            first.clone(),
-            (&start[..1], &start[1..]),
-        )
-        .unwrap();
+        let ((cold, cr), (warm, wr)) =
+            cold_and_warm(&sys, &rec, &first, (&start[..1], &start[1..]));
         assert!(
             cold.0[0] > 0.0 && cold.0[0] != first.0[0],
             "{what}: {cold:?}"
         );
         assert_eq!(warm.0[0].to_bits(), cold.0[0].to_bits(), "{what}");
         assert_eq!(warm.1[0].to_bits(), cold.1[0].to_bits(), "{what}");
-        let (cr, wr) = (
-            cold_runs.load(Ordering::Relaxed),
-            warm_runs.load(Ordering::Relaxed),
-        );
         assert!(wr > cr, "{what}: {wr} runs warm against {cr} cold");
         if what == "escape" {
             assert_eq!(
