@@ -163,7 +163,7 @@ pub(crate) struct Scores {
     failed: Vec<String>,
     mean: f64,
     geo: f64,
-    each: Vec<RecordScore>,
+    pub(crate) each: Vec<RecordScore>,
 }
 
 impl Scores {

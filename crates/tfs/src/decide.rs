@@ -14,14 +14,22 @@
 //!    not a matter of degree or of noise, so it outranks the equation error. With
 //!    [`DecideOptions::further`], when the chosen one still leaves records failing, the effects
 //!    needed with it are looked for by forward selection ([`Decision::then`]).
-//! 2. **Significant candidates.** Otherwise the significant candidates are added in the ranking's
-//!    order, and the first with which the records simulate no worse than without it
-//!    ([`Reason::Supported`]) is chosen; one with which they simulate worse (more records fail, or
-//!    as many and the geometric-mean R-MSE of the others rises: [`Reason::WorsensSimulation`]) or that
-//!    cannot be added ([`Reason::CouldNotAdd`]) is passed over. Every significant candidate is
-//!    held to this, whichever judge ranked it: the question is the same for all (does the model
-//!    with it reproduce the records it is fitted on no worse?), and a candidate the ranking put
-//!    first on a short-horizon score is still one the loop would add.
+//! 2. **Significant candidates.** Otherwise every contender is added and simulated: the
+//!    significant candidates, and those whose test passes, whose held-out equation error falls
+//!    and that reach the size but whose per-fold models could not be simulated on the held-out
+//!    parts (a fit on part of the records is a weaker witness than the refit on all of them,
+//!    which is what would be added). The ranking's first with which the records simulate no
+//!    worse than without it is chosen ([`Reason::Supported`]), unless others make every record
+//!    simulate better than it does, or fewer fail ([`beats`]): then the one of those with the
+//!    lowest geometric-mean R-MSE. The others are passed over as simulating less well
+//!    ([`Reason::SimulatesLessWell`]), worse than the model ([`Reason::WorsensSimulation`]: more
+//!    records fail, or as many and the geometric-mean R-MSE of the others rises) or as not made
+//!    ([`Reason::CouldNotAdd`], [`Reason::AddsNothing`]). The held-out equation error tells that
+//!    something of a kind is missing but is a poor judge between look-alikes (`x^4` and `x^7`
+//!    on one well): their columns are nearly collinear on the smoothed states, and the refit of
+//!    the wrong one reproduces every record far less well. Every contender is held to this,
+//!    whichever judge ranked it: a candidate the ranking put first on a short-horizon score is
+//!    still one the loop would add.
 //! 3. **A contact the equation error cannot resolve.** When no significant candidate was chosen,
 //!    a candidate that adds a one-sided contact term (`below`, `above`: recognised by its terms,
 //!    not its name) whose held-out equation error falls is added with its position re-scanned by
@@ -65,8 +73,13 @@ pub enum Reason {
     /// Tried because the model fails to simulate some records; another leaves fewer failing, or
     /// it leaves no fewer than the model (or its terms refitted with nothing added).
     CuresLess,
-    /// Significant by equation error, and the records simulate no worse with it.
+    /// A contender (significant by equation error, or its test passes and only its per-fold
+    /// models could not be simulated): the ranking's first with which the records simulate no
+    /// worse than without it, or one with which every record simulates better than with that.
     Supported,
+    /// A contender with which the records simulate no worse than without it, passed over for one
+    /// with which every record simulates better.
+    SimulatesLessWell,
     /// Significant by equation error, but the records simulate worse with it (more fail, or as
     /// many and the geometric-mean R-MSE of the others rises): passed over.
     WorsensSimulation,
@@ -97,7 +110,12 @@ impl fmt::Display for Reason {
         f.write_str(match self {
             Reason::CuresFailures => "it leaves the fewest records failing to simulate",
             Reason::CuresLess => "another candidate leaves fewer records failing to simulate",
-            Reason::Supported => "significant, and the records simulate no worse with it",
+            Reason::Supported => {
+                "the records simulate no worse with it, and best of the contenders"
+            }
+            Reason::SimulatesLessWell => {
+                "every record simulates better with another candidate: passed over"
+            }
             Reason::WorsensSimulation => {
                 "significant, but the records simulate worse with it: passed over"
             }
@@ -333,12 +351,17 @@ pub fn decide(
         }
     }
     let top = ranked.iter().find(|r| r.significant).map(|r| &r.name);
-    if let Some(chosen) = first_supported(&mut made, ranked, &before, &mut out, &mut notes) {
+    if let Some(chosen) = best_supported(&mut made, ranked, &before, &mut out, &mut notes) {
         out.ranking_stands = Some(&chosen.effect) == top;
+        let contenders = ranked.iter().filter(|r| contends(r)).count();
         notes.push(format!(
-            "{} is the {} significant: with it {}, without it {}",
+            "{} is named {}: with it {}, without it {}",
             chosen.effect,
-            if out.ranking_stands { "top" } else { "next" },
+            if contenders == 1 {
+                "as the one contender".to_string()
+            } else {
+                format!("of the {contenders} contenders")
+            },
             chosen.score.describe(),
             before.describe()
         ));
@@ -459,57 +482,104 @@ fn for_failures(
     Ok(Some(chosen))
 }
 
-/// Step 2 (module docs): the first significant candidate, in the ranking's order, with which
-/// the records simulate no worse than `before`; each passed over is recorded with a sentence.
-fn first_supported(
+/// Step 2 (module docs): the first contender in the ranking's order with which the records
+/// simulate no worse than `before`, unless others make every record simulate better than it
+/// does ([`beats`]): then the best of those. Each passed over is recorded with a sentence.
+fn best_supported(
     made: &mut Made<'_>,
     ranked: &[RankedEffect],
     before: &SimScore,
     out: &mut Decision,
     notes: &mut Vec<String>,
 ) -> Option<Chosen> {
-    for cand in ranked.iter().filter(|r| r.significant) {
-        let made_it = match made.get(&cand.name) {
-            Ok(c) => Ok(c.score),
-            Err(e) => Err(e.clone()),
-        };
-        let score = match made_it {
-            Ok(s) => s,
-            Err(e) => {
-                let reason = match e {
-                    NotMade::AddsNothing => {
-                        notes.push(format!("{} passed over: {e}", cand.name));
-                        Reason::AddsNothing
-                    }
-                    NotMade::Failed(_) => {
-                        notes.push(format!(
-                            "{} passed over: it could not be added ({e})",
-                            cand.name
-                        ));
-                        Reason::CouldNotAdd
-                    }
-                };
-                let trial = made.trial(&cand.name, reason);
-                out.tried.push(trial);
+    let names: Vec<&str> = ranked
+        .iter()
+        .filter(|r| contends(r))
+        .map(|r| r.name.as_str())
+        .collect();
+    made.make(&names);
+    let made_ok: Vec<Option<(SimScore, Vec<Option<f64>>)>> = names
+        .iter()
+        .map(|n| made.get(n).as_ref().ok().map(|c| (c.score, c.each.clone())))
+        .collect();
+    let holds = |i: usize| {
+        made_ok[i]
+            .as_ref()
+            .is_some_and(|(s, _)| !worsens(before, s))
+    };
+    let first = (0..names.len()).find(|&i| holds(i));
+    let best = first.map(|a| {
+        let mut best = a;
+        for i in (0..names.len()).filter(|&i| i != a && holds(i)) {
+            let (Some(c), Some(f), Some(b)) = (&made_ok[i], &made_ok[a], &made_ok[best]) else {
                 continue;
+            };
+            if beats(c, f) && c.0.key() < b.0.key() {
+                best = i;
             }
-        };
-        if worsens(before, &score) {
-            notes.push(format!(
-                "{} passed over: with it {}, without it {}",
-                cand.name,
-                score.describe(),
-                before.describe()
-            ));
-            let trial = made.trial(&cand.name, Reason::WorsensSimulation);
-            out.tried.push(trial);
-            continue;
         }
-        let trial = made.trial(&cand.name, Reason::Supported);
+        best
+    });
+    for (i, n) in names.iter().enumerate() {
+        let reason = match (&made_ok[i], best) {
+            (None, _) => {
+                match made.get(n) {
+                    Err(e @ NotMade::AddsNothing) => notes.push(format!("{n} passed over: {e}")),
+                    Err(e) => notes.push(format!("{n} passed over: it could not be added ({e})")),
+                    Ok(_) => {}
+                }
+                not_made_reason(made.get(n))
+            }
+            (Some(_), Some(b)) if b == i => Reason::Supported,
+            (Some((s, _)), _) if worsens(before, s) => {
+                notes.push(format!(
+                    "{n} passed over: with it {}, without it {}",
+                    s.describe(),
+                    before.describe()
+                ));
+                Reason::WorsensSimulation
+            }
+            (Some((s, _)), Some(b)) => {
+                // A sentence for the ranking's own choice when another displaced it.
+                if Some(i) == first {
+                    notes.push(format!(
+                        "{n} passed over: with it {}, and every record simulates better with {}",
+                        s.describe(),
+                        names[b]
+                    ));
+                }
+                Reason::SimulatesLessWell
+            }
+            (Some(_), None) => Reason::WorsensSimulation,
+        };
+        let trial = made.trial(n, reason);
         out.tried.push(trial);
-        return made.take(&cand.name);
     }
-    None
+    made.take(names[best?])
+}
+
+/// Whether the records simulate better with `c` than with `f` beyond doubt: fewer fail, or the
+/// same ones fail and every other has a lower R-MSE. The geometric mean alone is not enough: on
+/// a multi-stable structure one record whose run settles in another well moves it by orders of
+/// magnitude either way, while the records that agree are what the missing effect explains.
+fn beats(c: &(SimScore, Vec<Option<f64>>), f: &(SimScore, Vec<Option<f64>>)) -> bool {
+    if c.0.failed != f.0.failed {
+        return c.0.failed < f.0.failed;
+    }
+    c.1.len() == f.1.len()
+        && c.1.iter().zip(&f.1).all(|(a, b)| match (a, b) {
+            (Some(a), Some(b)) => a < b,
+            (None, None) => true,
+            _ => false,
+        })
+}
+
+/// Whether candidate `r` contends in step 2: significant, or its test passes, its held-out
+/// equation error falls and it reaches the size, but its per-fold models (refitted on part of
+/// the records) could not be simulated on the rest: whether the refit on all of them simulates
+/// is the decision's own question.
+fn contends(r: &RankedEffect) -> bool {
+    r.significant || r.significance == Significance::CannotBeSimulated
 }
 
 /// Step 3 (module docs): a one-sided contact the equation error does not make significant,

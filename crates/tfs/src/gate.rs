@@ -143,6 +143,31 @@ pub struct Chosen {
     pub warnings: Vec<String>,
     /// How the model with it simulates the records.
     pub score: SimScore,
+    /// Each record's R-MSE with it, in the records' order (`None`: that record failed).
+    pub each: Vec<Option<f64>>,
+}
+
+/// Each record's free-run R-MSE with `model`, in the order of `records` (`None` where the run
+/// failed): from the last rung of its history when that rung scored every record, as
+/// [`SimScore::of`] reads it, else simulated here.
+pub(crate) fn each_record(model: &Model, records: &[Record]) -> Vec<Option<f64>> {
+    let from = |ok: &[tfs_library::RecordScore]| -> Vec<Option<f64>> {
+        records
+            .iter()
+            .map(|r| {
+                ok.iter()
+                    .find(|s| s.record == r.source())
+                    .map(|s| s.r_mse)
+                    .filter(|v| v.is_finite())
+            })
+            .collect()
+    };
+    if let Some(last) = error_ladder(model).last()
+        && last.r_mse.len() + last.failed.len() == records.len()
+    {
+        return from(&last.r_mse);
+    }
+    from(&crate::contact::score(model, records).each)
 }
 
 /// How many effects `diagnose` adds after the chosen one when records still fail: the search
@@ -185,12 +210,14 @@ pub(crate) fn add_each(
                 return Err(NotMade::AddsNothing);
             }
             let score = SimScore::of(&m, records);
+            let each = each_record(&m, records);
             Ok(Chosen {
                 effect: name.to_string(),
                 model: m,
                 stops: notes.stops,
                 warnings: notes.warnings,
                 score,
+                each,
             })
         })
         .collect()

@@ -96,7 +96,8 @@ fn the_decision_names_the_first_candidate_the_simulations_support() {
     assert!(
         d.why
             .contains("no-such-effect passed over: it could not be added")
-            && d.why.contains("linear-damping is the next significant"),
+            && d.why
+                .contains("linear-damping is named of the 2 contenders"),
         "{}",
         d.why
     );
@@ -119,6 +120,74 @@ fn the_decision_names_the_first_candidate_the_simulations_support() {
     let d_short = decide_default(&start, &short, &records);
     assert_eq!(d_short.chosen.as_deref(), Some("linear-damping"));
     assert_eq!(d_short.why, d.why);
+}
+
+/// A contender with which every record simulates better overrules the ranking's order: a
+/// look-alike ranked first (cubic damping for a missing dashpot) is passed over for the missing
+/// dashpot, also when only the dashpot's per-fold models failed to simulate (its test passed);
+/// a candidate whose test did not pass does not contend.
+#[test]
+fn a_contender_that_makes_every_record_simulate_better_overrules_the_ranking() {
+    let (start, records) = undamped_start();
+    let ranked = vec![candidate("cubic-damping"), candidate("linear-damping")];
+    let d = decide_default(&start, &ranked, &records);
+    assert_eq!(d.chosen.as_deref(), Some("linear-damping"), "{d:?}");
+    assert_eq!(d.reason, Reason::Supported);
+    assert!(!d.ranking_stands);
+    let reasons: Vec<Reason> = d.tried.iter().map(|t| t.reason).collect();
+    assert_eq!(reasons, [Reason::SimulatesLessWell, Reason::Supported]);
+    let (cubic, linear) = (d.tried[0].score.unwrap(), d.tried[1].score.unwrap());
+    assert!(
+        linear.key() < cubic.key() && cubic.key() < d.before.key(),
+        "{d:?}"
+    );
+    assert!(
+        d.why.contains("cubic-damping passed over: with it"),
+        "{}",
+        d.why
+    );
+    // Its per-fold models could not be simulated: it still contends.
+    let mut folds_failed = ranked.clone();
+    (folds_failed[1].significant, folds_failed[1].significance) =
+        (false, Significance::CannotBeSimulated);
+    let d = decide_default(&start, &folds_failed, &records);
+    assert_eq!(d.chosen.as_deref(), Some("linear-damping"), "{d:?}");
+    // Its test did not pass: it does not contend, and the look-alike is named.
+    let mut not_passed = ranked.clone();
+    (not_passed[1].significant, not_passed[1].significance) = (false, Significance::NotSignificant);
+    let d = decide_default(&start, &not_passed, &records);
+    assert_eq!(d.chosen.as_deref(), Some("cubic-damping"), "{d:?}");
+    assert!(d.ranking_stands && d.tried.len() == 1);
+}
+
+/// One record far better is not enough to overrule the ranking: every record must agree (a
+/// multi-stable structure's record whose run settles in another well moves the geometric mean
+/// by orders of magnitude either way); fewer failing records always is.
+#[test]
+fn every_record_must_simulate_better_to_overrule() {
+    let s = |failed: usize, each: &[Option<f64>]| {
+        let ok: Vec<f64> = each.iter().flatten().copied().collect();
+        (
+            SimScore {
+                failed,
+                records: each.len(),
+                mean_r_mse: ok.iter().sum::<f64>() / ok.len().max(1) as f64,
+                geo_mean_r_mse: tfs_diagnose::geometric_mean_r_mse(&ok),
+            },
+            each.to_vec(),
+        )
+    };
+    let first = s(0, &[Some(4.9), Some(1.2e-2), Some(1.4e-3)]);
+    let one_well = s(0, &[Some(2.9e-2), Some(1.1e-2), Some(1.6e-3)]);
+    assert!(one_well.0.key() < first.0.key() && !beats(&one_well, &first));
+    let every = s(0, &[Some(2.9e-2), Some(1.1e-2), Some(1.3e-3)]);
+    assert!(beats(&every, &first) && !beats(&first, &every));
+    let fewer_fail = s(0, &[Some(9.0), Some(9.0), Some(9.0)]);
+    let fails = s(1, &[None, Some(1e-3), Some(1e-3)]);
+    assert!(beats(&fewer_fail, &fails) && !beats(&fails, &fewer_fail));
+    // The same record failing with both: the others decide.
+    let fails_better = s(1, &[None, Some(1e-4), Some(1e-4)]);
+    assert!(beats(&fails_better, &fails));
 }
 
 /// A decision that names nothing says why in its verdict when significant candidates were
@@ -249,6 +318,7 @@ fn a_contact_is_outdone_only_by_a_rival_that_simulates_strictly_better() {
         stops: Vec::new(),
         warnings: Vec::new(),
         score: s,
+        each: vec![Some(s.geo_mean_r_mse); 2],
     };
     let mut made = Made {
         model: &start,
