@@ -41,7 +41,7 @@ pub struct TermTest {
     pub dof: f64,
     /// The critical `|coefficient| / SE`.
     pub t_critical: f64,
-    /// Degrees of freedom of each term's interval (design-based; see [`cluster_intervals`]),
+    /// Degrees of freedom of each term's interval (design-based; see `cluster_intervals`),
     /// which turn its 95 % half-width back into its standard error.
     pub interval_dof: std::collections::BTreeMap<String, f64>,
 }
@@ -114,7 +114,7 @@ fn cluster_intervals(
     jackknife_intervals(&own, &sub)
 }
 
-/// The delete-one-cluster jackknife of [`cluster_intervals`] on clusters of rows that already
+/// The delete-one-cluster jackknife of `cluster_intervals` on clusters of rows that already
 /// hold only the fitted coefficients' columns (`coef[c]` multiplies column `c`): half-widths of
 /// the [`INTERVAL_LEVEL`] intervals, the number of clusters and each coefficient's effective
 /// degrees of freedom. Shared with the tied chain fit, whose rows are the joint ones.
@@ -305,7 +305,7 @@ fn inclusion_caveat(terms: &[CaveatTerm], thr: f64) -> Option<String> {
 }
 
 /// Blocks for bagging: the clusters of frequency-domain rows of [`bin_clusters`] (those of
-/// [`cluster_intervals`]: `CLUSTER_BINS` neighbouring bins of one pair of overlapping windows),
+/// `cluster_intervals`: `CLUSTER_BINS` neighbouring bins of one pair of overlapping windows),
 /// each compressed (tens of them; why not whole windows: `docs/DECISIONS.md`).
 fn cluster_blocks(clusters: Vec<ClusterRows>) -> Result<Vec<Compressed>> {
     clusters

@@ -440,7 +440,7 @@ impl CsvTable {
     }
 
     /// Validates the table against `opts` (time and required columns present, then the first
-    /// bad cell or row if any, then the rules of [`crate::validate`]) and returns the record and
+    /// bad cell or row if any, then the rules of `crate::validate`) and returns the record and
     /// the warnings raised.
     pub fn into_record(self, opts: &CsvOptions) -> Result<(Record, Vec<DataError>)> {
         let file = self.source.as_str();

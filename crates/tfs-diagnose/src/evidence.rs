@@ -92,7 +92,7 @@ pub struct PredictionEvidence {
     /// with at most half the model's own RMS prediction error (both read above `floor`): the
     /// drop of that RMS error as a share of the motion's RMS (`None` otherwise).
     pub better_by: Option<f64>,
-    /// The R-MSE the judge leaves to noise, not to any model ([`crate::judge::Choice`]'s
+    /// The R-MSE the judge leaves to noise, not to any model (`crate::judge::Choice`'s
     /// `floor`: the measured record's and its input's noise under the free run, 0 otherwise);
     /// `better_by` is the drop of the error above it.
     pub floor: f64,

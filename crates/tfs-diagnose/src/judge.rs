@@ -14,13 +14,13 @@
 //! **short-horizon prediction**: held-out data cut into pieces, each simulated from the smoothed
 //! measured state at its start (internal states from the record), the squared error summed over
 //! the pieces — the model's error over a horizon the input noise cannot take over. The pieces are
-//! as long as the start model's own predictions keep their skill ([`divergence_horizon`]: the
+//! as long as the start model's own predictions keep their skill (`divergence_horizon`: the
 //! lag at which their error reaches the displacement's variance, the record's own measure of how
 //! fast nearby motions part), at most two dominant periods. When neither can be simulated the
 //! equation error alone decides.
 //!
 //! A judge vetoes a candidate only when it predicts worse by more than the judge resolves
-//! ([`predicts_worse`]): for the free run, by more than a fresh draw of the input's noise moves
+//! (`predicts_worse`): for the free run, by more than a fresh draw of the input's noise moves
 //! the model's score; for the short horizon, when paired tests over the pieces bear it out.
 //! Over chaotic divergence the short-horizon error is too coarse to order candidates on its own,
 //! so the significant ones are then ordered by their held-out equation error, and the pieces
@@ -30,13 +30,13 @@
 //! other folds. For a model fitted with laws tied between its equations (a chain) the refit
 //! would untie them, so there the per-fold model keeps the model's own coefficients and takes
 //! only what the candidate's fold fit changes against the fold fit without it
-//! ([`crate::design::anchored`]): the model without a candidate is then the model itself.
+//! (`crate::design::anchored`): the model without a candidate is then the model itself.
 //!
 //! For such an anchored model, a judged prediction that leaves the record's own motion far
-//! behind (any state beyond [`RANGE_FACTOR`] times the record's largest smoothed displacement,
+//! behind (any state beyond `RANGE_FACTOR` times the record's largest smoothed displacement,
 //! velocity or tracked internal state) is stopped there and counts as failed: it has lost the
 //! record, and a polynomial model far outside the range it was fitted on is stiff, so finishing
-//! the run would cost many small steps to learn only that ([`judge_integrator`]).
+//! the run would cost many small steps to learn only that (`judge_integrator`).
 
 use rayon::prelude::*;
 use serde::Serialize;
@@ -362,7 +362,7 @@ pub(crate) fn predict_pieces(
     (r.is_finite() && parts.iter().all(|p| p.is_finite())).then_some((r, parts))
 }
 
-/// Starts per record of [`divergence_horizon`]'s predictions (evenly spaced).
+/// Starts per record of `divergence_horizon`'s predictions (evenly spaced).
 pub(crate) const HORIZON_STARTS: usize = 16;
 
 /// The piece length (samples) of the short-horizon judge for `model` on `states`: the lag at
@@ -435,7 +435,7 @@ pub(crate) fn divergence_horizon(
 /// it was fitted on is stiff: its prediction crawls there in ever smaller steps and ends with an
 /// error that says only "no skill". The bound is on every state, velocities too, so a brief
 /// velocity transient at a noisy run's start can also pass it; it is applied to anchored models
-/// only ([`judge_integrator`]).
+/// only (`judge_integrator`).
 pub(crate) const RANGE_FACTOR: f64 = 10.0;
 
 /// The record's own motion as a model's judged predictions see it: per DOF its smoothed
@@ -483,8 +483,8 @@ impl<'a> RecordScale<'a> {
 
 /// The judge's integrator for `model`'s predictions along a record whose peak
 /// ([`RecordScale::peak`]) `peak` gives: for a model whose per-fold models are anchored
-/// ([`crate::design::anchored`], a tied chain) the default Dopri5 stopped as blown up once any
-/// state passes [`RANGE_FACTOR`] times that peak (the default's own limit when the record has no
+/// (`crate::design::anchored`, a tied chain) the default Dopri5 stopped as blown up once any
+/// state passes `RANGE_FACTOR` times that peak (the default's own limit when the record has no
 /// motion to measure by); for any other model the default Dopri5, and `peak` is not asked for.
 /// `None` when `peak` has none. The anchored fold models are the ones whose runs wander off the
 /// records; an untied model's fold models are refits on the records, and bounding their runs
@@ -508,7 +508,7 @@ struct Predictor<'a> {
     /// The record with the model's computed input columns.
     rec: tfs_data::Record,
     scale: RecordScale<'a>,
-    /// The integrator, bounded by the record's scale for an anchored model ([`judge_integrator`]).
+    /// The integrator, bounded by the record's scale for an anchored model (`judge_integrator`).
     integrator: Dopri5,
     dofs: Vec<String>,
 }

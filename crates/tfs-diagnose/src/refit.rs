@@ -204,9 +204,9 @@ pub fn add_effect(model: &Model, effect_name: &str, records: &[Record]) -> Resul
 /// Adds an effect to the equation of each target DOF: every variant of its family is fitted with
 /// the equation's terms on training folds and the one with the lowest held-out equation error is
 /// kept; the extended equation is then refitted on all records toward the model's own
-/// coefficients ([`crate::anchor`]: held, ridge-regularised or free), keeping the fit whose free
+/// coefficients (`crate::anchor`: held, ridge-regularised or free), keeping the fit whose free
 /// runs predict the records best. When that fit does not predict them better than `model`
-/// itself, the step toward it is searched ([`crate::anchor::line_search`]): the result never
+/// itself, the step toward it is searched (`crate::anchor::line_search`): the result never
 /// predicts the fit records worse than `model`, and when no step helps it is `model`'s equations
 /// unchanged, with nothing listed as added. The model's history gets a `"start"` entry (if
 /// empty) and an `"add <name>"` entry with the R-MSE of every record (its details name the
@@ -240,7 +240,7 @@ pub fn add_effect_fit(
 /// only as far as it predicts `records` better than `start`, by the rulers and key the refit's
 /// anchors are chosen by: when it is not better (and `start` simulates every record), the best
 /// step toward it
-/// ([`crate::anchor::line_search`]), or `start`'s equations (nothing added, the step's `added`
+/// (`crate::anchor::line_search`), or `start`'s equations (nothing added, the step's `added`
 /// list emptied). The last history step gets the step kept (`step` in its first variant's
 /// details; 1: `fitted` as it is) and, when the model changed, its R-MSE per record again.
 pub fn hold_start(

@@ -125,7 +125,7 @@ pub(crate) fn period_samples(y: &[f64]) -> Option<f64> {
 /// `√(mean((y[k+1] − 2y[k] + y[k−1])²)/6)` (white noise of variance σ² gives second differences
 /// of mean square 6σ²). Motion sampled finely has small second differences, so this is the
 /// noise's level on a well-sampled record and an upper bound otherwise; it only sets how far
-/// [`period_samples`] makes a crossing go.
+/// `period_samples` makes a crossing go.
 pub(crate) fn sample_noise(y: &[f64]) -> f64 {
     if y.len() < 3 {
         return 0.0;
@@ -141,7 +141,7 @@ pub(crate) fn sample_noise(y: &[f64]) -> f64 {
 }
 
 /// Samples of the fitted stretch for [`InitialState::Fitted`]: `periods` periods of the
-/// measured displacement with the most crossings ([`period_samples`]), or a tenth of the record
+/// measured displacement with the most crossings (`period_samples`), or a tenth of the record
 /// when none oscillates; at least 16 samples (or the whole record if shorter).
 pub fn fit_horizon(measured: &[&[f64]], periods: f64) -> usize {
     let n = measured.iter().map(|m| m.len()).min().unwrap_or(0);

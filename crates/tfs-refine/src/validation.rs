@@ -30,7 +30,7 @@ pub struct ValidationScores {
 }
 
 /// Simulates `eq_model` and `refined` on held-out `validation` records (tfs-dynamics
-/// [`simulate_model_on_record`] with default options) and returns a clone of the one that
+/// `simulate_model_on_record` with default options) and returns a clone of the one that
 /// predicts better (lower sum over records of squared RMS error normalised by the record's
 /// displacement RMS; ties keep `eq_model`), with the scores. Records whose free-run error under
 /// `eq_model` is dominated by the noise on their measured input ([`crate::input_noise_spread`])

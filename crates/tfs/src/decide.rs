@@ -20,7 +20,7 @@
 //!    parts (a fit on part of the records is a weaker witness than the refit on all of them,
 //!    which is what would be added). The ranking's first with which the records simulate no
 //!    worse than without it is chosen ([`Reason::Supported`]), unless others make every record
-//!    simulate better than it does, or fewer fail ([`beats`]): then the one of those with the
+//!    simulate better than it does, or fewer fail (`beats`): then the one of those with the
 //!    lowest geometric-mean R-MSE. The others are passed over as simulating less well
 //!    ([`Reason::SimulatesLessWell`]), worse than the model ([`Reason::WorsensSimulation`]: more
 //!    records fail, or as many and the geometric-mean R-MSE of the others rises) or as not made
@@ -484,7 +484,7 @@ fn for_failures(
 
 /// Step 2 (module docs): the first contender in the ranking's order with which the records
 /// simulate no worse than `before`, unless others make every record simulate better than it
-/// does ([`beats`]): then the best of those. Each passed over is recorded with a sentence.
+/// does (`beats`): then the best of those. Each passed over is recorded with a sentence.
 fn best_supported(
     made: &mut Made<'_>,
     ranked: &[RankedEffect],

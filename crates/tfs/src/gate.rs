@@ -1,8 +1,8 @@
 //! What the model does when simulated, the evidence [`crate::decide`] weighs: how a model
 //! simulates the records ([`SimScore`]), each candidate added as `refit --add` adds it
-//! ([`add_each`]), the control a candidate is measured against when the model fails some records
+//! (`add_each`), the control a candidate is measured against when the model fails some records
 //! (its own terms refitted with nothing added), the forward steps that say which effects failing
-//! records need together ([`further_steps`]), and T-F-S's own test of a stop
+//! records need together (`further_steps`), and T-F-S's own test of a stop
 //! ([`tfs_stop_p_value`]).
 //!
 //! The diagnosis ranks candidate effects by equation error on smoothed states. A model that
@@ -32,7 +32,7 @@ pub struct SimScore {
     /// Mean R-MSE over the records that simulate (infinite when none does).
     pub mean_r_mse: f64,
     /// Geometric-mean R-MSE over the records that simulate (infinite when none does): the
-    /// score [`SimScore::key`] orders by and the sentences print.
+    /// score `SimScore::key` orders by and the sentences print.
     pub geo_mean_r_mse: f64,
 }
 
@@ -109,7 +109,7 @@ impl SimScore {
     }
 }
 
-/// Why a candidate's model was not made ([`add_each`]).
+/// Why a candidate's model was not made (`add_each`).
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) enum NotMade {
     /// The refit failed, in one line.
