@@ -145,44 +145,6 @@ const HARMONIC_EXCESS: f64 = 1.5;
 /// Family-wise level of the harmonic test over all the blocks tested (see [`choose_cutoff`]).
 const HARMONIC_LEVEL: f64 = 0.05;
 
-/// Bins above this many times the floor (the 0.99 quantile of χ²₁) are left out of the pooled
-/// level of [`NoiseFloor::pooled_level`].
-pub const POOL_CLIP: f64 = 6.634_896_601_021_214;
-/// At most this many passes of a skipped mean (it stops when the bins kept stop changing,
-/// usually after two or three).
-const POOL_ITERATIONS: usize = 20;
-
-/// The mean of a unit-mean χ²₁ variable below [`POOL_CLIP`], `F₃(c)/F₁(c)` (as `x·f₁(x) =
-/// f₃(x)`, with `F_ν` the χ²_ν distribution function; checked against `statrs` in the tests).
-const POOL_KEPT_MEAN: f64 = 0.924_755_899_372_685_4;
-
-/// The mean scale of `values` taken as χ²₁ bins of one mean `A`: the mean of the values at most
-/// [`POOL_CLIP`]·`A`, divided by [`POOL_KEPT_MEAN`], iterated to its fixed point from
-/// `A = start`. `None` when no value is kept or the start is not a positive number.
-fn skipped_mean(values: impl Iterator<Item = f64> + Clone, start: f64) -> Option<f64> {
-    if start.is_nan() || start <= 0.0 || start.is_infinite() {
-        return None;
-    }
-    let mut a = start;
-    let mut kept = usize::MAX;
-    for _ in 0..POOL_ITERATIONS {
-        let cut = POOL_CLIP * a;
-        let (sum, n) = values
-            .clone()
-            .filter(|&v| v <= cut)
-            .fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
-        if n == 0 || sum.is_nan() || sum <= 0.0 {
-            return None;
-        }
-        a = sum / (n as f64 * POOL_KEPT_MEAN);
-        if n == kept {
-            break;
-        }
-        kept = n;
-    }
-    Some(a)
-}
-
 /// A power-law noise floor `ln N̂_k = log_a + beta·ln k` fitted to a spectrum (see
 /// [`NoiseFloor::fit`]), with what its extrapolation error needs.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -202,56 +164,14 @@ pub struct NoiseFloor {
     /// The unclamped slope is below −2 by more than three standard errors: the upper half falls
     /// faster than any noise floor the model admits.
     tail: bool,
-    /// The kept slope was clamped to [−2, 0.5]: the model's shape does not follow the upper half.
-    clamped: bool,
 }
 
 impl NoiseFloor {
-    /// The floor of a mirror power spectrum `p` (bins 0..=K): its slope from the medians of
+    /// The floor of a mirror power spectrum `p` (bins 0..=K): the medians of
     /// [`FLOOR_SUBBANDS`] sub-bands of its upper half, each divided by [`CHI2_1_MEDIAN`], and a
-    /// least-squares line through them in log–log (see [`NoiseFloor::fit_with`]); its level
-    /// from every bin of the upper half pooled ([`NoiseFloor::pooled_level`]).
-    ///
-    /// The level is what the cut-off and every noise estimate rest on, and the median of χ²₁
-    /// bins is a poor estimator of it: the log of a median of `n` bins scatters by 2.33/√n
-    /// against √2/√n for their mean. On a short record (300 bins in the upper half) the median
-    /// floor's log scatters by 0.13, about one draw in fifty is 25 % low, and the cut-off chosen
-    /// on such a floor follows the noise bins above it out to many times the signal's band.
+    /// least-squares line through them in log–log (see [`NoiseFloor::fit_with`]).
     pub fn fit(p: &[f64]) -> Self {
-        Self::fit_with(p, FLOOR_SUBBANDS, CHI2_1_MEDIAN).pooled_level(p)
-    }
-
-    /// The floor with its level `A` re-estimated from every bin `k` of the upper half of the
-    /// power spectrum `p`, each divided by the floor's shape `k^β`: the mean of those at most
-    /// [`POOL_CLIP`] (the 0.99 quantile of χ²₁) times `A`, divided by the mean of a χ²₁ variable
-    /// of unit mean below that quantile, iterated to its fixed point from the median fit's `A`.
-    /// Under noise alone it is unbiased (one bin in a hundred is dropped, and the division
-    /// accounts for it) and nearly as precise as the plain mean; a line in the upper half (a
-    /// harmonic, an interference) more than 6.6 times the floor is left out as the medians
-    /// left it out. Left as it is when the slope was clamped (the upper half does not follow
-    /// the model: a signal tail, see [`NoiseFloor::is_signal_tail`]) or without a finite level.
-    pub fn pooled_level(self, p: &[f64]) -> Self {
-        let k = p.len();
-        let lo = (k / 2).max(1);
-        if !self.log_a.is_finite() || lo >= k || self.tail || self.clamped {
-            return self;
-        }
-        // A flat floor reads the bins as they are (β = 0 divides each by exactly 1).
-        let level = if self.beta == 0.0 {
-            skipped_mean(p[lo..].iter().copied(), self.log_a.exp())
-        } else {
-            let r: Vec<f64> = (lo..k)
-                .map(|i| p[i] / (self.beta * (i.max(1) as f64).ln()).exp())
-                .collect();
-            skipped_mean(r.iter().copied(), self.log_a.exp())
-        };
-        match level {
-            Some(a) => Self {
-                log_a: a.ln(),
-                ..self
-            },
-            None => self,
-        }
+        Self::fit_with(p, FLOOR_SUBBANDS, CHI2_1_MEDIAN)
     }
 
     /// The floor of the spectrum `p` from the medians of `subbands` sub-bands of its upper half,
@@ -311,7 +231,6 @@ impl NoiseFloor {
             mx,
             sxx,
             tail: b + 3.0 * se < -2.0,
-            clamped: significant && beta != b,
         }
     }
 
@@ -325,7 +244,6 @@ impl NoiseFloor {
             mx,
             sxx,
             tail: false,
-            clamped: false,
         }
     }
 
@@ -412,32 +330,6 @@ mod tests {
         let w = NoiseFloor::fit(&white);
         assert_eq!(w.beta, 0.0);
         assert!((w.at(100) - 1.0).abs() < 0.2, "{}", w.at(100));
-    }
-
-    /// The pooled level's constants are the χ²₁ quantities they stand for, and on noise with a
-    /// few strong lines the level is the noise's, the lines left out.
-    #[test]
-    fn pooled_level_constants_and_lines_left_out() {
-        use statrs::distribution::ChiSquared;
-        let chi1 = ChiSquared::new(1.0).unwrap();
-        let chi3 = ChiSquared::new(3.0).unwrap();
-        assert!((chi1.cdf(POOL_CLIP) - 0.99).abs() < 1e-12);
-        let kept = chi3.cdf(POOL_CLIP) / chi1.cdf(POOL_CLIP);
-        assert!((kept / POOL_KEPT_MEAN - 1.0).abs() < 1e-12, "{kept}");
-        // 4000 bins of χ²₁ noise of mean 2, every 50th bin of the upper half a line 100× the
-        // floor (40 lines): the pooled level within 6 % of 2 (the mean of 2000 bins scatters by
-        // 3 %), where the plain mean of the upper half is three times too high.
-        let z = crate::noise::standard_normal(4000, 21);
-        let p: Vec<f64> = z
-            .iter()
-            .enumerate()
-            .map(|(k, v)| 2.0 * v * v + if k >= 2000 && k % 50 == 0 { 200.0 } else { 0.0 })
-            .collect();
-        let f = NoiseFloor::fit(&p);
-        assert_eq!(f.beta, 0.0);
-        assert!((f.at(1) / 2.0 - 1.0).abs() < 0.06, "{}", f.at(1));
-        let mean = p[2000..].iter().sum::<f64>() / 2000.0;
-        assert!(mean > 5.0, "{mean}");
     }
 
     /// The floor's values at every bin are [`NoiseFloor::at`] to the bit, flat or sloped, so the
