@@ -353,7 +353,7 @@ pub fn decide(
     let top = ranked.iter().find(|r| r.significant).map(|r| &r.name);
     if let Some(chosen) = best_supported(&mut made, ranked, &before, &mut out, &mut notes) {
         out.ranking_stands = Some(&chosen.effect) == top;
-        let contenders = ranked.iter().filter(|r| contends(r)).count();
+        let contenders = ranked.iter().filter(|r| contends(r, &before)).count();
         notes.push(format!(
             "{} is named {}: with it {}, without it {}",
             chosen.effect,
@@ -494,7 +494,7 @@ fn best_supported(
 ) -> Option<Chosen> {
     let names: Vec<&str> = ranked
         .iter()
-        .filter(|r| contends(r))
+        .filter(|r| contends(r, before))
         .map(|r| r.name.as_str())
         .collect();
     made.make(&names);
@@ -576,10 +576,12 @@ fn beats(c: &(SimScore, Vec<Option<f64>>), f: &(SimScore, Vec<Option<f64>>)) -> 
 
 /// Whether candidate `r` contends in step 2: significant, or its test passes, its held-out
 /// equation error falls and it reaches the size, but its per-fold models (refitted on part of
-/// the records) could not be simulated on the rest: whether the refit on all of them simulates
-/// is the decision's own question.
-fn contends(r: &RankedEffect) -> bool {
-    r.significant || r.significance == Significance::CannotBeSimulated
+/// the records) could not be simulated on the rest, while the model itself simulates every
+/// record (`before`): whether the refit on all of them simulates is the decision's own
+/// question. When the model itself fails some records, every candidate's per-fold models are
+/// expected to fail too, and that says nothing for the candidate.
+fn contends(r: &RankedEffect, before: &SimScore) -> bool {
+    r.significant || (r.significance == Significance::CannotBeSimulated && before.failed == 0)
 }
 
 /// Step 3 (module docs): a one-sided contact the equation error does not make significant,
