@@ -729,20 +729,9 @@ pub fn choose_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>
     x0: Vec<f64>,
     v0: Vec<f64>,
 ) -> Result<(Vec<f64>, Vec<f64>)> {
-    let periods = match how {
-        InitialState::FirstSamples => return Ok((x0, v0)),
-        InitialState::Fitted { periods } => periods,
-    };
-    if !(periods.is_finite() && periods > 0.0) {
-        return Err(DynError::InvalidParameter {
-            name: "initial_state.periods",
-            reason: format!("{periods} must be positive and finite"),
-        });
-    }
-    let h = fit_horizon(measured, periods).min(t.len());
-    if h < 2 || measured.is_empty() {
+    let Some((periods, h)) = fitted_stretch(how, measured, t)? else {
         return Ok((x0, v0));
-    }
+    };
     let (xs, vs) = smoothed_start(measured, t, periods, h, (&x0, &v0));
     // A model that blows up within the horizon from both guesses (one that is unstable for this
     // record) has no finite cost to fit there: the horizon is halved until it has one, so the
@@ -817,7 +806,7 @@ pub fn warm_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
     warm: (&[f64], &[f64]),
 ) -> Result<(Vec<f64>, Vec<f64>)> {
     let cold = |x0, v0| choose_initial_state(how, sys, integrator, input, measured, t, x0, v0);
-    let InitialState::Fitted { periods } = how else {
+    let InitialState::Fitted { .. } = how else {
         return cold(x0, v0);
     };
     let m = measured.len();
@@ -829,13 +818,9 @@ pub fn warm_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
             hint: "a warm start needs a displacement and a velocity per measured DOF",
         });
     }
-    if !(periods.is_finite() && periods > 0.0) || measured.is_empty() {
+    let Some((periods, h)) = fitted_stretch(how, measured, t)? else {
         return cold(x0, v0);
-    }
-    let h = fit_horizon(measured, periods).min(t.len());
-    if h < 2 {
-        return cold(x0, v0);
-    }
+    };
     let (mut xw, mut vw) = (x0.clone(), v0.clone());
     if xw.len() < m || vw.len() < m {
         return cold(x0, v0);
@@ -855,6 +840,29 @@ pub fn warm_initial_state<S: SecondOrderSystem + ?Sized, I: Integrator + Sync>(
         }
     }
     cold(x0, v0)
+}
+
+/// The periods and samples of the stretch a start state is fitted over for `how` on `measured`
+/// (sampled at `t`): `None` where no fit is made (the first samples asked for, no measured DOF,
+/// or a stretch under 2 samples).
+///
+/// Errors: a non-positive or non-finite `periods`.
+fn fitted_stretch(
+    how: InitialState,
+    measured: &[&[f64]],
+    t: &[f64],
+) -> Result<Option<(f64, usize)>> {
+    let InitialState::Fitted { periods } = how else {
+        return Ok(None);
+    };
+    if !(periods.is_finite() && periods > 0.0) {
+        return Err(DynError::InvalidParameter {
+            name: "initial_state.periods",
+            reason: format!("{periods} must be positive and finite"),
+        });
+    }
+    let h = fit_horizon(measured, periods).min(t.len());
+    Ok((h >= 2 && !measured.is_empty()).then_some((periods, h)))
 }
 
 /// Fewest samples a shortened fit horizon of [`choose_initial_state`] keeps.
