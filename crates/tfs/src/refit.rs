@@ -135,7 +135,8 @@ pub(crate) fn add_one(
             Some((m, report)) => (m, Some(report)),
             None => (added, None),
         };
-    let held = hold_start(model, &added, records, opts)?;
+    let mut held = hold_start(model, &added, records, opts)?;
+    prune_ties(&mut held);
     if held.equations == model.equations {
         notes.warnings.push(format!(
             "'{name}': no step toward its refit predicts these records better than the model without it, so nothing was added (the equations are unchanged)"
@@ -144,6 +145,40 @@ pub(crate) fn add_one(
         notes.stops.extend(report);
     }
     Ok(held)
+}
+
+/// Drops from the trace's `"ties"` every tie whose term its owner's or its partner's equation
+/// no longer holds: the ties are written when the tied refit is made, and a stop's re-scan by
+/// T-F-S afterwards may re-identify the chain without a term (its interval covering zero), so a
+/// listed tie would name a term the model does not have.
+fn prune_ties(model: &mut Model) {
+    let holds = |dof: Option<&str>, term: Option<&str>| {
+        model
+            .equations
+            .iter()
+            .find(|e| Some(e.dof.as_str()) == dof)
+            .is_some_and(|e| {
+                e.terms
+                    .iter()
+                    .any(|t| Some(t.term.to_string().as_str()) == term)
+            })
+    };
+    let Some(ties) = model.trace.get("ties").and_then(|t| t.as_array()) else {
+        return;
+    };
+    let kept: Vec<serde_json::Value> = ties
+        .iter()
+        .filter(|t| {
+            let term = t["term"].as_str();
+            holds(t["owner"].as_str(), term) && holds(t["partner"].as_str(), term)
+        })
+        .cloned()
+        .collect();
+    if kept.len() < ties.len()
+        && let Some(trace) = model.trace.as_object_mut()
+    {
+        trace.insert("ties".into(), serde_json::Value::Array(kept));
+    }
 }
 
 /// The stop terms (`below`, `above`) the model's last history step lists as added that no
