@@ -10,8 +10,11 @@
 //!
 //! ```text
 //! cargo run --example short_coverage -- [--snr 40] [--seeds 1-6] [--noise-seeds 1-3]
-//!     [--only NAME] [--full] [--show] [--out DIR]
+//!     [--only NAME] [--full] [--no-elimination] [--show] [--out DIR]
 //! ```
+//!
+//! `--no-elimination` keeps the selection but not the backward elimination by the term test,
+//! which tells a term the selection drops from one the term test removes.
 
 #[path = "../tests/common/short_systems.rs"]
 mod short_systems;
@@ -45,6 +48,7 @@ fn main() {
     // Every record written as `DIR/<system>-<seed>-n<noise>-<snr>dB.csv` with its library.
     let out = arg("--out");
     let full = args.iter().any(|a| a == "--full");
+    let no_elimination = args.iter().any(|a| a == "--no-elimination");
     let show = args.iter().any(|a| a == "--show");
     let mut totals: Vec<(&str, Tally)> = Vec::new();
     // (coef − truth)/SE of every term with an interval, SE from the half-width over t(0.975, ν).
@@ -77,6 +81,8 @@ fn main() {
                     let mut p = plan(&opts, rec.names(), rec.source()).unwrap();
                     if full {
                         p.spec.tfs.fit.threshold = Some(0.0);
+                    }
+                    if full || no_elimination {
                         p.spec.tfs.uncertainty.elimination_rounds = 0;
                     }
                     let id = match identify(vec![rec], Vec::new(), &opts, &p) {

@@ -12,7 +12,18 @@
 //! cargo run --example short_family -- [--out DIR] [--only NAME] [--draws N]
 //!     [--deltas 0.01,0.1] [--windows 3,7]     # a fixed criterion-3 grid, for diagnosis
 //!     [--no-elimination] [--show]             # no backward elimination; print each model
+//!     [--noise-seeds 1-30] [--seeds 37,41]    # other noise or parameter draws (not the score's)
+//!     [--true-only] [--twice]                 # the true terms alone (threshold 0); the record whole
+//!     [--gate G] [--no-eiv] [--reweight N]    # the bin gate (0: none), no EIV correction, GLS passes
 //! ```
+//!
+//! With several noise seeds, each draw's line `spread` gives per true term how often it was kept
+//! over the noisy records, the mean and standard deviation of its estimate, and truth/SD: how many
+//! of the estimator's own sampling deviations the term stands from zero. `--true-only` (offsets
+//! kept) measures that spread with the support given, which separates a term the data do not
+//! carry from one the selection or the term test loses; `--twice` passes the whole record as two
+//! identical records instead of splitting it into halves (its intervals and held-out scores then
+//! mean nothing, its coefficients' spread is what the halves cost).
 //!
 //! With `--out` every failing record is written as `DIR/<system>-<draw>-<noise>.csv` with the
 //! library to pass (`tfs identify -v FILE --library LIB` reads its trace). Not a test: a probe
@@ -425,14 +436,27 @@ fn main() {
     };
     let out = arg("--out");
     let only = arg("--only");
-    let draws: usize = arg("--draws").map_or(DRAW_SEEDS.len(), |v| v.parse().unwrap());
+    let draws: usize = arg("--draws").map_or(usize::MAX, |v| v.parse().unwrap());
     // Diagnosis only: fix the criterion-3 grid (comma-separated δs, window counts).
     let list = |flag: &str| -> Option<Vec<f64>> {
         arg(flag).map(|v| v.split(',').map(|x| x.parse().unwrap()).collect())
     };
     let (deltas, windows) = (list("--deltas"), list("--windows"));
     let no_elimination = args.iter().any(|a| a == "--no-elimination");
+    // Other noise seeds or parameter draws than the score's (`a-b` or a comma list).
+    let range = |flag: &str| -> Option<Vec<u64>> {
+        arg(flag).map(|v| match v.split_once('-') {
+            Some((a, b)) => (a.parse().unwrap()..=b.parse().unwrap()).collect(),
+            None => v.split(',').map(|x| x.parse().unwrap()).collect(),
+        })
+    };
+    let noise_seeds = range("--noise-seeds").unwrap_or(NOISE_SEEDS.to_vec());
+    let draw_seeds = range("--seeds").unwrap_or(DRAW_SEEDS.to_vec());
     let show = args.iter().any(|a| a == "--show");
+    // Diagnosis only: offer the true terms alone (threshold 0, no elimination, offsets kept), and
+    // pass the whole record twice (`--twice`) instead of letting it be split into halves.
+    let true_only = args.iter().any(|a| a == "--true-only");
+    let twice = args.iter().any(|a| a == "--twice");
     if let Some(dir) = &out {
         std::fs::create_dir_all(dir).unwrap();
     }
@@ -442,7 +466,7 @@ fn main() {
     );
     let mut totals: Vec<(&str, usize, usize)> = Vec::new();
     for kind in 0..KINDS {
-        for &seed in DRAW_SEEDS.iter().take(draws) {
+        for &seed in draw_seeds.iter().take(draws) {
             let mut sys = draw(kind, seed);
             if only.as_deref().is_some_and(|o| !sys.name.contains(o)) {
                 continue;
@@ -455,8 +479,10 @@ fn main() {
             }
             let lib = Library::parse(sys.library, &["x"]).unwrap();
             let conds: Vec<Option<u64>> = std::iter::once(None)
-                .chain(NOISE_SEEDS.iter().map(|&s| Some(s)))
+                .chain(noise_seeds.iter().map(|&s| Some(s)))
                 .collect();
+            // Per true term over the noisy records: estimates when kept.
+            let mut spread: Vec<Vec<f64>> = vec![Vec::new(); sys.terms.len()];
             for noise in conds {
                 let x = match noise {
                     Some(ns) => add_noise_seeded(&clean, 40.0, NoiseKind::White, ns).unwrap(),
@@ -471,24 +497,76 @@ fn main() {
                 )
                 .unwrap();
                 let sindy = plain_pysindy(&lib, &rec, 1.0 / sys.fs);
+                let true_lib = sys
+                    .terms
+                    .iter()
+                    .map(|(n, _)| n.clone())
+                    .collect::<Vec<_>>()
+                    .join(", ");
                 let opts = IdentifyOptions {
-                    library: Some(sys.library.into()),
+                    library: Some(if true_only {
+                        true_lib
+                    } else {
+                        sys.library.into()
+                    }),
+                    offsets: if true_only {
+                        tfs::records::Offsets::Keep
+                    } else {
+                        tfs::records::Offsets::Auto
+                    },
                     ..IdentifyOptions::default()
                 };
                 let mut p = plan(&opts, rec.names(), rec.source()).unwrap();
                 if let Some(d) = &deltas {
                     p.spec.tfs.criterion3.deltas = d.clone();
                 }
-                if no_elimination {
+                if no_elimination || true_only {
                     p.spec.tfs.uncertainty.elimination_rounds = 0;
                 }
+                if true_only {
+                    p.spec.tfs.fit.threshold = Some(0.0);
+                }
+                if let Some(g) = arg("--gate") {
+                    p.spec.tfs.criterion3.min_bin_snr = g.parse().ok().filter(|v: &f64| *v > 0.0);
+                }
+                if args.iter().any(|a| a == "--no-eiv") {
+                    p.spec.tfs.fit.noise_correction_draws = 0;
+                }
+                if let Some(r) = arg("--reweight") {
+                    p.spec.tfs.criterion3.reweight = r.parse().unwrap();
+                }
+                let recs = if twice {
+                    let copy = Record::new(
+                        format!("{file}#copy"),
+                        t.clone(),
+                        vec![
+                            ("x".into(), rec.column("x").unwrap().to_vec()),
+                            ("force".into(), force.clone()),
+                        ],
+                    )
+                    .unwrap();
+                    vec![rec.clone(), copy]
+                } else {
+                    vec![rec.clone()]
+                };
                 if let Some(w) = &windows {
                     p.spec.tfs.criterion3.window_counts = w.iter().map(|&v| v as usize).collect();
                 }
-                let s = match identify(vec![rec.clone()], Vec::new(), &opts, &p) {
+                let s = match identify(recs, Vec::new(), &opts, &p) {
                     Ok(id) => {
                         if show {
                             println!("    {}", id.model.equation_string());
+                        }
+                        if noise.is_some() {
+                            let eq = id.model.equation("x").unwrap();
+                            for ((term, _), est) in sys.terms.iter().zip(spread.iter_mut()) {
+                                let name = canonical(term);
+                                if let Some(t) =
+                                    eq.terms.iter().find(|t| t.term.to_string() == name)
+                                {
+                                    est.push(t.coef);
+                                }
+                            }
                         }
                         score(&sys.terms, &id.model, &sindy)
                     }
@@ -538,6 +616,27 @@ fn main() {
                     }
                     None => totals.push((sys.name, s.pass as usize, 1)),
                 }
+            }
+            if noise_seeds.len() > 3 {
+                let line: Vec<String> = sys
+                    .terms
+                    .iter()
+                    .zip(&spread)
+                    .map(|((term, c), est)| {
+                        let n = est.len() as f64;
+                        let mean = est.iter().sum::<f64>() / n.max(1.0);
+                        let sd = (est.iter().map(|v| (v - mean).powi(2)).sum::<f64>()
+                            / (n - 1.0).max(1.0))
+                        .sqrt();
+                        format!(
+                            "{term} kept {}/{} mean {mean:.4} sd {sd:.4} truth/sd {:.1}",
+                            est.len(),
+                            noise_seeds.len(),
+                            c.abs() / sd
+                        )
+                    })
+                    .collect();
+                println!("{:<22} {seed:>4} spread  {}", sys.name, line.join("; "));
             }
         }
     }
