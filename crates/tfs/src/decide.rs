@@ -21,8 +21,9 @@
 //!    which is what would be added). The ranking's first with which the records simulate no
 //!    worse than without it is chosen ([`Reason::Supported`]), unless others make every record
 //!    simulate better than it does, or fewer fail (`beats`): then the one of those with the
-//!    lowest geometric-mean R-MSE. The others are passed over as simulating less well
-//!    ([`Reason::SimulatesLessWell`]), worse than the model ([`Reason::WorsensSimulation`]: more
+//!    lowest geometric-mean R-MSE. The others are passed over as simulating less well (the
+//!    ranking's first, displaced: [`Reason::SimulatesLessWell`]), as not chosen (the others that
+//!    hold: [`Reason::NotChosen`]), worse than the model ([`Reason::WorsensSimulation`]: more
 //!    records fail, or as many and the geometric-mean R-MSE of the others rises) or as not made
 //!    ([`Reason::CouldNotAdd`], [`Reason::AddsNothing`]). The held-out equation error tells that
 //!    something of a kind is missing but is a poor judge between look-alikes (`x^4` and `x^7`
@@ -77,9 +78,13 @@ pub enum Reason {
     /// models could not be simulated): the ranking's first with which the records simulate no
     /// worse than without it, or one with which every record simulates better than with that.
     Supported,
-    /// A contender with which the records simulate no worse than without it, passed over for one
-    /// with which every record simulates better.
+    /// The ranking's first contender with which the records simulate no worse than without it,
+    /// passed over for one with which every record simulates better.
     SimulatesLessWell,
+    /// A contender ranked after the first supported one, with which the records simulate no
+    /// worse than without it, but not named: it does not make every record simulate better
+    /// than the first one does, or another that does simulates better still.
+    NotChosen,
     /// Significant by equation error, but the records simulate worse with it (more fail, or as
     /// many and the geometric-mean R-MSE of the others rises): passed over.
     WorsensSimulation,
@@ -115,6 +120,9 @@ impl fmt::Display for Reason {
             }
             Reason::SimulatesLessWell => {
                 "every record simulates better with another candidate: passed over"
+            }
+            Reason::NotChosen => {
+                "another candidate was named first and this one does not make every record simulate better: passed over"
             }
             Reason::WorsensSimulation => {
                 "significant, but the records simulate worse with it: passed over"
@@ -521,8 +529,10 @@ fn best_supported(
         best
     });
     for (i, n) in names.iter().enumerate() {
-        let reason = match (&made_ok[i], best) {
-            (None, _) => {
+        // `best` is `Some` whenever any contender holds, so every contender that holds is
+        // named, displaced (the ranking's first, when another beats it) or not chosen.
+        let reason = match &made_ok[i] {
+            None => {
                 match made.get(n) {
                     Err(e @ NotMade::AddsNothing) => notes.push(format!("{n} passed over: {e}")),
                     Err(e) => notes.push(format!("{n} passed over: it could not be added ({e})")),
@@ -530,8 +540,7 @@ fn best_supported(
                 }
                 not_made_reason(made.get(n))
             }
-            (Some(_), Some(b)) if b == i => Reason::Supported,
-            (Some((s, _)), _) if worsens(before, s) => {
+            Some((s, _)) if worsens(before, s) => {
                 notes.push(format!(
                     "{n} passed over: with it {}, without it {}",
                     s.describe(),
@@ -539,9 +548,10 @@ fn best_supported(
                 ));
                 Reason::WorsensSimulation
             }
-            (Some((s, _)), Some(b)) => {
-                // A sentence for the ranking's own choice when another displaced it.
-                if Some(i) == first {
+            Some(_) if Some(i) == best => Reason::Supported,
+            Some((s, _)) if Some(i) == first => {
+                // The ranking's own choice, displaced by `best`, which beats it.
+                if let Some(b) = best {
                     notes.push(format!(
                         "{n} passed over: with it {}, and every record simulates better with {}",
                         s.describe(),
@@ -550,7 +560,7 @@ fn best_supported(
                 }
                 Reason::SimulatesLessWell
             }
-            (Some(_), None) => Reason::WorsensSimulation,
+            Some(_) => Reason::NotChosen,
         };
         let trial = made.trial(n, reason);
         out.tried.push(trial);

@@ -146,6 +146,23 @@ fn a_contender_that_makes_every_record_simulate_better_overrules_the_ranking() {
         "{}",
         d.why
     );
+    // Ranked after the one named and not beating it: not chosen, in words that say so (not
+    // that every record simulates better with another).
+    let reversed = vec![candidate("linear-damping"), candidate("cubic-damping")];
+    let d = decide_default(&start, &reversed, &records);
+    assert_eq!(d.chosen.as_deref(), Some("linear-damping"), "{d:?}");
+    let reasons: Vec<Reason> = d.tried.iter().map(|t| t.reason).collect();
+    assert_eq!(reasons, [Reason::Supported, Reason::NotChosen]);
+    assert!(!d.why.contains("cubic-damping passed over"), "{}", d.why);
+    assert_eq!(
+        serde_json::to_value(&d.tried[1]).unwrap()["reason"],
+        "not-chosen"
+    );
+    assert!(
+        Reason::NotChosen
+            .to_string()
+            .starts_with("another candidate was named first")
+    );
     // Its per-fold models could not be simulated: it still contends.
     let mut folds_failed = ranked.clone();
     (folds_failed[1].significant, folds_failed[1].significance) =
@@ -358,4 +375,53 @@ fn a_contact_is_outdone_only_by_a_rival_that_simulates_strictly_better() {
         serde_json::to_value(Reason::StopOutdone).unwrap(),
         "stop-outdone"
     );
+}
+
+/// Every reason the decision gives is in docs/diagnosis.md under its JSON name, so the page
+/// lists the reasons in force.
+#[test]
+fn the_docs_list_every_reason() {
+    // Exhaustive: a reason added to the enum fails to compile here until it is listed.
+    let index = |r: Reason| match r {
+        Reason::CuresFailures => 0,
+        Reason::CuresLess => 1,
+        Reason::Supported => 2,
+        Reason::SimulatesLessWell => 3,
+        Reason::NotChosen => 4,
+        Reason::WorsensSimulation => 5,
+        Reason::CouldNotAdd => 6,
+        Reason::AddsNothing => 7,
+        Reason::StopByTfs => 8,
+        Reason::StopNotByTfs => 9,
+        Reason::StopOutdone => 10,
+        Reason::NothingSignificant => 11,
+        Reason::NoneSupported => 12,
+    };
+    let all = [
+        Reason::CuresFailures,
+        Reason::CuresLess,
+        Reason::Supported,
+        Reason::SimulatesLessWell,
+        Reason::NotChosen,
+        Reason::WorsensSimulation,
+        Reason::CouldNotAdd,
+        Reason::AddsNothing,
+        Reason::StopByTfs,
+        Reason::StopNotByTfs,
+        Reason::StopOutdone,
+        Reason::NothingSignificant,
+        Reason::NoneSupported,
+    ];
+    let mut seen: Vec<usize> = all.iter().map(|&r| index(r)).collect();
+    seen.sort_unstable();
+    assert_eq!(seen, (0..all.len()).collect::<Vec<_>>());
+    let docs = include_str!("../../../../docs/diagnosis.md");
+    for r in all {
+        let name = serde_json::to_value(r).unwrap();
+        let name = name.as_str().unwrap();
+        assert!(
+            docs.contains(&format!("`{name}`")),
+            "docs/diagnosis.md lacks `{name}`"
+        );
+    }
 }
