@@ -79,20 +79,16 @@ impl SimScore {
     }
 
     /// The model's free run on `records`: from the last rung of its history when that rung
-    /// scored every record (what the refit just did), else simulated here.
+    /// scored every record (what the refit just did), else simulated here ([`each_record`]).
     pub fn of(model: &Model, records: &[Record]) -> SimScore {
-        if let Some(last) = error_ladder(model).last()
-            && last.r_mse.len() + last.failed.len() == records.len()
-        {
-            let ok: Vec<f64> = last
-                .r_mse
-                .iter()
-                .map(|s| s.r_mse)
-                .filter(|v| v.is_finite())
-                .collect();
-            return SimScore::from_parts(records.len(), &ok);
-        }
-        crate::contact::score(model, records).summary()
+        SimScore::from_each(&each_record(model, records))
+    }
+
+    /// The score of each record's R-MSE in `each` (`None`: that record failed), in the
+    /// records' order: the failed ones counted, the means taken over the others.
+    pub(crate) fn from_each(each: &[Option<f64>]) -> SimScore {
+        let ok: Vec<f64> = each.iter().flatten().copied().collect();
+        SimScore::from_parts(each.len(), &ok)
     }
 
     fn from_parts(records: usize, ok: &[f64]) -> SimScore {
@@ -148,8 +144,8 @@ pub struct Chosen {
 }
 
 /// Each record's free-run R-MSE with `model`, in the order of `records` (`None` where the run
-/// failed): from the last rung of its history when that rung scored every record, as
-/// [`SimScore::of`] reads it, else simulated here.
+/// failed, or its R-MSE is not finite): from the last rung of its history when that rung scored
+/// every record, else simulated here. [`SimScore::of`] is made from it.
 pub(crate) fn each_record(model: &Model, records: &[Record]) -> Vec<Option<f64>> {
     let from = |ok: &[tfs_library::RecordScore]| -> Vec<Option<f64>> {
         records
@@ -209,8 +205,8 @@ pub(crate) fn add_each(
             if m.equations == model.equations {
                 return Err(NotMade::AddsNothing);
             }
-            let score = SimScore::of(&m, records);
             let each = each_record(&m, records);
+            let score = SimScore::from_each(&each);
             Ok(Chosen {
                 effect: name.to_string(),
                 model: m,
