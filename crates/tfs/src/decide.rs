@@ -6,7 +6,8 @@
 //!
 //! 1. **Failures.** When the model fails to simulate some records (blows up, leaves the range, a
 //!    non-finite R-MSE), every candidate whose held-out equation error falls is added (as
-//!    `refit --add` adds it, a stop re-scanned by T-F-S) and simulated; the one that leaves the
+//!    `refit --add` adds it before refining it by simulation error, a stop re-scanned by T-F-S)
+//!    and simulated; the one that leaves the
 //!    fewest records failing (then the lowest geometric-mean R-MSE of the others, then the ranking's order)
 //!    is chosen ([`Reason::CuresFailures`]) if it leaves fewer failing than the model and than the
 //!    model's own terms refitted with nothing added (a failure the refit alone cures was the start
