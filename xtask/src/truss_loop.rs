@@ -120,6 +120,93 @@ impl ForceTruth {
         let e = crate::dbench::size::residual(&a, &self.f)?;
         Ok(rms(&e) / self.rms)
     }
+
+    /// The least-squares floor of `library` plus one stop `k·below(x, c)` (or `k·above(x, c)`)
+    /// with its stiffness `k` and its position `c` both free: `c` is scanned over the grid's
+    /// range (step [`STOP_STEP`], then [`STOP_STEP`]/50 around the best), `k` and the
+    /// library's coefficients fitted by least squares at each. Returns the smallest error and
+    /// the position it is reached at: the floor of the model class the loop ends with when it
+    /// adds a stop.
+    pub fn floor_with_stop(&self, library: &str, side: Side) -> Result<StopFloor> {
+        let lib = Library::parse(library, &["x"])?;
+        let grid = self.grid()?;
+        let a: Mat<f64> = lib.evaluate(&grid)?;
+        let (lo, hi) = (self.h[0], self.h[self.h.len() - 1]);
+        let at = |c: f64| -> Result<f64> {
+            let stop = side.term(c);
+            let col = tfs::library::evaluate_term(&stop, &grid)?;
+            let p = a.ncols();
+            let with =
+                Mat::<f64>::from_fn(
+                    a.nrows(),
+                    p + 1,
+                    |r, j| {
+                        if j < p { a[(r, j)] } else { col[r] }
+                    },
+                );
+            let e = crate::dbench::size::residual(&with, &self.f)?;
+            Ok(rms(&e) / self.rms)
+        };
+        let scan = |cs: Vec<f64>| -> Result<(f64, f64)> {
+            let mut best = (f64::INFINITY, f64::NAN);
+            for c in cs {
+                let e = at(c)?;
+                if e < best.0 {
+                    best = (e, c);
+                }
+            }
+            Ok(best)
+        };
+        let n = ((hi - lo) / STOP_STEP).round() as usize;
+        // The ends are left out: there the stop's column is zero on the whole grid.
+        let coarse = scan((1..n).map(|i| lo + STOP_STEP * i as f64).collect())?;
+        let fine_step = STOP_STEP / 50.0;
+        let fine = scan(
+            (0..=100)
+                .map(|i| coarse.1 - STOP_STEP + fine_step * i as f64)
+                .filter(|c| *c > lo && *c < hi)
+                .collect(),
+        )?;
+        let (error, position) = if fine.0 < coarse.0 { fine } else { coarse };
+        let stop = side.term(position);
+        Ok(StopFloor {
+            error,
+            stop: stop.to_string(),
+        })
+    }
+}
+
+/// Step of the first pass of [`ForceTruth::floor_with_stop`]'s scan of the stop's position.
+const STOP_STEP: f64 = 0.005;
+
+/// Which side of its position a stop acts on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Side {
+    /// `below(x, c)`: acts for `x < c` (the cell's folded stop).
+    Below,
+    /// `above(x, c)`: acts for `x > c`.
+    Above,
+}
+
+impl Side {
+    /// The one-factor stop term at `c`.
+    fn term(self, c: f64) -> tfs::library::Term {
+        let v = tfs::library::Var::Disp("x".into());
+        tfs::library::Term::new(vec![match self {
+            Side::Below => Factor::Below(v, c),
+            Side::Above => Factor::Above(v, c),
+        }])
+    }
+}
+
+/// The floor of a library plus one stop with its position and stiffness free
+/// ([`ForceTruth::floor_with_stop`]).
+#[derive(Debug, Clone)]
+pub struct StopFloor {
+    /// The smallest force error the class reaches on the grid.
+    pub error: f64,
+    /// The stop term at the position where it is reached.
+    pub stop: String,
 }
 
 /// The model with the coefficients of its displacement powers (`x^k` alone) at their
@@ -241,6 +328,10 @@ pub fn run(args: Args) -> Result<()> {
         .with_context(|| format!("--out {}: cannot create it", args.out.display()))?;
     let truth = ForceTruth::kresling(H_RANGE, GRID)?;
     let floor = truth.floor(POSITION_LIBRARY)?;
+    let with_stop = [
+        truth.floor_with_stop(POSITION_LIBRARY, Side::Below)?,
+        truth.floor_with_stop(POSITION_LIBRARY, Side::Above)?,
+    ];
     let pb = crate::common::progress((args.snr.len() * args.seeds.len()) as u64, "runs");
     let mut runs = Vec::new();
     for &snr in &args.snr {
@@ -254,7 +345,7 @@ pub fn run(args: Args) -> Result<()> {
         }
     }
     pb.finish_and_clear();
-    let md = report(&args, &runs, floor);
+    let md = report(&args, &runs, floor, &with_stop);
     print!("{md}");
     tfs::data::write_atomic(args.out.join("report.md"), &md)?;
     let js = json!({
@@ -264,6 +355,7 @@ pub fn run(args: Args) -> Result<()> {
         "floor": floor,
         "floor_library": POSITION_LIBRARY,
         "force_bound": FLOOR_FACTOR * floor,
+        "floor_with_one_stop": with_stop.iter().map(|f| json!({"error": num(f.error), "stop": f.stop})).collect::<Vec<_>>(),
         "basin_bar": BASIN_BAR,
         "runs": runs.iter().map(run_json).collect::<Vec<_>>(),
     });
@@ -510,7 +602,7 @@ fn run_json(r: &Run) -> Value {
         "added": r.added, "seconds": r.seconds})
 }
 
-fn report(args: &Args, runs: &[Run], floor: f64) -> String {
+fn report(args: &Args, runs: &[Run], floor: f64, with_stop: &[StopFloor]) -> String {
     let bound = FLOOR_FACTOR * floor;
     let basin = |b: &std::result::Result<f64, String>| match b {
         Ok(b) => pct(*b),
@@ -530,6 +622,14 @@ fn report(args: &Args, runs: &[Run], floor: f64) -> String {
         pct(floor),
         pct(bound),
         pct(BASIN_BAR)
+    ));
+    s.push_str(&format!(
+        "The class the loop ends with, `{POSITION_LIBRARY}` plus one stop with its position and stiffness free (least squares on the same grid, the position scanned over the whole range): {}. A miss below the bound but above these is the identification's (its support, its coefficients, the stop's placement), not the class's.\n\n",
+        with_stop
+            .iter()
+            .map(|f| format!("with `{}`, **{}**", f.stop, pct(f.error)))
+            .collect::<Vec<_>>()
+            .join("; ")
     ));
     s.push_str("At its powers' best: the final model with the coefficients of its displacement powers replaced by their least-squares best against the truss force on the same grid (the stop's force taken out first), its dashpot, input and stop as identified — what the model's own terms could reach, so a miss there is the support's (which powers the records let `identify` keep), not the coefficients'. Where no stop acts: the end model's force error over the heights above its `below` stops and under its `above` stops, over the truss force's RMS there — the rest of the miss is the contact's (a stop placed inside the range instead of at its edge).\n\n");
     s.push_str("| SNR | seed | start: force, basin | the loop added | end: force | end: force where no stop acts | end: basin | within both | at its powers' best: force, basin | time |\n|---|---|---|---|---|---|---|---|---|---|\n");
@@ -643,6 +743,26 @@ mod tests {
         assert!(truth.error_of(off) > floor * 1.01);
         let poly = ForceTruth::new(curve(0.0, 1.8, 901, |h| 2.0 * h - h.powi(3)));
         assert!(poly.floor("x^1..3").unwrap() < 1e-12);
+    }
+
+    /// A truth in the span of a cubic plus a stop: the class floor finds the stop's position
+    /// and reaches zero, where the cubic alone cannot; a stop on the other side helps no more
+    /// than the cubic alone.
+    #[test]
+    fn the_floor_with_a_stop_finds_the_stops_position() {
+        let truth = ForceTruth::new(curve(0.0, 1.8, 1801, |h| {
+            2.0 * h - h.powi(3) + 40.0 * (h - 1.3).max(0.0)
+        }));
+        let bare = truth.floor("x^1..3").unwrap();
+        assert!(bare > 0.01, "{bare}");
+        let above = truth.floor_with_stop("x^1..3", Side::Above).unwrap();
+        assert!(above.error < 1e-9, "{above:?}");
+        assert_eq!(above.stop, "above(x, 1.3)");
+        let below = truth.floor_with_stop("x^1..3", Side::Below).unwrap();
+        assert!(
+            below.error <= bare && below.error > 0.5 * bare,
+            "{below:?} against {bare}"
+        );
     }
 
     /// `x'' = a·x + b·x^3 − 0.5·x' − xb_acc + 100·below(x, 0.1)`.
