@@ -168,6 +168,9 @@ impl ForceTruth {
                 .collect(),
         )?;
         let (error, position) = if fine.0 < coarse.0 { fine } else { coarse };
+        // To the fine pass's step, so the term's name is the position's digits.
+        let position = (position / fine_step).round() * fine_step;
+        let position = format!("{position:.4}").parse::<f64>().unwrap_or(position);
         let stop = side.term(position);
         Ok(StopFloor {
             error,
