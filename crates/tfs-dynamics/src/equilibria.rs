@@ -87,9 +87,22 @@ pub fn equilibria(
                 0.0
             };
             out.push(make(&force, xs[k], left < 0.0 && right > 0.0, step));
-        } else if k < n_grid && fs[k + 1] != 0.0 && (fs[k] < 0.0) != (fs[k + 1] < 0.0) {
-            let x = brent(&force, xs[k], xs[k + 1], fs[k], fs[k + 1]);
-            out.push(make(&force, x, fs[k] < 0.0, step));
+        }
+        if k < n_grid {
+            // The interval's ends, each moved in by `delta` from an exact zero on the grid:
+            // a sign change there is a root of its own (a force touching zero at a grid point,
+            // e.g. `x^4` at 0, with a contact's root a fraction of a step away).
+            let (mut a, mut b) = ((xs[k], fs[k]), (xs[k + 1], fs[k + 1]));
+            if a.1 == 0.0 {
+                a = (a.0 + delta, force(a.0 + delta));
+            }
+            if b.1 == 0.0 {
+                b = (b.0 - delta, force(b.0 - delta));
+            }
+            if a.1 != 0.0 && b.1 != 0.0 && (a.1 < 0.0) != (b.1 < 0.0) {
+                let x = brent(&force, a.0, b.0, a.1, b.1);
+                out.push(make(&force, x, a.1 < 0.0, step));
+            }
         }
     }
     Ok(out)

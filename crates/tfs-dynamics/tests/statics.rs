@@ -118,3 +118,20 @@ mod props {
         }
     }
 }
+
+/// A force that touches zero at a grid point (`x^4` at 0) with a contact's root a fraction of a
+/// step away (a stop at −0.1 pushing back below it): the sign change between the grid point
+/// before and the touching zero is a root of its own. Sampled at 0 exactly, the touching zero
+/// once hid it, and a basin map then lost the folded well of a model with its stop just below 0.
+#[test]
+fn a_root_beside_a_touching_zero_on_the_grid_is_found() {
+    let f = |x: f64| x.powi(4) - 10.0 * (-0.1 - x).max(0.0);
+    let eq = equilibria(f, -1.0, 1.0, 8).unwrap();
+    let stable: Vec<f64> = eq.iter().filter(|e| e.stable).map(|e| e.x).collect();
+    assert_eq!(stable.len(), 1, "{eq:?}");
+    // x⁴ = 10·(−0.1 − x) at x ≈ −0.1 − 1e-5.
+    assert!((stable[0] + 0.1).abs() < 2e-5, "{eq:?}");
+    assert!(f(stable[0]).abs() < 1e-9, "{eq:?}");
+    // The touching zero at 0 is still reported, as not stable.
+    assert!(eq.iter().any(|e| e.x == 0.0 && !e.stable), "{eq:?}");
+}
