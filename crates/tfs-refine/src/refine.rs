@@ -6,7 +6,7 @@ use tfs_dynamics::{SampledInput, SimulateOptions, rms_error, simulate_model_on_r
 use tfs_library::{HistoryEntry, Model, RecordScore};
 use tfs_signal::Differentiator;
 
-use crate::lm::{LmSettings, Prepared, Problem, Segment, levenberg_marquardt};
+use crate::lm::{LmOutcome, LmSettings, Prepared, Problem, Segment, levenberg_marquardt};
 use crate::sens::Structure;
 use crate::sensitivity::{displacement_noise_var, input_noise_spread, noise_dominated};
 use crate::{RefineError, Result};
@@ -452,27 +452,158 @@ fn prepare(
     Ok((recs, xs, vs, zs))
 }
 
-/// [`refine`] on the records that passed the input-noise screen.
-fn refine_records(model: &Model, train: &[Record], opts: &RefineOptions) -> Result<Refined> {
-    let (st, coefs0) = Structure::new(model)?;
-    let n = st.n;
-    let (recs, xs, vs, zs) = prepare(model, &st, train, opts)?;
-    // Segment length.
-    let seg_len = match opts.segment_len {
+/// A state beyond this many times its data RMS (`xs`, `vs`, `zs`) is taken as a blow-up.
+const BLOW_UP_LIMIT: f64 = 1e6;
+
+/// The shortest shooting segment (samples) that halving may reach.
+const MIN_SEGMENT: usize = 4;
+
+/// What every least-squares problem of one refinement shares: the model's structure, the
+/// prepared records and the scales of the unknowns ([`Problem`]'s fields but the segments and
+/// the continuity weight).
+struct Shooting<'a> {
+    st: &'a Structure,
+    recs: &'a [Prepared],
+    pscale: Vec<f64>,
+    xs: Vec<f64>,
+    vs: Vec<f64>,
+    zs: Vec<f64>,
+    substeps: usize,
+}
+
+impl<'a> Shooting<'a> {
+    /// The problem over segments of `seg_len` samples (one per record when `single`) with
+    /// continuity-defect weight `defect_weight`.
+    fn problem(&self, single: bool, seg_len: usize, defect_weight: f64) -> Problem<'a> {
+        Problem {
+            st: self.st,
+            recs: self.recs,
+            segs: segments(self.recs, single, seg_len),
+            pscale: self.pscale.clone(),
+            xs: self.xs.clone(),
+            vs: self.vs.clone(),
+            zs: self.zs.clone(),
+            defect_weight,
+            substeps: self.substeps,
+            limit: BLOW_UP_LIMIT,
+        }
+    }
+}
+
+/// The coefficients as the stages leave them, with what the stages did.
+struct Progress {
+    coefs: Vec<f64>,
+    iterations: usize,
+    converged: bool,
+    last_message: String,
+    stages: Vec<serde_json::Value>,
+}
+
+impl Progress {
+    /// Takes an LM stage's outcome on `pb` as the new coefficients.
+    fn take(&mut self, pb: &Problem, out: &LmOutcome) {
+        self.iterations += out.iterations;
+        self.coefs = pb.coefs(&out.p);
+        self.converged = out.converged;
+        self.last_message = out.message.clone();
+    }
+
+    /// One multiple-shooting stage at continuity weight `wd` from the current coefficients;
+    /// when a segment blows up at the start point the segments are halved (down to
+    /// [`MIN_SEGMENT`] samples) and the stage tried again. Returns the segment length it ended
+    /// with, which the later stages start from.
+    fn shooting_stage(
+        &mut self,
+        setup: &Shooting,
+        mut seg_len: usize,
+        wd: f64,
+        settings: &LmSettings,
+    ) -> usize {
+        let mut attempt = None;
+        loop {
+            let pb = setup.problem(false, seg_len, wd);
+            let p0 = pb.initial(&self.coefs);
+            debug_assert_eq!(p0.len(), pb.n_params());
+            if let Some(out) = levenberg_marquardt(&pb, p0, settings) {
+                attempt = Some((pb, out));
+                break;
+            }
+            if seg_len <= MIN_SEGMENT {
+                break;
+            }
+            seg_len = (seg_len / 2).max(MIN_SEGMENT);
+        }
+        match attempt {
+            Some((pb, out)) => {
+                self.take(&pb, &out);
+                self.stages.push(json!({
+                    "stage": "multiple shooting",
+                    "segments": pb.segs.len(),
+                    "segment_len": seg_len,
+                    "defect_weight": wd,
+                    "cost_start": out.cost0,
+                    "cost_end": out.cost,
+                    "defect_rms": out.defect_rms,
+                    "iterations": out.iterations,
+                    "message": out.message,
+                }));
+            }
+            None => {
+                self.stages.push(json!({
+                    "stage": "multiple shooting",
+                    "defect_weight": wd,
+                    "message": "simulation of a segment blew up at the start; stage skipped",
+                }));
+            }
+        }
+        seg_len
+    }
+
+    /// The single-shooting polish (one segment per record) from the current coefficients,
+    /// skipped when the free run blows up.
+    fn polish(&mut self, setup: &Shooting, seg_len: usize, settings: &LmSettings) {
+        let pb = setup.problem(true, seg_len, 0.0);
+        let p0 = pb.initial(&self.coefs);
+        match levenberg_marquardt(&pb, p0, settings) {
+            Some(out) => {
+                self.take(&pb, &out);
+                self.stages.push(json!({
+                    "stage": "single shooting polish",
+                    "cost_start": out.cost0,
+                    "cost_end": out.cost,
+                    "iterations": out.iterations,
+                    "message": out.message,
+                }));
+            }
+            None => self.stages.push(json!({
+                "stage": "single shooting polish",
+                "message": "skipped: the free-run simulation blows up",
+            })),
+        }
+    }
+}
+
+/// The segment length (samples) `opts` asks for: `segment_len` when set, else
+/// `segment_periods` periods of the first record's dominant frequency (at least 4 samples;
+/// 50 when it has none).
+fn default_segment_len(recs: &[Prepared], opts: &RefineOptions) -> usize {
+    match opts.segment_len {
         Some(l) => l,
         None => {
             let r0 = &recs[0];
-            let f = dominant_frequency(&r0.xm[0], r0.dt);
-            match f {
+            match dominant_frequency(&r0.xm[0], r0.dt) {
                 Some(f) => ((opts.segment_periods / (f * r0.dt)).round() as usize).max(4),
                 None => 50,
             }
         }
-    };
-    // Unknowns are scaled by their start values; a state parameter that starts at 0 (a
-    // Bouc–Wen `b`) by the largest parameter of its state, the scale of its effect.
+    }
+}
+
+/// Scales of the unknowns: each coefficient's start value; a state parameter that starts at 0
+/// (a Bouc–Wen `b`) the largest parameter of its state, the scale of its effect; 1 otherwise.
+fn parameter_scales(st: &Structure, coefs0: &[f64]) -> Vec<f64> {
     let pc = st.n_coefs();
-    let pscale: Vec<f64> = coefs0
+    coefs0
         .iter()
         .enumerate()
         .map(|(k, c)| {
@@ -491,181 +622,159 @@ fn refine_records(model: &Model, train: &[Record], opts: &RefineOptions) -> Resu
             }
             1.0
         })
-        .collect();
-    // Blow-up guard: a state beyond 1e6 times the data RMS is treated as divergence.
-    let limit = 1e6;
-    let make_segs = |single: bool, seg_len: usize| -> Vec<Segment> {
-        let mut segs = Vec::new();
-        for (ri, r) in recs.iter().enumerate() {
-            let len = r.xm[0].len();
-            if single {
-                segs.push(Segment {
-                    rec: ri,
-                    k0: 0,
-                    k1: len - 1,
-                    linked: false,
-                });
-                continue;
-            }
-            let mut k0 = 0;
-            while k0 < len - 1 {
-                let mut k1 = (k0 + seg_len).min(len - 1);
-                // Avoid a tiny last segment.
-                if len - 1 - k1 < seg_len / 2 {
-                    k1 = len - 1;
-                }
-                segs.push(Segment {
-                    rec: ri,
-                    k0,
-                    k1,
-                    linked: k1 < len - 1,
-                });
-                k0 = k1;
-            }
+        .collect()
+}
+
+/// The shooting segments over every record: one per record when `single`, else consecutive
+/// segments of `seg_len` samples sharing their end samples, a short last one merged into the
+/// one before.
+fn segments(recs: &[Prepared], single: bool, seg_len: usize) -> Vec<Segment> {
+    let mut segs = Vec::new();
+    for (ri, r) in recs.iter().enumerate() {
+        let len = r.xm[0].len();
+        if single {
+            segs.push(Segment {
+                rec: ri,
+                k0: 0,
+                k1: len - 1,
+                linked: false,
+            });
+            continue;
         }
-        segs
+        let mut k0 = 0;
+        while k0 < len - 1 {
+            let mut k1 = (k0 + seg_len).min(len - 1);
+            // Avoid a tiny last segment.
+            if len - 1 - k1 < seg_len / 2 {
+                k1 = len - 1;
+            }
+            segs.push(Segment {
+                rec: ri,
+                k0,
+                k1,
+                linked: k1 < len - 1,
+            });
+            k0 = k1;
+        }
+    }
+    segs
+}
+
+/// `seg_len` halved (down to [`MIN_SEGMENT`] samples) while the start coefficients' mean
+/// squared scaled error within segments exceeds 1, i.e. their segment predictions are off by
+/// more than the signal RMS (an unstable or badly wrong start): multiple shooting only helps
+/// with short segments.
+fn shortened_segment_len(setup: &Shooting, coefs: &[f64], mut seg_len: usize) -> usize {
+    let n = setup.st.n;
+    let rows: f64 = setup.recs.iter().map(|r| (r.xm[0].len() * n) as f64).sum();
+    while seg_len > MIN_SEGMENT {
+        let pb = setup.problem(false, seg_len, 0.0);
+        match pb.normal(&pb.initial(coefs)) {
+            Some(nm) if 2.0 * nm.cost / rows <= 1.0 => break,
+            _ => seg_len = (seg_len / 2).max(MIN_SEGMENT),
+        }
+    }
+    seg_len
+}
+
+/// The weighted training simulation cost of `m` (`Σ_records Σ_dofs (rms_error · w)²`) and its
+/// per-record, per-DOF RMS errors.
+fn training_cost(
+    m: &Model,
+    train: &[Record],
+    recs: &[Prepared],
+    opts: &SimulateOptions,
+) -> (f64, Vec<Vec<f64>>) {
+    let mut cost = 0.0;
+    let mut errs = Vec::new();
+    for (r, p) in train.iter().zip(recs) {
+        let e = sim_errors(m, r, opts);
+        for (ei, wi) in e.iter().zip(&p.w) {
+            cost += (ei * wi) * (ei * wi);
+        }
+        errs.push(e);
+    }
+    (cost, errs)
+}
+
+/// Per training record the R-MSE of errors `errs`: the squared errors summed over DOFs over
+/// the summed variances (mean removed, as the ladder's other steps score) of `model`'s DOFs.
+fn record_r_mse(model: &Model, train: &[Record], errs: &[Vec<f64>]) -> Vec<RecordScore> {
+    train
+        .iter()
+        .zip(errs)
+        .map(|(r, e)| {
+            let num: f64 = e.iter().map(|v| v * v).sum();
+            let den: f64 = model
+                .dofs
+                .iter()
+                .filter_map(|d| r.column(d))
+                .map(|c| {
+                    let m = c.iter().sum::<f64>() / c.len() as f64;
+                    c.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / c.len() as f64
+                })
+                .sum();
+            RecordScore {
+                record: r.source().to_string(),
+                r_mse: if den > 0.0 { num / den } else { f64::NAN },
+            }
+        })
+        .collect()
+}
+
+/// [`refine`] on the records that passed the input-noise screen: multiple-shooting stages of
+/// rising continuity weight from the start model's coefficients, a single-shooting polish, and
+/// the start model returned unless the training simulation cost falls.
+fn refine_records(model: &Model, train: &[Record], opts: &RefineOptions) -> Result<Refined> {
+    let (st, coefs0) = Structure::new(model)?;
+    let n = st.n;
+    let (recs, xs, vs, zs) = prepare(model, &st, train, opts)?;
+    let setup = Shooting {
+        st: &st,
+        recs: &recs,
+        pscale: parameter_scales(&st, &coefs0),
+        xs,
+        vs,
+        zs,
+        substeps: opts.substeps,
     };
     let settings = LmSettings {
         max_iterations: opts.max_iterations,
         ftol: opts.ftol,
         gtol: opts.gtol,
     };
-    // Weighted before-score.
-    let score = |m: &Model| -> (f64, Vec<Vec<f64>>) {
-        let mut cost = 0.0;
-        let mut errs = Vec::new();
-        for (r, p) in train.iter().zip(&recs) {
-            let e = sim_errors(m, r, &opts.simulate);
-            for (ei, wi) in e.iter().zip(&p.w) {
-                cost += (ei * wi) * (ei * wi);
-            }
-            errs.push(e);
-        }
-        (cost, errs)
-    };
-    let (initial_cost, errs_before) = score(model);
+    let (initial_cost, errs_before) = training_cost(model, train, &recs, &opts.simulate);
 
-    let mut coefs = coefs0.clone();
-    let mut iterations = 0;
-    let mut stages = Vec::new();
-    let mut converged = false;
-    let mut last_message = String::from("no LM stage ran");
-    // Shorten segments (down to 4 samples) while the start model's mean squared scaled error
-    // within segments exceeds 1, i.e. its segment predictions are off by more than the signal
-    // RMS (an unstable or badly wrong start): multiple shooting only helps with short segments.
-    let mut seg_len = seg_len;
+    let mut seg_len = default_segment_len(&recs, opts);
     if opts.segment_len.is_none() {
-        let rows: f64 = recs.iter().map(|r| (r.xm[0].len() * n) as f64).sum();
-        while seg_len > 4 {
-            let pb = Problem {
-                st: &st,
-                recs: &recs,
-                segs: make_segs(false, seg_len),
-                pscale: pscale.clone(),
-                xs: xs.clone(),
-                vs: vs.clone(),
-                zs: zs.clone(),
-                defect_weight: 0.0,
-                substeps: opts.substeps,
-                limit,
-            };
-            match pb.normal(&pb.initial(&coefs)) {
-                Some(nm) if 2.0 * nm.cost / rows <= 1.0 => break,
-                _ => seg_len = (seg_len / 2).max(4),
-            }
-        }
+        seg_len = shortened_segment_len(&setup, &coefs0, seg_len);
     }
+    let mut fit = Progress {
+        coefs: coefs0,
+        iterations: 0,
+        converged: false,
+        last_message: String::from("no LM stage ran"),
+        stages: Vec::new(),
+    };
     for &wd in &opts.defect_weights {
-        // If a segment blows up at the starting point, halve the segments (down to 4 samples).
-        let mut attempt = None;
-        loop {
-            let pb = Problem {
-                st: &st,
-                recs: &recs,
-                segs: make_segs(false, seg_len),
-                pscale: pscale.clone(),
-                xs: xs.clone(),
-                vs: vs.clone(),
-                zs: zs.clone(),
-                defect_weight: wd,
-                substeps: opts.substeps,
-                limit,
-            };
-            let p0 = pb.initial(&coefs);
-            debug_assert_eq!(p0.len(), pb.n_params());
-            if let Some(out) = levenberg_marquardt(&pb, p0, &settings) {
-                attempt = Some((pb, out));
-                break;
-            }
-            if seg_len <= 4 {
-                break;
-            }
-            seg_len = (seg_len / 2).max(4);
-        }
-        match attempt {
-            Some((pb, out)) => {
-                iterations += out.iterations;
-                coefs = pb.coefs(&out.p);
-                converged = out.converged;
-                last_message = out.message.clone();
-                stages.push(json!({
-                    "stage": "multiple shooting",
-                    "segments": pb.segs.len(),
-                    "segment_len": seg_len,
-                    "defect_weight": wd,
-                    "cost_start": out.cost0,
-                    "cost_end": out.cost,
-                    "defect_rms": out.defect_rms,
-                    "iterations": out.iterations,
-                    "message": out.message,
-                }));
-            }
-            None => {
-                stages.push(json!({
-                    "stage": "multiple shooting",
-                    "defect_weight": wd,
-                    "message": "simulation of a segment blew up at the start; stage skipped",
-                }));
-            }
-        }
+        seg_len = fit.shooting_stage(&setup, seg_len, wd, &settings);
     }
     if opts.polish {
-        let pb = Problem {
-            st: &st,
-            recs: &recs,
-            segs: make_segs(true, seg_len),
-            pscale: pscale.clone(),
-            xs: xs.clone(),
-            vs: vs.clone(),
-            zs: zs.clone(),
-            defect_weight: 0.0,
-            substeps: opts.substeps,
-            limit,
-        };
-        let p0 = pb.initial(&coefs);
-        match levenberg_marquardt(&pb, p0, &settings) {
-            Some(out) => {
-                iterations += out.iterations;
-                coefs = pb.coefs(&out.p);
-                converged = out.converged;
-                last_message = out.message.clone();
-                stages.push(json!({
-                    "stage": "single shooting polish",
-                    "cost_start": out.cost0,
-                    "cost_end": out.cost,
-                    "iterations": out.iterations,
-                    "message": out.message,
-                }));
-            }
-            None => stages.push(json!({
-                "stage": "single shooting polish",
-                "message": "skipped: the free-run simulation blows up",
-            })),
-        }
+        fit.polish(&setup, seg_len, &settings);
     }
+    let Progress {
+        coefs,
+        iterations,
+        mut converged,
+        last_message,
+        stages,
+    } = fit;
+
     let candidate = with_coefs(&st, model, &coefs).filter(|m| m.validate().is_ok());
     let (cand_cost, errs_after) = match &candidate {
-        Some(c) if coefs.iter().all(|c| c.is_finite()) => score(c),
+        Some(c) if coefs.iter().all(|c| c.is_finite()) => {
+            training_cost(c, train, &recs, &opts.simulate)
+        }
         _ => (f64::INFINITY, vec![vec![f64::INFINITY; n]; train.len()]),
     };
     let improved =
@@ -697,31 +806,10 @@ fn refine_records(model: &Model, train: &[Record], opts: &RefineOptions) -> Resu
         .zip(errs_before.iter().zip(&errs_final))
         .map(|(r, (b, a))| (r.source().to_string(), combine(b), combine(a)))
         .collect();
-    let r_mse = train
-        .iter()
-        .zip(&errs_final)
-        .map(|(r, e)| {
-            let num: f64 = e.iter().map(|v| v * v).sum();
-            let den: f64 = model
-                .dofs
-                .iter()
-                .filter_map(|d| r.column(d))
-                .map(|c| {
-                    // The variance (mean removed), as the ladder's other steps score.
-                    let m = c.iter().sum::<f64>() / c.len() as f64;
-                    c.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / c.len() as f64
-                })
-                .sum();
-            RecordScore {
-                record: r.source().to_string(),
-                r_mse: if den > 0.0 { num / den } else { f64::NAN },
-            }
-        })
-        .collect();
     out_model.history.push(HistoryEntry {
         step: "refine (simulation error)".into(),
         added: Vec::new(),
-        r_mse,
+        r_mse: record_r_mse(model, train, &errs_final),
         details: json!({
             "initial_cost": finite_or_null(initial_cost),
             "final_cost": finite_or_null(final_cost),
