@@ -110,17 +110,34 @@ pub fn localise(
         .collect()
 }
 
-fn localise_dof(
+/// One DOF's equation residual on the usable rows of every record, side by side with the
+/// smoothed displacement, velocity and first input there (records concatenated in order), with
+/// each record's residual spectrum and RMS per time window.
+struct ResidualRows {
+    xs: Vec<f64>,
+    vs: Vec<f64>,
+    us: Vec<f64>,
+    rs: Vec<f64>,
+    spectrum: Vec<(Vec<f64>, Vec<f64>)>,
+    windows: Vec<(String, f64, f64, f64)>,
+}
+
+/// [`ResidualRows`] of DOF `idx` of `model` on `states`, `opts.windows` windows a record.
+fn residual_rows(
     model: &Model,
     idx: usize,
     states: &[RecordStates],
     opts: &DiagnoseOptions,
-) -> Result<Localisation> {
+) -> Result<ResidualRows> {
     let dof = &model.dofs[idx];
-    let (mut xs, mut vs, mut rs, mut us) = (vec![], vec![], vec![], vec![]);
-    let laws = history_laws(dof, states)?;
-    let mut spectrum = Vec::new();
-    let mut windows = Vec::new();
+    let mut rows = ResidualRows {
+        xs: vec![],
+        vs: vec![],
+        us: vec![],
+        rs: vec![],
+        spectrum: Vec::new(),
+        windows: Vec::new(),
+    };
     for s in states {
         let set = ColumnSet::new(s);
         let n = s.rows();
@@ -135,43 +152,53 @@ fn localise_dof(
         let r: Vec<f64> = (lo..hi).map(|k| s.acc[idx][k] - pred[k]).collect();
         let x = s.column(dof).unwrap_or(&[]);
         let v = s.column(&format!("{dof}'")).unwrap_or(&[]);
-        xs.extend_from_slice(&x[lo..hi]);
-        vs.extend_from_slice(&v[lo..hi]);
+        rows.xs.extend_from_slice(&x[lo..hi]);
+        rows.vs.extend_from_slice(&v[lo..hi]);
         let u = model
             .inputs
             .iter()
             .find_map(|i| s.column(i))
             .map(|u| u[lo..hi].to_vec())
             .unwrap_or_else(|| vec![0.0; hi - lo]);
-        us.extend(u);
+        rows.us.extend(u);
         let dt = s.record.dt();
-        spectrum.push(amplitude_spectrum(&r, dt)?);
+        rows.spectrum.push(amplitude_spectrum(&r, dt)?);
         let w = opts.windows.min(r.len() / 2).max(1);
         for k in 0..w {
             let (a, b) = (k * r.len() / w, (k + 1) * r.len() / w);
-            windows.push((
+            rows.windows.push((
                 s.record.source().to_string(),
                 s.record.t()[lo + a],
                 s.record.t()[lo + b - 1],
                 rms(&r[a..b]),
             ));
         }
-        rs.extend(r);
+        rows.rs.extend(r);
     }
-    // The RMS of the accelerations' usable rows of every record, in record order.
-    let used = |s: &RecordStates| s.margin..s.margin + s.usable();
+    Ok(rows)
+}
+
+/// The rows of `s` whose states and accelerations are used (past the smoothing margin).
+fn used(s: &RecordStates) -> std::ops::Range<usize> {
+    s.margin..s.margin + s.usable()
+}
+
+/// The RMS of DOF `idx`'s accelerations over the usable rows of every record, in record order
+/// (at least the smallest positive number, as the residual's normaliser).
+fn acceleration_rms(states: &[RecordStates], idx: usize) -> f64 {
     let acc_n: usize = states.iter().map(|s| used(s).len()).sum();
-    let acc_rms = if acc_n == 0 {
+    if acc_n == 0 {
         0.0
     } else {
         let squares = states.iter().flat_map(|s| &s.acc[idx][used(s)]);
         (squares.map(|a| a * a).sum::<f64>() / acc_n as f64).sqrt()
     }
-    .max(f64::MIN_POSITIVE);
-    let relative_rms = rms(&rs) / acc_rms;
-    let relative_mean = rs.iter().sum::<f64>() / rs.len().max(1) as f64 / acc_rms;
-    let xm = xs.iter().sum::<f64>() / xs.len().max(1) as f64;
-    let probes: Vec<(&str, Probe)> = vec![
+    .max(f64::MIN_POSITIVE)
+}
+
+/// The probe functions of the present state (x about its mean `xm`, x', the first input).
+fn present_probes(xm: f64) -> Vec<(&'static str, Probe)> {
+    vec![
         ("sign(x')", Box::new(|_x, v, _u| v.signum())),
         ("x'*abs(x')", Box::new(|_x, v, _u| v * v.abs())),
         ("x'^3", Box::new(|_x, v, _u| v * v * v)),
@@ -181,35 +208,19 @@ fn localise_dof(
         ("x^2", Box::new(move |x, _v, _u| (x - xm).powi(2))),
         ("x^3", Box::new(move |x, _v, _u| (x - xm).powi(3))),
         ("input", Box::new(|_x, _v, u| u)),
-    ];
-    // The probes' columns are evaluated where they are read, never stored.
-    let present = |k: usize, j: usize| (probes[j].1)(xs[k], vs[k], us[k]);
-    let mut correlations: Vec<(String, f64)> = probes
-        .iter()
-        .enumerate()
-        .map(|(j, (name, _))| (name.to_string(), corr_with(&rs, |k| present(k, j))))
-        .collect();
-    correlations.push((
-        "offset".into(),
-        relative_mean / relative_rms.max(f64::MIN_POSITIVE),
-    ));
-    // One history probe at a time: the law integrated along each record's smoothed velocity.
-    let hist = |law: &StateLaw| -> Vec<f64> {
-        let mut h = Vec::with_capacity(rs.len());
-        for s in states {
-            let v = s.column(&format!("{dof}'")).unwrap_or(&[]);
-            h.extend_from_slice(&law.integrate(v, s.record.dt())[used(s)]);
-        }
-        h
-    };
-    let history = partial_correlations(&rs, (&present, probes.len()), &laws, hist)
-        .into_iter()
-        .zip(&laws)
-        .map(|(c, (name, _))| (name.clone(), c))
-        .collect::<Vec<_>>();
-    let noise = crate::noise::estimate(model, idx, states);
-    // Symmetric bins.
-    let nb = opts.bins;
+    ]
+}
+
+/// The residual `rs` binned on a symmetric `nb` × `nb` grid over x (about `xm`) and x' (about
+/// 0): the map, and the centre (x, x') of its worst bin (largest |mean| among bins of at least 5
+/// samples; the first bin when none is).
+fn residual_map(
+    xs: &[f64],
+    vs: &[f64],
+    rs: &[f64],
+    xm: f64,
+    nb: usize,
+) -> (ResidualMap, (f64, f64)) {
     let xr = xs
         .iter()
         .map(|x| (x - xm).abs())
@@ -267,9 +278,6 @@ fn localise_dof(
                 .collect()
         })
         .collect();
-    let odd_in_velocity = odd_share(&count, &mean, &|i, j| (i, nb - 1 - j));
-    let odd_in_displacement = odd_share(&count, &mean, &|i, j| (nb - 1 - i, j));
-    // Worst bin and worst window.
     let mut worst = (0, 0, 0.0);
     for i in 0..nb {
         for j in 0..nb {
@@ -278,6 +286,74 @@ fn localise_dof(
             }
         }
     }
+    let centre = (
+        0.5 * (x_edges[worst.0] + x_edges[worst.0 + 1]),
+        0.5 * (v_edges[worst.1] + v_edges[worst.1 + 1]),
+    );
+    let map = ResidualMap {
+        x_edges,
+        v_edges,
+        mean,
+        spread,
+        count,
+    };
+    (map, centre)
+}
+
+/// The localisation of DOF `idx`'s residual: its size against the accelerations and the noise,
+/// its correlations with present-state and history probes, its (x, x') map and its symmetry,
+/// spectrum and windows, and the summary in words.
+fn localise_dof(
+    model: &Model,
+    idx: usize,
+    states: &[RecordStates],
+    opts: &DiagnoseOptions,
+) -> Result<Localisation> {
+    let dof = &model.dofs[idx];
+    let laws = history_laws(dof, states)?;
+    let ResidualRows {
+        xs,
+        vs,
+        us,
+        rs,
+        spectrum,
+        windows,
+    } = residual_rows(model, idx, states, opts)?;
+    let acc_rms = acceleration_rms(states, idx);
+    let relative_rms = rms(&rs) / acc_rms;
+    let relative_mean = rs.iter().sum::<f64>() / rs.len().max(1) as f64 / acc_rms;
+    let xm = xs.iter().sum::<f64>() / xs.len().max(1) as f64;
+    let probes = present_probes(xm);
+    // The probes' columns are evaluated where they are read, never stored.
+    let present = |k: usize, j: usize| (probes[j].1)(xs[k], vs[k], us[k]);
+    let mut correlations: Vec<(String, f64)> = probes
+        .iter()
+        .enumerate()
+        .map(|(j, (name, _))| (name.to_string(), corr_with(&rs, |k| present(k, j))))
+        .collect();
+    correlations.push((
+        "offset".into(),
+        relative_mean / relative_rms.max(f64::MIN_POSITIVE),
+    ));
+    // One history probe at a time: the law integrated along each record's smoothed velocity.
+    let hist = |law: &StateLaw| -> Vec<f64> {
+        let mut h = Vec::with_capacity(rs.len());
+        for s in states {
+            let v = s.column(&format!("{dof}'")).unwrap_or(&[]);
+            h.extend_from_slice(&law.integrate(v, s.record.dt())[used(s)]);
+        }
+        h
+    };
+    let history = partial_correlations(&rs, (&present, probes.len()), &laws, hist)
+        .into_iter()
+        .zip(&laws)
+        .map(|(c, (name, _))| (name.clone(), c))
+        .collect::<Vec<_>>();
+    let noise = crate::noise::estimate(model, idx, states);
+    let nb = opts.bins;
+    let (map, worst) = residual_map(&xs, &vs, &rs, xm, nb);
+    let odd_in_velocity = odd_share(&map.count, &map.mean, &|i, j| (i, nb - 1 - j));
+    let odd_in_displacement = odd_share(&map.count, &map.mean, &|i, j| (nb - 1 - i, j));
     let summary = summarise(
         dof,
         relative_rms,
@@ -287,10 +363,7 @@ fn localise_dof(
         &history,
         odd_in_velocity,
         odd_in_displacement,
-        (
-            0.5 * (x_edges[worst.0] + x_edges[worst.0 + 1]),
-            0.5 * (v_edges[worst.1] + v_edges[worst.1 + 1]),
-        ),
+        worst,
         windows
             .iter()
             .max_by(|a, b| a.3.total_cmp(&b.3))
@@ -306,13 +379,7 @@ fn localise_dof(
         relative_noise: noise.residual_rms / acc_rms,
         odd_in_velocity,
         odd_in_displacement,
-        map: ResidualMap {
-            x_edges,
-            v_edges,
-            mean,
-            spread,
-            count,
-        },
+        map,
         spectrum,
         windows,
         summary,
