@@ -4,6 +4,7 @@
 use std::sync::Arc;
 
 use anyhow::{Context, Result, bail};
+use indicatif::ProgressBar;
 use serde_json::{Value, json};
 use tfs::basin::{
     BasinConfig, BasinMap, BoaComparison, ChainMed, ChainWells, Slice, WellInfo, basin_chain,
@@ -14,8 +15,8 @@ use tfs::data::Record;
 use tfs::dynamics::SecondOrderSystem;
 use tfs::library::Model;
 use tfs::origami::{
-    CellSpec, Chain, DatasetConfig, Excitation, KreslingParams, NoiseKind, SystemSpec, Truth,
-    build_system, generate,
+    CellForce, CellSpec, Chain, DatasetConfig, Excitation, KreslingParams, NoiseKind, SystemSpec,
+    Truth, build_system, generate,
 };
 use tfs::plot::{LineChart, Series};
 
@@ -324,11 +325,22 @@ fn cfg(o: &Opts) -> BasinConfig {
     c
 }
 
-/// Study 3.
-pub fn study_chain(st: &mut Study, o: &Opts) -> Result<()> {
-    let pb = progress(7, "§3.2 chain");
-    // Quick mode shrinks only the basin grid: shorter sweeps would change the data (see TRAIN).
-    let scale = 1.0;
+/// The truth's side of the chain study: each cell's force law and equilibria (stable, unstable),
+/// the chain's stable states, the paper's slice through the first, the basin grid, and the
+/// truth's basin map and minimum-energy deployment on it.
+struct TruthSide {
+    laws: [CellForce; 2],
+    eq: [(Vec<f64>, Vec<f64>); 2],
+    tstable: Vec<Vec<f64>>,
+    slice: Slice,
+    cfg: BasinConfig,
+    tmap: BasinMap,
+    tmed: ChainMed,
+}
+
+/// The truth chain, its wells, basin map and MED on the paper's slice, and the study's opening
+/// text (the truth, the training sweeps, the libraries and the tied identification).
+fn truth_side(st: &mut Study, o: &Opts, pb: &ProgressBar) -> Result<TruthSide> {
     let truth: Chain = build_system(&spec())?;
     let cells = truth.cells();
     let laws = [cells[0].force_law().clone(), cells[1].force_law().clone()];
@@ -358,96 +370,125 @@ pub fn study_chain(st: &mut Study, o: &Opts) -> Result<()> {
     let tmap = basin_chain(&truth, &twells, &slice, &cfg, None).context("truth basin map")?;
     let tmed = med_chain(&truth, &twells, &slice, &tmap, &cfg, 0, 1).context("truth MED")?;
     pb.inc(1);
-    let mut fits = Vec::new();
-    let mut ranges = Vec::new();
-    for (snr, seed) in [(60.0, 500), (30.0, 600)] {
-        pb.set_message(format!("data {snr} dB"));
-        let recs = records(snr, scale, seed)?;
-        // Range of each cell's relative displacement in the measured (noisy) training data: the
-        // model's stable states are searched there only.
-        let mut visited = [(f64::INFINITY, f64::NEG_INFINITY); 2];
-        for r in &recs {
-            let x1 = r.column("x1").unwrap_or_default();
-            let x2 = r.column("x2").unwrap_or_default();
-            for (a, b) in x1.iter().zip(x2) {
-                for (c, h) in [*a, b - a].into_iter().enumerate() {
-                    visited[c].0 = visited[c].0.min(h);
-                    visited[c].1 = visited[c].1.max(h);
-                }
+    Ok(TruthSide {
+        laws,
+        eq,
+        tstable,
+        slice,
+        cfg,
+        tmap,
+        tmed,
+    })
+}
+
+/// One noise level's chain fit: its training sweeps (noise seed `seed`, durations times
+/// `scale`), each cell's visited range, the tied T-F-S model, and its basin maps (with and
+/// without the folded-stop contact) and MED against the truth. Each record's clean ranges of h1,
+/// h2 are appended to `ranges`.
+fn fit_chain(
+    snr: f64,
+    seed: u64,
+    scale: f64,
+    truth: &TruthSide,
+    ranges: &mut Vec<Value>,
+    pb: &ProgressBar,
+) -> Result<ChainFit> {
+    let TruthSide {
+        tstable,
+        slice,
+        cfg,
+        tmap,
+        ..
+    } = truth;
+    pb.set_message(format!("data {snr} dB"));
+    let recs = records(snr, scale, seed)?;
+    // Range of each cell's relative displacement in the measured (noisy) training data: the
+    // model's stable states are searched there only.
+    let mut visited = [(f64::INFINITY, f64::NEG_INFINITY); 2];
+    for r in &recs {
+        let x1 = r.column("x1").unwrap_or_default();
+        let x2 = r.column("x2").unwrap_or_default();
+        for (a, b) in x1.iter().zip(x2) {
+            for (c, h) in [*a, b - a].into_iter().enumerate() {
+                visited[c].0 = visited[c].0.min(h);
+                visited[c].1 = visited[c].1.max(h);
             }
         }
-        for r in &recs {
-            let x1 = r.column("x1_clean").unwrap_or_default();
-            let x2 = r.column("x2_clean").unwrap_or_default();
-            let h2: Vec<f64> = x1.iter().zip(x2).map(|(a, b)| b - a).collect();
-            let mm = |v: &[f64]| {
-                (
-                    v.iter().cloned().fold(f64::INFINITY, f64::min),
-                    v.iter().cloned().fold(f64::NEG_INFINITY, f64::max),
-                )
-            };
-            ranges.push(json!({"snr": snr, "record": r.source(), "h1": [mm(x1).0, mm(x1).1], "h2": [mm(&h2).0, mm(&h2).1]}));
-        }
-        pb.inc(1);
-        pb.set_message(format!("identify {snr} dB"));
-        let mut sp = IdentifySpec::new(&["x1", "x2"], LIB1);
-        sp.dof_libraries = vec![LIB1.to_string(), LIB2.to_string()];
-        // Tied regression: cell 2's force law (b_i, ζ2) enters both equations (Newton's third
-        // law, equal masses), as in the paper's Eq. 18.
-        let id = identify_tfs_tied(&recs, &sp, &TieOptions::default())
-            .with_context(|| format!("tied T-F-S identification of the chain ({snr} dB)"))?;
-        let model = id.model;
-        let coefs = cell_coefs(&model);
-        let k_stop = stop_stiffness(&coefs, visited);
-        // BOA of the identified equations alone (no contact): trajectories that reach h < 0
-        // fall through the folded state.
-        let boa_plain = (|| -> Result<f64> {
-            let (mw, _) = model_wells(&coefs, &tstable, visited)?;
-            let sys = model.compile()?;
-            let map = basin_chain(&sys, &mw, &slice, &cfg, None)?;
-            Ok(compare(&map, &tmap)?.error)
-        })()
-        .map_err(|e| format!("{e:#}"));
-        let basin = (|| -> Result<(Vec<Vec<f64>>, BasinMap, BoaComparison)> {
-            let (mw, ms) = model_wells(&coefs, &tstable, visited)?;
-            let sys = model.compile()?;
-            let map = basin_chain(&with_stop(&sys, k_stop), &mw, &slice, &cfg, None)?;
-            let cmp = compare(&map, &tmap)?;
-            Ok((ms, map, cmp))
-        })()
-        .map_err(|e| format!("{e:#}"));
-        let med = match &basin {
-            Ok((_, map, _)) => (|| -> Result<ChainMed> {
-                let (mw, _) = model_wells(&coefs, &tstable, visited)?;
-                let sys = model.compile()?;
-                Ok(med_chain(
-                    &with_stop(&sys, k_stop),
-                    &mw,
-                    &slice,
-                    map,
-                    &cfg,
-                    0,
-                    1,
-                )?)
-            })()
-            .map_err(|e| format!("{e:#}")),
-            Err(e) => Err(format!("no basin map: {e}")),
-        };
-        fits.push(ChainFit {
-            visited,
-            k_stop,
-            boa_plain,
-            label: format!("{snr} dB"),
-            model,
-            coefs,
-            basin,
-            med,
-        });
-        pb.inc(1);
     }
-    pb.set_message("tables and figures");
-    st.set("training_ranges", json!(ranges));
-    // ---- Table 2.
+    for r in &recs {
+        let x1 = r.column("x1_clean").unwrap_or_default();
+        let x2 = r.column("x2_clean").unwrap_or_default();
+        let h2: Vec<f64> = x1.iter().zip(x2).map(|(a, b)| b - a).collect();
+        let mm = |v: &[f64]| {
+            (
+                v.iter().cloned().fold(f64::INFINITY, f64::min),
+                v.iter().cloned().fold(f64::NEG_INFINITY, f64::max),
+            )
+        };
+        ranges.push(json!({"snr": snr, "record": r.source(), "h1": [mm(x1).0, mm(x1).1], "h2": [mm(&h2).0, mm(&h2).1]}));
+    }
+    pb.inc(1);
+    pb.set_message(format!("identify {snr} dB"));
+    let mut sp = IdentifySpec::new(&["x1", "x2"], LIB1);
+    sp.dof_libraries = vec![LIB1.to_string(), LIB2.to_string()];
+    // Tied regression: cell 2's force law (b_i, ζ2) enters both equations (Newton's third
+    // law, equal masses), as in the paper's Eq. 18.
+    let id = identify_tfs_tied(&recs, &sp, &TieOptions::default())
+        .with_context(|| format!("tied T-F-S identification of the chain ({snr} dB)"))?;
+    let model = id.model;
+    let coefs = cell_coefs(&model);
+    let k_stop = stop_stiffness(&coefs, visited);
+    // BOA of the identified equations alone (no contact): trajectories that reach h < 0
+    // fall through the folded state.
+    let boa_plain = (|| -> Result<f64> {
+        let (mw, _) = model_wells(&coefs, tstable, visited)?;
+        let sys = model.compile()?;
+        let map = basin_chain(&sys, &mw, slice, cfg, None)?;
+        Ok(compare(&map, tmap)?.error)
+    })()
+    .map_err(|e| format!("{e:#}"));
+    let basin = (|| -> Result<(Vec<Vec<f64>>, BasinMap, BoaComparison)> {
+        let (mw, ms) = model_wells(&coefs, tstable, visited)?;
+        let sys = model.compile()?;
+        let map = basin_chain(&with_stop(&sys, k_stop), &mw, slice, cfg, None)?;
+        let cmp = compare(&map, tmap)?;
+        Ok((ms, map, cmp))
+    })()
+    .map_err(|e| format!("{e:#}"));
+    let med = match &basin {
+        Ok((_, map, _)) => (|| -> Result<ChainMed> {
+            let (mw, _) = model_wells(&coefs, tstable, visited)?;
+            let sys = model.compile()?;
+            Ok(med_chain(
+                &with_stop(&sys, k_stop),
+                &mw,
+                slice,
+                map,
+                cfg,
+                0,
+                1,
+            )?)
+        })()
+        .map_err(|e| format!("{e:#}")),
+        Err(e) => Err(format!("no basin map: {e}")),
+    };
+    let fit = ChainFit {
+        visited,
+        k_stop,
+        boa_plain,
+        label: format!("{snr} dB"),
+        model,
+        coefs,
+        basin,
+        med,
+    };
+    pb.inc(1);
+    Ok(fit)
+}
+
+/// Table 2: each cell's coefficients at both noise levels, the paper's beside ours, and the
+/// equations identified.
+fn table2(st: &mut Study, fits: &[ChainFit]) -> Result<()> {
     let mut t2 = Table::new(
         "table2",
         "Table 2: per-cell coefficients of Eq. 18 (paper beside ours)",
@@ -487,7 +528,12 @@ pub fn study_chain(st: &mut Study, o: &Opts) -> Result<()> {
         fits[0].model.equation_string(),
         fits[1].model.equation_string()
     ));
-    // ---- Stable states per cell.
+    Ok(())
+}
+
+/// Each cell's stable states, the truth's against each model's (searched on the cell's training
+/// range), as a table, JSON and checks.
+fn states_table(st: &mut Study, fits: &[ChainFit], eq: &[(Vec<f64>, Vec<f64>); 2]) -> Result<()> {
     let mut ts = Table::new(
         "chain_states",
         "Stable states per cell: truth (truss) vs identified model (searched on the training range)",
@@ -501,7 +547,7 @@ pub fn study_chain(st: &mut Study, o: &Opts) -> Result<()> {
         ],
     );
     let mut states_json = Vec::new();
-    for f in &fits {
+    for f in fits {
         for (c, (eqc, vis)) in eq.iter().zip(f.visited).enumerate() {
             let cf = if c == 0 { f.coefs.a } else { f.coefs.b };
             let got =
@@ -546,7 +592,12 @@ pub fn study_chain(st: &mut Study, o: &Opts) -> Result<()> {
     }
     st.table(ts)?;
     st.set("stable_states", json!(states_json));
-    // ---- BOA and MED.
+    Ok(())
+}
+
+/// The basin errors of each model on the paper's slice, with and without the folded-stop
+/// contact, as a table and checks, and why the contact is added.
+fn boa_table(st: &mut Study, fits: &[ChainFit]) -> Result<()> {
     let mut tb = Table::new(
         "boa_chain",
         "Chain BOA errors on the paper's slice x_i(0) = x_i^S1 + Δx, ẋ_i(0) = v0",
@@ -559,7 +610,7 @@ pub fn study_chain(st: &mut Study, o: &Opts) -> Result<()> {
             "model stable states (x1, x2)",
         ],
     );
-    for f in &fits {
+    for f in fits {
         let e = f.basin.as_ref().map(|b| b.2.error).unwrap_or(f64::NAN);
         tb.row(vec![
             f.label.clone(),
@@ -589,6 +640,11 @@ pub fn study_chain(st: &mut Study, o: &Opts) -> Result<()> {
     }
     st.table(tb)?;
     st.text("The truth's folded stop (a stiff one-sided contact for h < 0) decides the fate of every start with a large negative velocity on this slice: the cells hit the flat state and bounce. The training sweeps stay off the stop (a polynomial cannot represent a contact), so the identified equations alone let those trajectories fall through h = 0 (the 'model alone' column: all of its disagreement lies in the bottom corners of the map). The basin maps, figures and MED use each identified model plus the geometric contact at h = 0 with stiffness 100 × the largest |F'| of the model's own cell forces (the same rule the truss truth uses, evaluated on the identified polynomials, no truth information).".to_string());
+    Ok(())
+}
+
+/// The minimum-energy deployment S1 → S2 of the truth and of each model.
+fn med_table(st: &mut Study, fits: &[ChainFit], tmed: &ChainMed) -> Result<()> {
     let mut tm = Table::new(
         "med_chain",
         "Chain minimum-energy deployment S1 → S2 on the slice",
@@ -601,7 +657,7 @@ pub fn study_chain(st: &mut Study, o: &Opts) -> Result<()> {
         f4(tmed.c1),
         tmed.quasi_static_barrier.map_or("—".into(), f4),
     ]);
-    for f in &fits {
+    for f in fits {
         match &f.med {
             Ok(m) => tm.row(vec![
                 format!("model {}", f.label),
@@ -620,10 +676,23 @@ pub fn study_chain(st: &mut Study, o: &Opts) -> Result<()> {
         }
     }
     st.table(tm)?;
+    Ok(())
+}
+
+/// The study's results in JSON: the truth, the basin grid and each model's fit.
+fn results_json(st: &mut Study, truth: &TruthSide, fits: &[ChainFit]) {
+    let TruthSide {
+        eq,
+        tstable,
+        cfg,
+        tmap,
+        tmed,
+        ..
+    } = truth;
     let med_json = |m: &ChainMed| json!({"energy": num(m.energy), "dx": num(m.c0), "v0": num(m.c1), "x": m.x, "v": m.v, "quasi_static_barrier": m.quasi_static_barrier.map(num)});
-    st.set("truth", json!({"stable": tstable, "cell1": {"stable": eq[0].0, "unstable": eq[0].1}, "cell2": {"stable": eq[1].0, "unstable": eq[1].1}, "med": med_json(&tmed), "basin_shares": tmap.shares}));
+    st.set("truth", json!({"stable": tstable, "cell1": {"stable": eq[0].0, "unstable": eq[0].1}, "cell2": {"stable": eq[1].0, "unstable": eq[1].1}, "med": med_json(tmed), "basin_shares": tmap.shares}));
     st.set("grid", json!({"nx": cfg.nx, "ny": cfg.ny, "dx_range": [cfg.x_range.0, cfg.x_range.1], "v_range": [cfg.v_range.0, cfg.v_range.1]}));
-    for f in &fits {
+    for f in fits {
         let key = if f.label.starts_with("60") {
             "chain_60db"
         } else {
@@ -644,7 +713,10 @@ pub fn study_chain(st: &mut Study, o: &Opts) -> Result<()> {
         });
         st.set(key, v);
     }
-    // ---- Figures.
+}
+
+/// Fig. 7a–b: each cell's restoring force, the truth's against each model's.
+fn force_figures(st: &mut Study, laws: &[CellForce; 2], fits: &[ChainFit]) -> Result<()> {
     let (lo, hi, n) = (0.0, 2.0, 201);
     for (c, (name, letter)) in [("cell 1 (γ0 = 20°)", "a"), ("cell 2 (γ0 = 28.5°)", "b")]
         .iter()
@@ -673,7 +745,12 @@ pub fn study_chain(st: &mut Study, o: &Opts) -> Result<()> {
             ch,
         )?;
     }
-    // Fig. 6c: a piece of the training signals.
+    Ok(())
+}
+
+/// Fig. 6c: a piece of the first 60 dB training sweep, its displacements and its base
+/// acceleration (one figure each: different units).
+fn signal_figures(st: &mut Study) -> Result<()> {
     if let Ok(recs) = records(60.0, 0.3, 500) {
         let r = &recs[0];
         let t = r.t();
@@ -710,6 +787,18 @@ pub fn study_chain(st: &mut Study, o: &Opts) -> Result<()> {
             ch,
         )?;
     }
+    Ok(())
+}
+
+/// Fig. 7c–e: the basins of attraction of the truth and of each model on the paper's slice, MED
+/// points marked, disagreeing cells dark.
+fn basin_figures(st: &mut Study, truth: &TruthSide, fits: &[ChainFit]) -> Result<()> {
+    let TruthSide {
+        tstable,
+        tmap,
+        tmed,
+        ..
+    } = truth;
     let axes = (
         "Δx, shift of every displacement from S1 (length unit c0)",
         "v0, initial velocity of every mass (c0/s)",
@@ -720,7 +809,7 @@ pub fn study_chain(st: &mut Study, o: &Opts) -> Result<()> {
         .map(|(k, s)| format!("S{} (h2 = {})", k + 1, fixed(s[1] - s[0], 3)))
         .collect();
     let fig = basin_figure(
-        &tmap,
+        tmap,
         "Fig. 7c: chain BOA of the truth",
         axes,
         &names,
@@ -759,6 +848,30 @@ pub fn study_chain(st: &mut Study, o: &Opts) -> Result<()> {
             )?;
         }
     }
+    Ok(())
+}
+
+/// Study 3.
+pub fn study_chain(st: &mut Study, o: &Opts) -> Result<()> {
+    let pb = progress(7, "§3.2 chain");
+    let truth = truth_side(st, o, &pb)?;
+    // Quick mode shrinks only the basin grid: shorter sweeps would change the data (see TRAIN).
+    let scale = 1.0;
+    let mut fits = Vec::new();
+    let mut ranges = Vec::new();
+    for (snr, seed) in [(60.0, 500), (30.0, 600)] {
+        fits.push(fit_chain(snr, seed, scale, &truth, &mut ranges, &pb)?);
+    }
+    pb.set_message("tables and figures");
+    st.set("training_ranges", json!(ranges));
+    table2(st, &fits)?;
+    states_table(st, &fits, &truth.eq)?;
+    boa_table(st, &fits)?;
+    med_table(st, &fits, &truth.tmed)?;
+    results_json(st, &truth, &fits);
+    force_figures(st, &truth.laws, &fits)?;
+    signal_figures(st)?;
+    basin_figures(st, &truth, &fits)?;
     pb.inc(1);
     pb.finish_and_clear();
     Ok(())
