@@ -2,7 +2,7 @@
 //! six training sweeps, a test sweep (Fig. 9), eight harmonic deployment tests (Fig. 10) and MED.
 
 use anyhow::{Context, Result, anyhow};
-use serde_json::json;
+use serde_json::{Value, json};
 use tfs::basin::{BasinConfig, WellInfo, basin_sdof, compare, med_sdof};
 use tfs::criteria::{IdentifySpec, identify_tfs};
 use tfs::data::Record;
@@ -108,57 +108,42 @@ fn deployed(x: &[f64], x_u: f64) -> bool {
     x[k..].iter().all(|&v| v > x_u)
 }
 
-/// Study 5.
-pub fn study_experiment(st: &mut Study, o: &Opts) -> Result<()> {
-    let pb = progress(6, "§4 exp.");
-    let truth = truth()?;
-    let twells = model_wells(&truth, "x", SEARCH)?;
-    let (s_t, u_t) = (twells.stable().to_vec(), twells.unstable().to_vec());
-    if s_t.len() != 2 || u_t.is_empty() {
-        return Err(anyhow!(
-            "the Table 3 truth should be bistable; stable {s_t:?}, unstable {u_t:?}"
-        ));
-    }
-    let scale = o.pick(0.5, 1.0);
-    let (f0, f1) = (2.0 * FREQ_SCALE, 12.0 * FREQ_SCALE);
-    let (g0, g1) = (4.0 * FREQ_SCALE, 8.0 * FREQ_SCALE);
-    st.text(format!(
-        "Synthetic truth of the form of Eq. 19: x'' + {}x' + {}x {:+}x^2 {:+}x^3 = −xb_acc (Table 3). Units: x in mm, t in s of *model time*. Its equilibria: stable S1 = {:.3} mm and S2 = {:.3} mm, unstable {:.3} mm (x(α + βx + γx²) = 0, roots (5.82 ± 3.54)/0.24); linear natural frequencies √α/2π = {:.3} Hz at S1 and {:.3} Hz at S2. Time scale: the paper's excitation band (2–12 Hz training, 4–8 Hz test) is multiplied by {FREQ_SCALE} so that it brackets these resonances the way the real sweeps bracket the rig's: training sweeps {f0:.1}–{f1:.1} Hz, test sweep {g0:.1}–{g1:.1} Hz. Six training sweeps (duration s, amplitude mm/s²) {:?}, test {:?}, harmonic deployment tests (Hz, mm/s²) {:?} of {DEPLOY_T} s from rest at S1; 60 dB white noise on x and xb_acc; 100 Hz sampling; library `{LIBRARY}`.{}",
-        TABLE3[0], TABLE3[1], TABLE3[2], TABLE3[3], s_t[0], s_t[1], u_t[0],
-        TABLE3[1].sqrt() / (2.0 * std::f64::consts::PI),
-        (TABLE3[1] + 2.0 * TABLE3[2] * s_t[1] + 3.0 * TABLE3[3] * s_t[1] * s_t[1]).sqrt() / (2.0 * std::f64::consts::PI),
-        TRAIN, TEST, DEPLOY,
-        if o.quick { " Quick mode: sweeps at half length, 31×31 basin grid." } else { "" }
-    ));
-    pb.set_message("data");
+/// The training sweeps (durations times `scale`, `f` Hz, noise seeds 900 + 7i) with what each
+/// did (deployed past the unstable state `x_u`, largest x), and the test sweep (`g` Hz).
+fn experiment_records(
+    truth: &Model,
+    x_u: f64,
+    scale: f64,
+    (f0, f1): (f64, f64),
+    (g0, g1): (f64, f64),
+) -> Result<(Vec<Record>, Vec<Value>, Record)> {
     let mut train = Vec::new();
     let mut train_info = Vec::new();
     for (i, &(d, a)) in TRAIN.iter().enumerate() {
         let r = measured(
-            &truth,
+            truth,
             &format!("train{}", i + 1),
             sweep(f0, f1, d * scale, a)?,
             900 + 7 * i as u64,
         )?;
         let xc = r.column("x_clean").unwrap_or_default();
-        train_info.push(json!({"record": r.source(), "duration": d * scale, "amplitude": a, "deployed": deployed(xc, u_t[0]), "x_max": xc.iter().cloned().fold(f64::NEG_INFINITY, f64::max)}));
+        train_info.push(json!({"record": r.source(), "duration": d * scale, "amplitude": a, "deployed": deployed(xc, x_u), "x_max": xc.iter().cloned().fold(f64::NEG_INFINITY, f64::max)}));
         train.push(r);
     }
-    let test = measured(&truth, "test", sweep(g0, g1, TEST.0 * scale, TEST.1)?, 990)?;
-    pb.inc(1);
-    pb.set_message("identify");
-    let id = identify_tfs(&train, &IdentifySpec::new(&["x"], LIBRARY))
-        .context("T-F-S identification")?;
-    let model = id.model;
-    pb.inc(1);
-    // ---- Table 3.
+    let test = measured(truth, "test", sweep(g0, g1, TEST.0 * scale, TEST.1)?, 990)?;
+    Ok((train, train_info, test))
+}
+
+/// Table 3: the identified coefficients of Eq. 19 beside the truth's (the paper's), the
+/// equation, and the training sweeps' JSON (`train_info`).
+fn table3(st: &mut Study, model: &Model, train_info: Vec<Value>) -> Result<()> {
     let ours = [
-        -coef(&model, "x", "x'"),
-        -coef(&model, "x", "x"),
-        -coef(&model, "x", "x^2"),
-        -coef(&model, "x", "x^3"),
+        -coef(model, "x", "x'"),
+        -coef(model, "x", "x"),
+        -coef(model, "x", "x^2"),
+        -coef(model, "x", "x^3"),
     ];
-    let others: Vec<String> = crate::common::terms(&model, "x")
+    let others: Vec<String> = crate::common::terms(model, "x")
         .into_iter()
         .filter(|(n, _)| !["x'", "x", "x^2", "x^3", "xb_acc"].contains(&n.as_str()))
         .map(|(n, c)| format!("{n}: {}", f4(c)))
@@ -188,19 +173,28 @@ pub fn study_experiment(st: &mut Study, o: &Opts) -> Result<()> {
         } else {
             others.join("; ")
         },
-        f4(coef(&model, "x", "xb_acc")),
+        f4(coef(model, "x", "xb_acc")),
     ]);
     st.table(t3)?;
     st.text(format!(
         "Equation identified: `{}`",
         model.equation_string()
     ));
-    st.set("table3", json!({"paper": TABLE3, "ours": ours.iter().map(|v| num(*v)).collect::<Vec<_>>(), "other_terms": others, "equation": model.equation_string(), "model": model_json(&model)}));
+    st.set("table3", json!({"paper": TABLE3, "ours": ours.iter().map(|v| num(*v)).collect::<Vec<_>>(), "other_terms": others, "equation": model.equation_string(), "model": model_json(model)}));
     st.set("training", json!(train_info));
-    // ---- Fig. 9: frequency response on the test sweep.
-    pb.set_message("test sweep");
+    Ok(())
+}
+
+/// Fig. 9: the identified model's response to the test sweep (`g` Hz) against the measured one:
+/// amplitude spectra and their resonance peaks, the sweep's first seconds, the resonance check.
+fn frequency_response(
+    st: &mut Study,
+    model: &Model,
+    test: &Record,
+    (g0, g1): (f64, f64),
+) -> Result<()> {
     let (_, xm) = simulate(
-        &model,
+        model,
         "test-model",
         test.column("xb_acc").unwrap_or_default().to_vec(),
     )?;
@@ -276,10 +270,20 @@ pub fn study_experiment(st: &mut Study, o: &Opts) -> Result<()> {
         "within 5% of the measured resonance",
     );
     st.set("fig9", json!({"resonance_measured_hz": num(fm), "resonance_model_hz": num(fmod), "resonance_error": num(res_err), "test_r_mse": num(r_mse)}));
-    pb.inc(1);
-    // ---- Fig. 10: deployment tests.
-    pb.set_message("deployment tests");
-    let mwells = model_wells(&model, "x", SEARCH)?;
+    Ok(())
+}
+
+/// Fig. 10: the eight harmonic deployment tests from S1 (`s_t`, the truth's stable states;
+/// `u_t`, its unstable ones), the truth's outcome against the model's, a figure each. Returns
+/// the model's wells.
+fn deployment_tests(
+    st: &mut Study,
+    truth: &Model,
+    model: &Model,
+    s_t: &[f64],
+    u_t: &[f64],
+) -> Result<WellInfo> {
+    let mwells = model_wells(model, "x", SEARCH)?;
     let xu_m = mwells
         .unstable()
         .iter()
@@ -304,8 +308,8 @@ pub fn study_experiment(st: &mut Study, o: &Opts) -> Result<()> {
     let mut tests = Vec::new();
     for (i, &(f, a)) in DEPLOY.iter().enumerate() {
         let u = sine(f, a)?;
-        let (t, xt) = simulate(&truth, &format!("deploy{}", i + 1), u.clone())?;
-        let (_, xmod) = simulate(&model, &format!("deploy{}-model", i + 1), u)?;
+        let (t, xt) = simulate(truth, &format!("deploy{}", i + 1), u.clone())?;
+        let (_, xmod) = simulate(model, &format!("deploy{}-model", i + 1), u)?;
         let (dt_, dm) = (deployed(&xt, u_t[0]), deployed(&xmod, xu_m));
         correct += usize::from(dt_ == dm);
         let vmax = xt
@@ -371,20 +375,30 @@ pub fn study_experiment(st: &mut Study, o: &Opts) -> Result<()> {
         "all eight as the truth does",
     );
     st.set("deployment", json!({"tests": tests, "correct": correct}));
-    pb.inc(1);
-    // ---- MED, dynamic vs quasi-static.
-    pb.set_message("MED");
+    Ok(mwells)
+}
+
+/// The minimum-energy deployment S1 → S2 of the truth and of the model (wells `twells`,
+/// `mwells`) against each one's quasi-static barrier, with both basin maps.
+fn med_section(
+    st: &mut Study,
+    o: &Opts,
+    truth: &Model,
+    twells: &WellInfo,
+    model: &Model,
+    mwells: &WellInfo,
+) -> Result<()> {
     let n = o.pick(31, 121);
     let mut cfg = BasinConfig::new(n, n, (-10.0, 50.0), (-150.0, 150.0));
     cfg.t_max = 60.0;
     let tsys = truth.compile()?;
     let msys = model.compile()?;
-    let tmap = basin_sdof(&tsys, &twells, &cfg, None).context("truth basin")?;
-    let tmed = med_sdof(&tsys, &twells, &tmap, &cfg, 0, 1).context("truth MED")?;
+    let tmap = basin_sdof(&tsys, twells, &cfg, None).context("truth basin")?;
+    let tmed = med_sdof(&tsys, twells, &tmap, &cfg, 0, 1).context("truth MED")?;
     let mres = (|| -> Result<_> {
-        let map = basin_sdof(&msys, &mwells, &cfg, None)?;
+        let map = basin_sdof(&msys, mwells, &cfg, None)?;
         let cmp = compare(&map, &tmap)?;
-        let med = med_sdof(&msys, &mwells, &map, &cfg, 0, 1)?;
+        let med = med_sdof(&msys, mwells, &map, &cfg, 0, 1)?;
         Ok((map, cmp, med))
     })();
     let mut tm = Table::new(
@@ -424,7 +438,7 @@ pub fn study_experiment(st: &mut Study, o: &Opts) -> Result<()> {
             &tmap,
             "§4: BOA of the Table 3 truth",
             axes,
-            &names(&twells),
+            &names(twells),
             None,
             vec![(tmed.x0, tmed.v0, format!("MED {:.0}", tmed.energy))],
         ),
@@ -450,7 +464,7 @@ pub fn study_experiment(st: &mut Study, o: &Opts) -> Result<()> {
                         pct(cmp.error)
                     ),
                     axes,
-                    &names(&mwells),
+                    &names(mwells),
                     Some(&cmp.disagree),
                     vec![(med.x0, med.v0, format!("MED {:.0}", med.energy))],
                 ),
@@ -482,7 +496,11 @@ pub fn study_experiment(st: &mut Study, o: &Opts) -> Result<()> {
     st.text("The paper's 80.39% compares the MED of the *dynamic* model with the deployment energy of the separately measured *quasi-static* force curve (Fig. 8c, stiffer because of PET viscoelasticity). That curve is not tabulated, and in a single model the MED can never be below its own quasi-static barrier (energy only decreases along unforced damped motion), so we report E_MED/barrier for the truth and the model instead; values close to 1 mean deployment by an initial displacement, as the paper observes.");
     let med_j = |m: &tfs::basin::Med| json!({"energy": num(m.energy), "x0": num(m.x0), "v0": num(m.v0), "quasi_static_barrier": num(m.quasi_static_barrier)});
     st.set("med", json!({"truth": med_j(&tmed), "model": mres.as_ref().ok().map(|r| med_j(&r.2)), "model_boa_error": mres.as_ref().ok().map(|r| num(r.1.error)), "model_error": mres.as_ref().err().map(|e| format!("{e:#}")), "ratio_model": num(ratio)}));
-    // Force/potential figure.
+    Ok(())
+}
+
+/// The restoring force of the truth and of the identified model (cf. Fig. 8e).
+fn force_figure(st: &mut Study, truth: &Model, model: &Model) -> Result<()> {
     let r = model.restoring("x")?;
     let rt = truth.restoring("x")?;
     let ch = LineChart::new(
@@ -505,6 +523,49 @@ pub fn study_experiment(st: &mut Study, o: &Opts) -> Result<()> {
         "§4: restoring force of the Table 3 truth and of the identified model",
         ch,
     )?;
+    Ok(())
+}
+
+/// Study 5.
+pub fn study_experiment(st: &mut Study, o: &Opts) -> Result<()> {
+    let pb = progress(6, "§4 exp.");
+    let truth = truth()?;
+    let twells = model_wells(&truth, "x", SEARCH)?;
+    let (s_t, u_t) = (twells.stable().to_vec(), twells.unstable().to_vec());
+    if s_t.len() != 2 || u_t.is_empty() {
+        return Err(anyhow!(
+            "the Table 3 truth should be bistable; stable {s_t:?}, unstable {u_t:?}"
+        ));
+    }
+    let scale = o.pick(0.5, 1.0);
+    let (f0, f1) = (2.0 * FREQ_SCALE, 12.0 * FREQ_SCALE);
+    let (g0, g1) = (4.0 * FREQ_SCALE, 8.0 * FREQ_SCALE);
+    st.text(format!(
+        "Synthetic truth of the form of Eq. 19: x'' + {}x' + {}x {:+}x^2 {:+}x^3 = −xb_acc (Table 3). Units: x in mm, t in s of *model time*. Its equilibria: stable S1 = {:.3} mm and S2 = {:.3} mm, unstable {:.3} mm (x(α + βx + γx²) = 0, roots (5.82 ± 3.54)/0.24); linear natural frequencies √α/2π = {:.3} Hz at S1 and {:.3} Hz at S2. Time scale: the paper's excitation band (2–12 Hz training, 4–8 Hz test) is multiplied by {FREQ_SCALE} so that it brackets these resonances the way the real sweeps bracket the rig's: training sweeps {f0:.1}–{f1:.1} Hz, test sweep {g0:.1}–{g1:.1} Hz. Six training sweeps (duration s, amplitude mm/s²) {:?}, test {:?}, harmonic deployment tests (Hz, mm/s²) {:?} of {DEPLOY_T} s from rest at S1; 60 dB white noise on x and xb_acc; 100 Hz sampling; library `{LIBRARY}`.{}",
+        TABLE3[0], TABLE3[1], TABLE3[2], TABLE3[3], s_t[0], s_t[1], u_t[0],
+        TABLE3[1].sqrt() / (2.0 * std::f64::consts::PI),
+        (TABLE3[1] + 2.0 * TABLE3[2] * s_t[1] + 3.0 * TABLE3[3] * s_t[1] * s_t[1]).sqrt() / (2.0 * std::f64::consts::PI),
+        TRAIN, TEST, DEPLOY,
+        if o.quick { " Quick mode: sweeps at half length, 31×31 basin grid." } else { "" }
+    ));
+    pb.set_message("data");
+    let (train, train_info, test) = experiment_records(&truth, u_t[0], scale, (f0, f1), (g0, g1))?;
+    pb.inc(1);
+    pb.set_message("identify");
+    let id = identify_tfs(&train, &IdentifySpec::new(&["x"], LIBRARY))
+        .context("T-F-S identification")?;
+    let model = id.model;
+    pb.inc(1);
+    table3(st, &model, train_info)?;
+    pb.set_message("test sweep");
+    frequency_response(st, &model, &test, (g0, g1))?;
+    pb.inc(1);
+    pb.set_message("deployment tests");
+    let mwells = deployment_tests(st, &truth, &model, &s_t, &u_t)?;
+    pb.inc(1);
+    pb.set_message("MED");
+    med_section(st, o, &truth, &twells, &model, &mwells)?;
+    force_figure(st, &truth, &model)?;
     pb.inc(1);
     pb.finish_and_clear();
     Ok(())
