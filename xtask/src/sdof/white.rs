@@ -11,41 +11,14 @@ use crate::common::{Opts, dev, f4, num, pct, progress, rel};
 use crate::report::{Study, Table};
 
 use super::{
-    BOA_BOUND, BOA_RULE, PAPER_T1_30, PAPER_T1_60, SdofFit, TFS_LIBRARY, TFS_LIBRARY_NAMES,
-    basin_cfg, basin_figures, fit_case, fit_json, force_figures, med_json, med_table, records,
-    table1_coefs, truth, truth_basin, truth_note,
+    BOA_BOUND, BOA_RULE, PAPER_T1_30, PAPER_T1_60, SdofFit, SdofTruth, TFS_LIBRARY,
+    TFS_LIBRARY_NAMES, basin_cfg, basin_figures, fit_case, fit_json, force_figures, med_json,
+    med_table, records, table1_coefs, truth, truth_basin, truth_note,
 };
 
-/// Study 1: white noise at 60 and 30 dB (Table 1, Figs 3–4).
-pub fn study_white(st: &mut Study, o: &Opts) -> Result<()> {
-    let pb = progress(7, "§3.1 white");
-    let scale = o.pick(0.5, 1.0);
-    let t = truth()?;
-    st.text(truth_note(&t));
-    if o.quick {
-        st.text("Quick mode: every sweep shortened to half its length; basin grid 41×41.");
-    }
-    let cfg = basin_cfg(o);
-    pb.set_message("truth basin");
-    let tb = truth_basin(&t, &cfg)?;
-    pb.inc(1);
-    let mut fits = Vec::new();
-    for (snr, seed) in [(60.0, 100), (30.0, 200)] {
-        pb.set_message(format!("data {snr} dB"));
-        let (train, test) = records(&t, NoiseKind::White, snr, scale, seed)?;
-        pb.inc(1);
-        pb.set_message(format!("identify {snr} dB"));
-        fits.push(fit_case(
-            &format!("white {snr} dB"),
-            train,
-            &test,
-            &tb,
-            &cfg,
-        )?);
-        pb.inc(1);
-    }
-    pb.set_message("tables and figures");
-    // ---- Table 1.
+/// Table 1: the identified coefficients at 60 and 30 dB against the truth, the paper's rows
+/// beside them (with checks and JSON), their deviations and the equations identified.
+fn table1(st: &mut Study, t: &SdofTruth, fits: &[SdofFit]) -> Result<()> {
     let mut t1 = Table::new(
         "table1",
         "Table 1: coefficients of x'' + ζx' + αx^5 + βx^6 + γx^7 = −xb_acc (paper beside ours)",
@@ -164,7 +137,11 @@ pub fn study_white(st: &mut Study, o: &Opts) -> Result<()> {
         fits[0].model.equation_string(),
         fits[1].model.equation_string()
     ));
-    // ---- BOA errors and MED.
+    Ok(())
+}
+
+/// The basin errors of both fits against the truth's map, the paper's beside them, with checks.
+fn boa_table(st: &mut Study, fits: &[SdofFit]) -> Result<()> {
     let mut tb_tab = Table::new(
         "boa_white",
         "BOA errors against the truth (share of grid cells labelled differently)",
@@ -212,6 +189,41 @@ pub fn study_white(st: &mut Study, o: &Opts) -> Result<()> {
         );
     }
     st.table(tb_tab)?;
+    Ok(())
+}
+
+/// Study 1: white noise at 60 and 30 dB (Table 1, Figs 3–4).
+pub fn study_white(st: &mut Study, o: &Opts) -> Result<()> {
+    let pb = progress(7, "§3.1 white");
+    let scale = o.pick(0.5, 1.0);
+    let t = truth()?;
+    st.text(truth_note(&t));
+    if o.quick {
+        st.text("Quick mode: every sweep shortened to half its length; basin grid 41×41.");
+    }
+    let cfg = basin_cfg(o);
+    pb.set_message("truth basin");
+    let tb = truth_basin(&t, &cfg)?;
+    pb.inc(1);
+    let mut fits = Vec::new();
+    for (snr, seed) in [(60.0, 100), (30.0, 200)] {
+        pb.set_message(format!("data {snr} dB"));
+        let (train, test) = records(&t, NoiseKind::White, snr, scale, seed)?;
+        pb.inc(1);
+        pb.set_message(format!("identify {snr} dB"));
+        fits.push(fit_case(
+            &format!("white {snr} dB"),
+            train,
+            &test,
+            &tb,
+            &cfg,
+        )?);
+        pb.inc(1);
+    }
+    pb.set_message("tables and figures");
+    table1(st, &t, &fits)?;
+    // ---- BOA errors and MED.
+    boa_table(st, &fits)?;
     st.table(med_table(
         "med_white",
         "Minimum-energy deployment S1 → S2 (Eq. 17) from the BOA maps",
