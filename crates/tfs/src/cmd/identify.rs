@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{Result, bail};
 pub use tfs::identify::Method;
-use tfs::identify::{IdentifyOptions, Tie, identify, plan};
+use tfs::identify::{Identification, IdentifyOptions, Plan, Tie, identify, plan};
 use tfs::report::{OffsetsReport, RecordOffsets, RefineReport};
 
 use super::trace_view::{print_summary, print_trace};
@@ -100,6 +100,135 @@ impl Args {
     }
 }
 
+/// Refuses `--dofs` that name the time column or a column `file` does not have.
+fn check_dofs(dofs: &[String], time_column: &str, columns: &[String], file: &str) -> Result<()> {
+    if dofs.iter().any(|d| d == time_column) {
+        bail!(
+            "--dofs {time_column}: '{time_column}' is the time column, not a displacement; name the displacement columns among the file's others ({})",
+            columns.join(", ")
+        );
+    }
+    for d in dofs {
+        if !columns.contains(d) {
+            bail!(
+                "--dofs {d}: {file} has no column '{d}' (its columns: {}); give the displacement columns by their names",
+                columns.join(", ")
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Refuses a library column that is a velocity written the way other tools spell it (`xdot`,
+/// `x_dot`, `x_vel`): it would be read as an input column of that name, which the file does
+/// not have; the error points to the grammar's `x'`.
+fn check_velocity_spelling(plan: &Plan, columns: &[String], file: &str) -> Result<()> {
+    for c in plan.required.iter().filter(|c| !columns.contains(c)) {
+        let stem = ["_dot", "dot", "_vel", "_v"]
+            .iter()
+            .find_map(|suffix| c.strip_suffix(suffix))
+            .filter(|s| plan.dofs.iter().any(|d| d == s));
+        if let Some(stem) = stem {
+            bail!(
+                "--library: '{c}' is not a column of {file}; the velocity of '{stem}' is written {stem}' (e.g. \"{stem}^1..7, {stem}', xb_acc\")"
+            );
+        }
+    }
+    Ok(())
+}
+
+/// `--json`: the model, the criteria trace, the refinement and offsets reports, the warnings and
+/// (for a chain) every cell's states.
+fn print_json_report(identified: &Identification, is_chain: bool) -> Result<()> {
+    let offsets_report = &identified.offsets;
+    let refine_report = &identified.refine;
+    print_json(&serde_json::json!({
+        "model": identified.model.to_json_value()?,
+        "trace": serde_json::to_value(&identified.trace)?,
+        "refine": refine_report.as_ref().map(RefineReport::to_json),
+        "offsets": offsets_report.to_json(),
+        "warnings": identified.warnings,
+        "cells": if is_chain { chain_cells_json(&identified.model) } else { serde_json::Value::Null },
+    }))?;
+    Ok(())
+}
+
+/// One screen: the equation, its fit, the verdict and what to do next.
+fn print_screen(args: &Args, identified: &Identification, is_chain: bool) -> Result<()> {
+    let offsets_report = &identified.offsets;
+    let refine_report = &identified.refine;
+    super::print_warnings(&identified.warnings);
+    println!("{}", identified.model.equation_string());
+    if is_chain {
+        print_chain_cells(&identified.model)?;
+    }
+    print_summary(&identified.trace, &identified.model);
+    if offsets_report.mode != tfs::records::Offsets::Keep {
+        println!(
+            "offsets: {} ({})",
+            offsets_report.mode.name(),
+            offsets_report.why
+        );
+    }
+    for line in refine_report.iter().flat_map(RefineReport::lines) {
+        println!("{line}");
+    }
+    println!("{}", next_steps(args.out.as_deref()));
+    if let Some(out) = &args.out {
+        println!("model written to {}", out.display());
+    }
+    Ok(())
+}
+
+/// `-v`: the equation and everything the identification measured (the criteria trace, offsets,
+/// refinement).
+fn print_verbose(
+    args: &Args,
+    opts: &IdentifyOptions,
+    identified: &Identification,
+    is_chain: bool,
+) -> Result<()> {
+    let offsets_report = &identified.offsets;
+    let refine_report = &identified.refine;
+    // The data cannot support the library: say so before anything else.
+    super::print_warnings(&identified.warnings);
+    println!("{}", identified.model.equation_string());
+    if args.data.len() == 1 {
+        if let Some(d) = identified.trace.dofs.first() {
+            let parts: Vec<&str> = d
+                .bins
+                .iter()
+                .map(|b| b.record.as_str())
+                .filter(|r| r.contains('#'))
+                .collect();
+            if parts.len() > 1 {
+                println!(
+                    "one record given: it was split into {} halves ({}) so that the settings can be chosen on held-out data",
+                    parts.len(),
+                    parts.join(", ")
+                );
+            }
+        }
+    }
+    if opts.tie == Tie::Auto && identified.trace.tied.is_some() {
+        println!(
+            "chain: each element's force law is tied between the two equations it enters (the default for a chain; --no-tie fits each equation on its own)"
+        );
+    }
+    if is_chain {
+        print_chain_cells(&identified.model)?;
+    }
+    print_trace(&identified.trace);
+    print_offsets(offsets_report);
+    for line in refine_report.iter().flat_map(RefineReport::lines) {
+        println!("{line}");
+    }
+    if let Some(out) = &args.out {
+        println!("model written to {}", out.display());
+    }
+    Ok(())
+}
+
 /// Runs `tfs identify`.
 pub fn run(args: Args) -> Result<()> {
     let opts = args.options();
@@ -123,40 +252,15 @@ pub fn run(args: Args) -> Result<()> {
         .filter(|c| *c != time_column)
         .cloned()
         .collect();
-    if args.dofs.iter().any(|d| d == time_column) {
-        bail!(
-            "--dofs {time_column}: '{time_column}' is the time column, not a displacement; name the displacement columns among the file's others ({})",
-            columns.join(", ")
-        );
-    }
     let file = args.data[0].display().to_string();
-    for d in &args.dofs {
-        if !columns.contains(d) {
-            bail!(
-                "--dofs {d}: {file} has no column '{d}' (its columns: {}); give the displacement columns by their names",
-                columns.join(", ")
-            );
-        }
-    }
+    check_dofs(&args.dofs, time_column, &columns, &file)?;
     let plan = plan(&opts, &columns, &file)?;
     if let Some(spec) = &args.library {
         for w in duplicate_terms(spec, &plan.dofs) {
             eprintln!("note: {w}");
         }
     }
-    // A velocity written the way other tools spell it (`xdot`, `x_dot`, `x_vel`) is read as an
-    // input column of that name, which the file does not have: point to the grammar's `x'`.
-    for c in plan.required.iter().filter(|c| !columns.contains(c)) {
-        let stem = ["_dot", "dot", "_vel", "_v"]
-            .iter()
-            .find_map(|suffix| c.strip_suffix(suffix))
-            .filter(|s| plan.dofs.iter().any(|d| d == s));
-        if let Some(stem) = stem {
-            bail!(
-                "--library: '{c}' is not a column of {file}; the velocity of '{stem}' is written {stem}' (e.g. \"{stem}^1..7, {stem}', xb_acc\")"
-            );
-        }
-    }
+    check_velocity_spelling(&plan, &columns, &file)?;
     let records = records_from(tables, &plan.required, &args.data_args)?;
     super::columns::check_identify_rows(&records)?;
     if let Some(note) = super::columns::unused_columns_note(
@@ -180,80 +284,16 @@ pub fn run(args: Args) -> Result<()> {
     } else {
         identify(records, held_out, &opts, &plan)?
     };
-    let offsets_report = &identified.offsets;
-    let refine_report = &identified.refine;
     if let Some(out) = &args.out {
         write_model(&identified.model, out, "--out")?;
     }
     let is_chain = plan.dofs.len() > 1 && !tfs::criteria::chain_ties(&plan.spec)?.is_empty();
     if args.json {
-        print_json(&serde_json::json!({
-            "model": identified.model.to_json_value()?,
-            "trace": serde_json::to_value(&identified.trace)?,
-            "refine": refine_report.as_ref().map(RefineReport::to_json),
-            "offsets": offsets_report.to_json(),
-            "warnings": identified.warnings,
-            "cells": if is_chain { chain_cells_json(&identified.model) } else { serde_json::Value::Null },
-        }))?;
+        print_json_report(&identified, is_chain)?;
     } else if !args.verbose {
-        // One screen: the equation, its fit, the verdict and what to do next.
-        super::print_warnings(&identified.warnings);
-        println!("{}", identified.model.equation_string());
-        if is_chain {
-            print_chain_cells(&identified.model)?;
-        }
-        print_summary(&identified.trace, &identified.model);
-        if offsets_report.mode != tfs::records::Offsets::Keep {
-            println!(
-                "offsets: {} ({})",
-                offsets_report.mode.name(),
-                offsets_report.why
-            );
-        }
-        for line in refine_report.iter().flat_map(RefineReport::lines) {
-            println!("{line}");
-        }
-        println!("{}", next_steps(args.out.as_deref()));
-        if let Some(out) = &args.out {
-            println!("model written to {}", out.display());
-        }
+        print_screen(&args, &identified, is_chain)?;
     } else {
-        // The data cannot support the library: say so before anything else.
-        super::print_warnings(&identified.warnings);
-        println!("{}", identified.model.equation_string());
-        if args.data.len() == 1 {
-            if let Some(d) = identified.trace.dofs.first() {
-                let parts: Vec<&str> = d
-                    .bins
-                    .iter()
-                    .map(|b| b.record.as_str())
-                    .filter(|r| r.contains('#'))
-                    .collect();
-                if parts.len() > 1 {
-                    println!(
-                        "one record given: it was split into {} halves ({}) so that the settings can be chosen on held-out data",
-                        parts.len(),
-                        parts.join(", ")
-                    );
-                }
-            }
-        }
-        if opts.tie == Tie::Auto && identified.trace.tied.is_some() {
-            println!(
-                "chain: each element's force law is tied between the two equations it enters (the default for a chain; --no-tie fits each equation on its own)"
-            );
-        }
-        if is_chain {
-            print_chain_cells(&identified.model)?;
-        }
-        print_trace(&identified.trace);
-        print_offsets(offsets_report);
-        for line in refine_report.iter().flat_map(RefineReport::lines) {
-            println!("{line}");
-        }
-        if let Some(out) = &args.out {
-            println!("model written to {}", out.display());
-        }
+        print_verbose(&args, &opts, &identified, is_chain)?;
     }
     Ok(())
 }
