@@ -663,6 +663,39 @@ mod tests {
         }
     }
 
+    /// On a short record that ends in motion (600 samples, 300 bins in the upper half of its
+    /// mirror spectrum) the floor's level scatters across noise draws as a mean of those bins
+    /// does, not as their median: by χ²₁ theory the log of the pooled level scatters by about
+    /// √2/√300 = 0.082 and the log of the median floor by 2.33/√300 = 0.134 (on these hundred
+    /// draws of white noise of one variance: 0.092 and 0.127, the trend search adding a little).
+    /// The scatter must be below 0.105, and the mean within 5 % of the noise's variance.
+    #[test]
+    fn short_record_floor_scatters_as_a_mean_of_bins() {
+        const DRAWS: u64 = 100;
+        let dt = 0.01;
+        let n = 600;
+        let sigma = 0.01;
+        let tw = 2.0 * std::f64::consts::PI;
+        let clean: Vec<f64> = (0..n)
+            .map(|i| {
+                let t = i as f64 * dt;
+                (tw * 0.7 * t + 0.4).cos() + 0.3 * (-0.3 * t).exp() * (tw * 1.3 * t).sin()
+            })
+            .collect();
+        let logs: Vec<f64> = (0..DRAWS)
+            .map(|seed| {
+                let e = crate::noise::standard_normal(n, 100 + seed);
+                let x: Vec<f64> = clean.iter().zip(&e).map(|(a, b)| a + sigma * b).collect();
+                let band = reconstruct(&x, dt, None).band;
+                (band.total_noise_var() / (sigma * sigma)).ln()
+            })
+            .collect();
+        let mean = logs.iter().sum::<f64>() / DRAWS as f64;
+        let sd = (logs.iter().map(|l| (l - mean).powi(2)).sum::<f64>() / (DRAWS - 1) as f64).sqrt();
+        assert!(mean.abs() < 0.05, "mean log floor/noise {mean}");
+        assert!(sd < 0.105, "log floor scatter {sd} (mean {mean})");
+    }
+
     /// A decimated draw is the full-rate draw's every q-th sample, for steps that share factors
     /// with the transform length (shorter inverse transform) and steps that do not.
     #[test]
