@@ -126,7 +126,7 @@ fn judge_candidates(
         Choice {
             judge: Judge::ShortHorizon,
             why: format!(
-                "free-run simulation cannot rank these candidates: a fresh draw of the measured input's noise moves the free run of the model with {} about as far as its error",
+                "free-run simulation cannot rank these candidates: a fresh draw of the measured input's noise, or the run's own divergence from a start one displacement-noise standard deviation away, moves the free run of the model with {} about as far as its error",
                 s.raw.name(model)
             ),
             plain: false,
@@ -161,8 +161,8 @@ fn judge_candidates(
 }
 
 /// True when on some held-out record the free run of a per-fold model whose equations `eqs`
-/// replace the model's is dominated by the input's own noise
-/// ([`crate::simulate::free_run_noise_dominated`]).
+/// replace the model's cannot rank models: dominated by the input's own noise or by its own
+/// divergence ([`crate::simulate::free_run_noise_dominated`]).
 fn folds_noise_dominated(
     model: &Model,
     eqs: &[FoldEquation<'_>],

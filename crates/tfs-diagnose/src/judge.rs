@@ -8,7 +8,9 @@
 //! (`explain.rs`). It cannot rank models when a fresh draw of the measured input's own noise
 //! moves the simulation about as far as the model's error (a multi-stable structure swept through
 //! chaotic snap-through: which well it is in decides the error, and the noise decides the well;
-//! `tfs_refine::noise_dominated`) on any record — the start model's, or that of a candidate the
+//! `tfs_refine::noise_dominated`), or the run from a start one displacement-noise standard
+//! deviation away does (its own divergence: a chaotic run parts from itself whatever the
+//! input-noise level; `crate::simulate::noise_probe`) on any record — the start model's, or that of a candidate the
 //! free run would veto (a model nearer the truth can be the one whose snap-through the noise
 //! times; `explain.rs` probes those). Then the candidates are judged by
 //! **short-horizon prediction**: held-out data cut into pieces, each simulated from the smoothed
@@ -88,7 +90,8 @@ pub(crate) struct Choice {
 }
 
 /// The judge for `model` on `states`: short-horizon prediction when on any record the free-run
-/// error is dominated by the input's own noise, free-run otherwise; with the reason in words and
+/// error is dominated by the input's own noise or by the run's own divergence
+/// ([`crate::simulate::noise_probe`]), free-run otherwise; with the reason in words and
 /// the free run's resolution. One such record is enough: the free-run score is a mean over the
 /// held-out units, and a unit the input noise dominates adds noise of its own size to every
 /// candidate's mean. `runs` are the model's own simulations of the records
@@ -100,19 +103,19 @@ pub(crate) fn choose(
     runs: &[BaseRun],
 ) -> Choice {
     let sim = SimulateOptions::default();
-    let probes: Vec<Option<(bool, f64)>> = states
+    let probes: Vec<Option<crate::simulate::NoiseProbe>> = states
         .par_iter()
         .zip(runs)
         .map(|(s, run)| {
             let rec = crate::simulate::augment_record(model, &s.record, opts).ok()?;
             let tr = run.as_ref()?.as_ref().ok()?;
-            let p = crate::simulate::noise_probe(model, &rec, tr, &sim)?;
-            Some((p.dominated, p.shift))
+            crate::simulate::noise_probe(model, &rec, tr, &sim)
         })
         .collect();
     let measured = measurement_floor(model, states);
-    let dominated = probes.iter().flatten().filter(|p| p.0).count();
-    let shifts: Vec<f64> = probes.iter().flatten().map(|p| p.1).collect();
+    let dominated = probes.iter().flatten().filter(|p| p.dominated).count();
+    let diverging = probes.iter().flatten().filter(|p| p.diverges).count();
+    let shifts: Vec<f64> = probes.iter().flatten().filter_map(|p| p.shift).collect();
     let resolution = if shifts.is_empty() {
         0.0
     } else {
@@ -120,10 +123,19 @@ pub(crate) fn choose(
         if m.is_finite() { m } else { f64::INFINITY }
     };
     if dominated > 0 {
+        let how = match (dominated - diverging, diverging) {
+            (_, 0) => "a fresh draw of the measured input's noise moves it",
+            (0, _) => {
+                "its run from a start one displacement-noise standard deviation away parts from it (its own divergence)"
+            }
+            _ => {
+                "a fresh draw of the measured input's noise, or its own divergence from a start one displacement-noise standard deviation away, moves it"
+            }
+        };
         Choice {
             judge: Judge::ShortHorizon,
             why: format!(
-                "free-run simulation cannot rank models on these records: on {dominated} of {} a fresh draw of the measured input's noise moves it about as far as the model's error",
+                "free-run simulation cannot rank models on these records: on {dominated} of {} {how} about as far as the model's error",
                 states.len()
             ),
             plain: false,

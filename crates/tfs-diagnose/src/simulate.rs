@@ -111,12 +111,24 @@ pub(crate) fn base_runs(model: &Model, records: &[Record], opts: &DiagnoseOption
         .collect()
 }
 
-/// How the free run `run` of `model` on the augmented record `rec` reads against the measured
-/// input's own noise: whether a fresh draw of that noise moves the simulation about as far as
-/// its error from the measured displacement in some DOF ([`tfs_refine::noise_dominated`]: the
-/// free run then cannot say how good the model is), and how far it moves the R-MSE (the mean over
-/// DOFs of the squared spread over the measured displacement's variance). `None` when a DOF's
-/// measured column is missing or no input can be perturbed.
+/// How the free run `run` of `model` on the augmented record `rec` reads against what the
+/// record itself leaves uncertain, and whether it can rank models there. It cannot when in some
+/// DOF one of two spreads accounts for its error from the measured displacement
+/// ([`tfs_refine::noise_dominated`], the same inequality for both):
+///
+/// - the input's noise: how far a fresh draw of the measured input's own noise moves the run
+///   ([`tfs_refine::input_noise_spread_from`]; a multi-stable structure the noise times through
+///   its snap-through);
+/// - its own divergence: how far the run from a start one displacement-noise standard deviation
+///   away parts from it ([`tfs_refine::start_spread_from`]; a chaotic motion, whose nearby
+///   motions part by themselves whatever the input-noise level, and which a lower input-noise
+///   estimate alone would hand back to the free run). A damped, non-chaotic run forgets that
+///   start and is not touched by this.
+///
+/// The start's spread is computed only when the input's does not already decide. Also how far
+/// the input's noise moves the R-MSE (the mean over DOFs of the squared spread over the
+/// measured displacement's variance). `None` when a DOF's measured column is missing, or
+/// neither spread can be had (no input can be perturbed and no displacement has a noise floor).
 pub(crate) fn noise_probe(
     model: &Model,
     rec: &Record,
@@ -133,16 +145,37 @@ pub(crate) fn noise_probe(
         .zip(&run.x)
         .map(|(m, x)| tfs_dynamics::rms_error(m, x).unwrap_or(f64::INFINITY))
         .collect();
-    let spread = tfs_refine::input_noise_spread_from(model, rec, sim, run).ok()??;
+    let spread = tfs_refine::input_noise_spread_from(model, rec, sim, run)
+        .ok()
+        .flatten();
     let noise = tfs_refine::displacement_noise_var(model, rec);
-    let shift = spread
-        .iter()
-        .zip(&measured)
-        .map(|(sp, m)| sp * sp / crate::prepare::variance(m).max(f64::MIN_POSITIVE))
-        .sum::<f64>()
-        / spread.len().max(1) as f64;
+    let shift = spread.as_ref().map(|spread| {
+        spread
+            .iter()
+            .zip(&measured)
+            .map(|(sp, m)| sp * sp / crate::prepare::variance(m).max(f64::MIN_POSITIVE))
+            .sum::<f64>()
+            / spread.len().max(1) as f64
+    });
+    let by_input = spread
+        .as_ref()
+        .is_some_and(|s| tfs_refine::noise_dominated(s, &error, &noise));
+    let by_start = if by_input {
+        None
+    } else {
+        tfs_refine::start_spread_from(model, rec, sim, run, &noise)
+            .ok()
+            .flatten()
+    };
+    if spread.is_none() && by_start.is_none() {
+        return None;
+    }
+    let diverges = by_start
+        .as_ref()
+        .is_some_and(|s| tfs_refine::noise_dominated(s, &error, &noise));
     Some(NoiseProbe {
-        dominated: tfs_refine::noise_dominated(&spread, &error, &noise),
+        dominated: by_input || diverges,
+        diverges,
         shift,
     })
 }
@@ -150,15 +183,20 @@ pub(crate) fn noise_probe(
 /// What [`noise_probe`] reads from one free run.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct NoiseProbe {
-    /// The input's noise moves the run about as far as its error in some DOF.
+    /// The free run cannot rank models: the input's noise, or its own divergence from a start
+    /// the record cannot tell apart, moves it about as far as its error in some DOF.
     pub dominated: bool,
-    /// The R-MSE difference a fresh draw of the input's noise makes.
-    pub shift: f64,
+    /// Dominated by its own divergence (and not by the input's noise).
+    pub diverges: bool,
+    /// The R-MSE difference a fresh draw of the input's noise makes (`None` when no input can
+    /// be perturbed).
+    pub shift: Option<f64>,
 }
 
-/// True when the free run of `model` on `record` is dominated by the measured input's own noise
-/// ([`noise_probe`]). False when the record's computed columns cannot be made, the simulation
-/// fails or no input can be perturbed: the free run then says what it says.
+/// True when the free run of `model` on `record` cannot rank models: dominated by the measured
+/// input's own noise or by its own divergence ([`noise_probe`]). False when the record's
+/// computed columns cannot be made, the simulation fails or neither spread can be had: the free
+/// run then says what it says.
 pub(crate) fn free_run_noise_dominated(
     model: &Model,
     record: &Record,

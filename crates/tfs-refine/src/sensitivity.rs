@@ -11,7 +11,9 @@
 
 use rayon::prelude::*;
 use tfs_data::Record;
-use tfs_dynamics::{SimulateOptions, Trajectory, simulate_model_on_record};
+use tfs_dynamics::{
+    Integrator, SampledInput, SimulateOptions, Trajectory, simulate_model_on_record,
+};
 use tfs_library::Model;
 use tfs_signal::band::{band_guarded, noise_draw_with};
 
@@ -151,6 +153,136 @@ pub fn input_noise_spread_from(
             .map(|s| (s / DRAWS as f64).sqrt())
             .collect(),
     ))
+}
+
+/// How far the simulation of `model` parts from itself when only its start moves by what the
+/// record cannot resolve: per DOF, the RMS difference between `base` (the free run under the
+/// measured inputs from its fitted start, from `simulate_model_on_record` with the same `opts`)
+/// and a run under the same inputs from that start with each measured displacement moved by its
+/// own measurement-noise standard deviation (`noise_var`, [`displacement_noise_var`]).
+///
+/// Why that distance: the record gives every displacement sample only to within its noise, so
+/// two starts one noise standard deviation apart are equally consistent with it. A free run
+/// whose error from the record is about the distance between the runs from two such starts
+/// measures where that run's own divergence took it, not how good the model is (a chaotic
+/// motion: nearby motions part by themselves, at any input-noise level). For a damped,
+/// non-chaotic motion the difference decays and the spread stays well below the noise
+/// itself. The distance is the record's own, not a chosen constant.
+///
+/// `Ok(None)` when no displacement has a noise-only floor (every `noise_var` zero: the record
+/// sets no start uncertainty to probe with). A run from the moved start that fails or leaves
+/// the record's range ([`SimulateOptions::range`]) counts as an infinite spread.
+///
+/// Errors: `model` does not compile, or `record` lacks one of its inputs.
+pub fn start_spread_from(
+    model: &Model,
+    record: &Record,
+    opts: &SimulateOptions,
+    base: &Trajectory,
+    noise_var: &[f64],
+) -> Result<Option<Vec<f64>>> {
+    let n = model.dofs.len();
+    let shift: Vec<f64> = (0..n)
+        .map(|i| {
+            let v = noise_var.get(i).copied().unwrap_or(0.0);
+            if v.is_finite() && v > 0.0 {
+                v.sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    if shift.iter().all(|s| *s == 0.0) || base.x.len() < n || base.v.len() < n {
+        return Ok(None);
+    }
+    let compiled = model.compile()?;
+    let channels: Vec<Vec<f64>> = compiled
+        .input_names()
+        .iter()
+        .map(|name| {
+            record.column(name).map(<[f64]>::to_vec).ok_or_else(|| {
+                crate::RefineError::MissingColumn {
+                    record: record.source().to_string(),
+                    column: name.clone(),
+                    available: record.names().join(", "),
+                }
+            })
+        })
+        .collect::<Result<_>>()?;
+    // The run's own clock and input, as `simulate_model_on_record` sets them: from 0 at the
+    // record's first sample.
+    let t = record.t();
+    let Some(&t0) = t.first() else {
+        return Ok(None);
+    };
+    let t_local: Vec<f64> = t.iter().map(|v| v - t0).collect();
+    let input = SampledInput::new(0.0, record.dt(), channels)?;
+    let mut x0: Vec<f64> = (0..n)
+        .map(|i| base.x[i].first().copied().unwrap_or(0.0) + shift[i])
+        .collect();
+    let mut v0: Vec<f64> = (0..n)
+        .map(|i| base.v[i].first().copied().unwrap_or(0.0))
+        .collect();
+    // Internal states start at rest, as in the free run.
+    x0.resize(compiled.system_dofs(), 0.0);
+    v0.resize(compiled.system_dofs(), 0.0);
+    // The record's range, widened as the free run's is: a run that leaves it has parted from
+    // the record entirely.
+    let bands: Vec<(f64, f64)> = match opts.range {
+        Some(f) => model
+            .dofs
+            .iter()
+            .map(|d| {
+                record
+                    .column(d)
+                    .map_or((f64::NEG_INFINITY, f64::INFINITY), |y| range_band(y, f))
+            })
+            .collect(),
+        None => Vec::new(),
+    };
+    let inside = |_: usize, x: &[f64]| {
+        bands
+            .iter()
+            .zip(x)
+            .all(|((lo, hi), v)| *v >= *lo && *v <= *hi)
+    };
+    let run = opts
+        .integrator
+        .integrate_until(&compiled, &input, &x0, &v0, &t_local, inside);
+    let Ok(Some(tr)) = run else {
+        return Ok(Some(vec![f64::INFINITY; n]));
+    };
+    Ok(Some(
+        (0..n)
+            .map(|i| {
+                let len = tr.x[i].len().max(1) as f64;
+                (tr.x[i]
+                    .iter()
+                    .zip(&base.x[i])
+                    .map(|(a, b)| (a - b) * (a - b))
+                    .sum::<f64>()
+                    / len)
+                    .sqrt()
+            })
+            .collect(),
+    ))
+}
+
+/// The band a displacement may reach in a run (the free run's [`SimulateOptions::range`]): the
+/// record's own span widened by `factor` spans on each side; unbounded for a constant or empty
+/// column.
+fn range_band(measured: &[f64], factor: f64) -> (f64, f64) {
+    let (lo, hi) = measured
+        .iter()
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    let span = hi - lo;
+    if !(span > 0.0 && span.is_finite()) {
+        return (f64::NEG_INFINITY, f64::INFINITY);
+    }
+    (lo - factor * span, hi + factor * span)
 }
 
 /// Per DOF: the variance of the displacement's measurement noise, from the power-law floor

@@ -147,3 +147,50 @@ fn input_noise_spread_scales_with_the_input_noise() {
         "spread 20 dB / 40 dB = {ratio}"
     );
 }
+
+#[test]
+fn a_start_moved_by_the_noise_is_forgotten_when_damped_and_grows_when_chaotic() {
+    // The free run of the true equation, and its run from a start one displacement-noise
+    // standard deviation away, at 40 dB. A damped linear oscillator forgets the moved start
+    // (the difference decays within a few of its 5 s decay times out of 200 s): its RMS over
+    // the record stays well below the noise's own standard deviation. A double-well Duffing
+    // driven into chaos (`x'' = x − x³ − 0.3 x' + 0.5 cos 1.2t`) parts from itself: the two
+    // runs end on unrelated stretches of the attractor, a sizeable part of the motion apart.
+    let dt = 0.05;
+    let n = 4000;
+    let opts = tfs_dynamics::SimulateOptions::default();
+    let start_spread = |m: &tfs_library::Model, u: Vec<f64>| {
+        let r = measure("r", m, u, dt, 40.0, (0.0, 0.0), 7);
+        let base = tfs_dynamics::simulate_model_on_record(m, &r, &opts).unwrap();
+        let noise = tfs_refine::displacement_noise_var(m, &r);
+        assert!(
+            noise[0] > 0.0,
+            "40 dB white noise leaves a noise-only floor"
+        );
+        let s = tfs_refine::start_spread_from(m, &r, &opts, &base, &noise)
+            .unwrap()
+            .expect("a displacement with a noise floor moves the start")[0];
+        let x = r.column("x").unwrap();
+        let mean = x.iter().sum::<f64>() / x.len() as f64;
+        let motion = rms_diff(x, &vec![mean; x.len()]);
+        println!(
+            "start spread {s:.3e}, noise std {:.3e}, motion RMS {motion:.3e}",
+            noise[0].sqrt()
+        );
+        (s, noise[0].sqrt(), motion)
+    };
+    let lin = model(&[("x", -4.0), ("x'", -0.4), ("u", 1.0)]);
+    let sw = Sweep::new(SweepKind::Linear, 0.05, 0.4, n as f64 * dt, 1.0, 10.0).unwrap();
+    let (s, sigma, _) = start_spread(&lin, sample(&sw, n, dt));
+    assert!(
+        s > 0.0 && s < 0.5 * sigma,
+        "damped: start spread {s:.3e}, noise std {sigma:.3e}"
+    );
+    let chaotic = model(&[("x", 1.0), ("x^3", -1.0), ("x'", -0.3), ("u", 1.0)]);
+    let u: Vec<f64> = (0..n).map(|k| 0.5 * (1.2 * k as f64 * dt).cos()).collect();
+    let (s, sigma, motion) = start_spread(&chaotic, u);
+    assert!(
+        s > 0.25 * motion && s > 10.0 * sigma,
+        "chaotic: start spread {s:.3e}, noise std {sigma:.3e}, motion RMS {motion:.3e}"
+    );
+}
