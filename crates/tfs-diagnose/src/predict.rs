@@ -44,7 +44,8 @@ impl PredictionScore {
 
     /// Chooses the score for `record` when `reference` (e.g. the start model of a diagnosis) is
     /// compared with `others` on it: the free run, unless a fresh draw of the measured input's
-    /// noise moves the free run of one of them about as far as its error; then pieces as long as
+    /// noise, or the run's own divergence, moves the free run of one of them about as far as
+    /// its error ([`crate::simulate::noise_probe`]); then pieces as long as
     /// `reference`'s predictions from measured states keep their skill.
     pub fn choose(
         reference: &Model,
@@ -86,7 +87,7 @@ impl PredictionScore {
         Ok(Self {
             horizon: Some(h),
             why: format!(
-                "a fresh draw of the measured input's noise moves a model's free run about as far as its error: predictions over pieces of {h} samples ({:.4} s) from the measured state",
+                "a fresh draw of the measured input's noise, or the run's own divergence from a start one displacement-noise standard deviation away, moves a model's free run about as far as its error: predictions over pieces of {h} samples ({:.4} s) from the measured state",
                 h as f64 * dt
             ),
         })

@@ -74,7 +74,7 @@ pub fn rules() -> Vec<Rule> {
             "judge",
             "judge",
             format!(
-                "free run under the measured input; short-horizon pieces when on any record a fresh draw of the input's noise moves the free run about as far as the model's error (pieces as long as the start model's predictions keep their skill, over {} starts per record)",
+                "free run under the measured input; short-horizon pieces when on any record a fresh draw of the input's noise, or the run's own divergence from a start one displacement-noise std away (where the runs end farther apart than they started), moves the free run about as far as the model's error (pieces as long as the start model's predictions keep their skill, over {} starts per record)",
                 crate::judge::HORIZON_STARTS
             ),
             "how held-out predictions are scored, once per record set",

@@ -122,8 +122,9 @@ pub(crate) fn base_runs(model: &Model, records: &[Record], opts: &DiagnoseOption
 /// - its own divergence: how far the run from a start one displacement-noise standard deviation
 ///   away parts from it ([`tfs_refine::start_spread_from`]; a chaotic motion, whose nearby
 ///   motions part by themselves whatever the input-noise level, and which a lower input-noise
-///   estimate alone would hand back to the free run). A damped, non-chaotic run forgets that
-///   start and is not touched by this.
+///   estimate alone would hand back to the free run). It counts only in a DOF where the two
+///   runs end farther apart (RMS over the record) than the start was moved: a damped or
+///   neutral run keeps its spread at or below that move and is not touched by this.
 ///
 /// The start's spread is computed only when the input's does not already decide. Also how far
 /// the input's noise moves the R-MSE (the mean over DOFs of the squared spread over the
@@ -170,9 +171,15 @@ pub(crate) fn noise_probe(
     if spread.is_none() && by_start.is_none() {
         return None;
     }
-    let diverges = by_start
-        .as_ref()
-        .is_some_and(|s| tfs_refine::noise_dominated(s, &error, &noise));
+    // Only a DOF whose runs ended farther apart than they started (RMS over the record above
+    // the start's own move) diverges: a damped or neutral run keeps its spread at or below
+    // that move, and a model at the noise floor (its error beyond the measurement noise about
+    // nil) would otherwise count as dominated by any spread at all.
+    let diverges = by_start.as_ref().is_some_and(|s| {
+        let grown: Vec<usize> = (0..s.len()).filter(|&i| s[i] * s[i] > noise[i]).collect();
+        let pick = |v: &[f64]| grown.iter().map(|&i| v[i]).collect::<Vec<f64>>();
+        tfs_refine::noise_dominated(&pick(s), &pick(&error), &pick(&noise))
+    });
     Some(NoiseProbe {
         dominated: by_input || diverges,
         diverges,
