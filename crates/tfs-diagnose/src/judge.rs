@@ -10,9 +10,9 @@
 //! chaotic snap-through: which well it is in decides the error, and the noise decides the well;
 //! `tfs_refine::noise_dominated`), or the run from a start one displacement-noise standard
 //! deviation away does (its own divergence: a chaotic run parts from itself whatever the
-//! input-noise level; `crate::simulate::noise_probe`) on any record — the start model's, or that of a candidate the
-//! free run would veto (a model nearer the truth can be the one whose snap-through the noise
-//! times; `explain.rs` probes those). Then the candidates are judged by
+//! input-noise level; `crate::simulate::noise_probe`) on any record — the start model's, or
+//! that of a candidate the free run would veto (a model nearer the truth can be the one whose
+//! snap-through the noise times; `explain.rs` probes those). Then the candidates are judged by
 //! **short-horizon prediction**: held-out data cut into pieces, each simulated from the smoothed
 //! measured state at its start (internal states from the record), the squared error summed over
 //! the pieces — the model's error over a horizon the input noise cannot take over. The pieces are
