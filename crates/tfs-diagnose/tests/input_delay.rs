@@ -109,7 +109,8 @@ fn degree_seven_oscillator_55_ms() {
 /// the late input must still be found (input-delay first, or input-filter first with input-delay
 /// reported as indistinguishable from it), significant, judged by short-horizon prediction.
 /// Before the judge looked at the candidates' own free runs, one of these draws named nothing
-/// and the other a Maxwell element.
+/// and the other a Maxwell element; since the judge also reads a run's own divergence, the second
+/// draw's start model already parts from itself on one record and the candidates are not asked.
 #[test]
 fn kresling_cell_one_sample_through_snap_through() {
     for (c, delay, amp, seed) in [(2.4, 0.011, 3.2, 50), (1.7, 0.014, 2.6, 60)] {
@@ -138,8 +139,11 @@ fn kresling_cell_one_sample_through_snap_through() {
             "{label}: {}",
             ex.judges[0].why
         );
+        // Either a candidate's own free run was found dominated, or already the start model's
+        // run parts from itself (its own divergence, `noise_probe`): the free run is not asked.
         assert!(
-            ex.judges[0].why.contains("free run of the model with"),
+            ex.judges[0].why.contains("free run of the model with")
+                || ex.judges[0].why.contains("its own divergence"),
             "{label}: {}",
             ex.judges[0].why
         );
