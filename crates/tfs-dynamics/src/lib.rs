@@ -61,5 +61,6 @@ pub use model::{
     RANGE_SPANS, RESOLVED_SPAN_ATOL, SimulateOptions, initial_velocity, r_mse_on_record,
     r_mse_on_record_warm, simulate_model_on_record, simulate_model_on_record_warm,
 };
+pub use range::range_band;
 pub use rk4::{Rk4, Rk4Scratch, rk4_step};
 pub use system::{FnSystem, SecondOrderSystem};

@@ -2,7 +2,7 @@
 
 use crate::initial::{InitialState, choose_initial_state, start_of, warm_initial_state};
 use crate::memo::{self, KeyHasher, StartKey};
-use crate::range::{Ranged, band};
+use crate::range::{Ranged, range_band};
 use crate::{
     Dopri5, DynError, Integrator, Result, SampledInput, SecondOrderSystem, Trajectory,
     rmse_variance,
@@ -395,7 +395,7 @@ impl<'r> Run<'r> {
         Ranged {
             inner: &opts.integrator,
             bands: match opts.range {
-                Some(f) => self.measured.iter().map(|y| band(y, f)).collect(),
+                Some(f) => self.measured.iter().map(|y| range_band(y, f)).collect(),
                 None => Vec::new(),
             },
             names: self.compiled.dof_names().to_vec(),

@@ -11,7 +11,7 @@ use crate::{DynError, Integrator, Result, SampledInput, SecondOrderSystem, Traje
 /// The band a measured displacement may reach in a run: the record's own span widened by
 /// `factor` spans on each side. A constant record (a generator's start at rest, not a
 /// measurement) and an empty one bound nothing.
-pub(crate) fn band(measured: &[f64], factor: f64) -> (f64, f64) {
+pub fn range_band(measured: &[f64], factor: f64) -> (f64, f64) {
     let (lo, hi) = measured
         .iter()
         .filter(|v| v.is_finite())
@@ -127,7 +127,7 @@ mod tests {
             .unwrap();
         let ranged = Ranged {
             inner: &d,
-            bands: vec![band(&[-1.0, 1.0], 2.0)],
+            bands: vec![range_band(&[-1.0, 1.0], 2.0)],
             names: vec!["x".into()],
         };
         let e = ranged
@@ -159,9 +159,9 @@ mod tests {
 
     #[test]
     fn a_constant_record_bounds_nothing() {
-        assert_eq!(band(&[1.0, 3.0], 2.0), (-3.0, 7.0));
+        assert_eq!(range_band(&[1.0, 3.0], 2.0), (-3.0, 7.0));
         let none = (f64::NEG_INFINITY, f64::INFINITY);
-        assert_eq!(band(&[0.0, 0.0], 10.0), none);
-        assert_eq!(band(&[], 10.0), none);
+        assert_eq!(range_band(&[0.0, 0.0], 10.0), none);
+        assert_eq!(range_band(&[], 10.0), none);
     }
 }

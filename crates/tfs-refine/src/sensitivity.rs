@@ -12,7 +12,7 @@
 use rayon::prelude::*;
 use tfs_data::Record;
 use tfs_dynamics::{
-    Integrator, SampledInput, SimulateOptions, Trajectory, simulate_model_on_record,
+    Integrator, SampledInput, SimulateOptions, Trajectory, range_band, simulate_model_on_record,
 };
 use tfs_library::Model;
 use tfs_signal::band::{band_guarded, noise_draw_with};
@@ -266,23 +266,6 @@ pub fn start_spread_from(
             })
             .collect(),
     ))
-}
-
-/// The band a displacement may reach in a run (the free run's [`SimulateOptions::range`]): the
-/// record's own span widened by `factor` spans on each side; unbounded for a constant or empty
-/// column.
-fn range_band(measured: &[f64], factor: f64) -> (f64, f64) {
-    let (lo, hi) = measured
-        .iter()
-        .filter(|v| v.is_finite())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
-            (a.min(v), b.max(v))
-        });
-    let span = hi - lo;
-    if !(span > 0.0 && span.is_finite()) {
-        return (f64::NEG_INFINITY, f64::INFINITY);
-    }
-    (lo - factor * span, hi + factor * span)
 }
 
 /// Per DOF: the variance of the displacement's measurement noise, from the power-law floor
