@@ -589,9 +589,21 @@ impl Effect for Offset {
 /// coordinate `q` runs into from above, `above(q, c)` for one from below, the contact stiffness
 /// the refitted coefficient. The position `c` is scanned inside either end of the range the data
 /// cover (1–20 % of the span in from the extreme): a stiff stop holds the coordinate just beyond
-/// its position, so the data's extreme lies a little past it.
+/// its position, so the data's extreme lies a little past it. An end of a coordinate whose
+/// equation already has a stop on that side (`below(q, ·)` at the lower end, `above(q, ·)` at the
+/// upper) is not offered again: a second stop there re-describes the contact the first one
+/// models (their columns are collinear wherever both act), so the scan looks at the other end.
 #[derive(Debug, Clone, Copy)]
 pub struct Stop;
+
+/// Whether `terms` hold a one-factor stop on `v` on the side `below` says.
+fn has_stop_on(terms: &[Term], v: &Var, below: bool) -> bool {
+    terms.iter().any(|t| match t.factors() {
+        [Factor::Below(w, _)] => below && w == v,
+        [Factor::Above(w, _)] => !below && w == v,
+        _ => false,
+    })
+}
 impl Effect for Stop {
     fn name(&self) -> String {
         "stop".into()
@@ -609,12 +621,17 @@ impl Effect for Stop {
             if !(span > 0.0 && span.is_finite()) {
                 continue;
             }
+            let (has_below, has_above) = (
+                has_stop_on(&ctx.terms, v, true),
+                has_stop_on(&ctx.terms, v, false),
+            );
             for r in [0.01, 0.02, 0.05, 0.1, 0.2] {
                 let (below, above) = (round3(lo + r * span), round3(hi - r * span));
-                for (c, factor) in [
-                    (below, Factor::Below(v.clone(), below)),
-                    (above, Factor::Above(v.clone(), above)),
-                ] {
+                let sides = [
+                    (!has_below).then(|| (below, Factor::Below(v.clone(), below))),
+                    (!has_above).then(|| (above, Factor::Above(v.clone(), above))),
+                ];
+                for (c, factor) in sides.into_iter().flatten() {
                     let term = Term::new(vec![factor]);
                     if !ctx.has(&term) {
                         out.push(Variant::adding(
@@ -724,5 +741,63 @@ impl Catalogue {
                 name: name.to_string(),
                 known: self.names().join(", "),
             })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The stop's variants on a one-DOF equation with `terms`, over data from 0 to 2.
+    fn stop_variants(terms: &[&str]) -> Vec<Term> {
+        let model = Model::from_json_str(
+            r#"{"format": "tfs-model/1", "dofs": ["x"], "inputs": [],
+                "equations": [{"dof": "x", "terms": [{"term": "x", "coef": -1.0}]}]}"#,
+        )
+        .unwrap();
+        let terms: Vec<Term> = terms
+            .iter()
+            .map(|t| Term::parse(t, &["x"]).unwrap())
+            .collect();
+        let x = Var::Disp("x".into());
+        let ctx = EffectContext {
+            model: &model,
+            dof: "x",
+            terms,
+            velocity_scale: 1.0,
+            period: 1.0,
+            dt: 0.01,
+            max_power: 3,
+            displacement_mean: 1.0,
+            displacement_ranges: vec![(x.clone(), 0.0, 2.0)],
+            displacement_rms: vec![(x, 0.5)],
+            shortest_record: 10.0,
+            input_period: f64::NAN,
+            lost_inputs: Vec::new(),
+        };
+        Stop.variants(&ctx)
+            .into_iter()
+            .map(|v| v.add[0].term.clone())
+            .collect()
+    }
+
+    fn sides(terms: &[Term]) -> (usize, usize) {
+        let below = terms
+            .iter()
+            .filter(|t| matches!(t.factors(), [Factor::Below(..)]))
+            .count();
+        (below, terms.len() - below)
+    }
+
+    /// Both ends are offered to an equation without a stop; an end that already has one is not
+    /// offered again, whatever its position.
+    #[test]
+    fn a_stop_is_offered_only_at_an_end_without_one() {
+        assert_eq!(sides(&stop_variants(&["x"])), (5, 5));
+        let with_below = stop_variants(&["x", "below(x, 0.0003)"]);
+        assert_eq!(sides(&with_below), (0, 5));
+        assert!(with_below.contains(&Term::parse("above(x, 1.6)", &["x"]).unwrap()));
+        assert_eq!(sides(&stop_variants(&["x", "above(x, 1.9)"])), (5, 0));
+        assert!(stop_variants(&["below(x, 0.1)", "above(x, 1.9)"]).is_empty());
     }
 }
