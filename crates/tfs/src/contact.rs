@@ -35,8 +35,8 @@ use crate::gate::SimScore;
 const GRID: usize = 25;
 /// Positions of lowest held-out residual that are simulated to choose among them.
 const SHORTLIST: usize = 5;
-/// How far in from the data's extreme a stop moved to another coordinate is scanned, as a share
-/// of the coordinate's span: the deepest position the loop's stop effect offers.
+/// How far in from the data's extreme a stop is scanned at least, as a share of the coordinate's
+/// span: the deepest position the loop's stop effect offers.
 const REACH_SHARE: f64 = 0.2;
 
 /// The history step (ladder rung) of a model re-identified with its stop re-scanned.
@@ -57,6 +57,22 @@ pub struct StopRescan {
     pub positions: usize,
     /// Why, in a sentence.
     pub why: String,
+}
+
+/// Half the depth of the scan of a stop's position in from the data's `extreme` (the scan runs
+/// from the extreme to twice this in), for the loop's choice `c0` on a coordinate of span
+/// `span` (`same_coordinate`: the re-scan keeps the loop's coordinate). At least as deep in as
+/// the loop's stop effect looks ([`REACH_SHARE`] of the span), and as far past the loop's choice
+/// on its coordinate: the equation error's choice of position is what the re-scan is there to
+/// correct (module docs), so it does not bound the scan (a choice near the extreme would
+/// otherwise confine the scan to a sliver by the extreme).
+fn scan_reach(c0: f64, extreme: f64, span: f64, same_coordinate: bool) -> f64 {
+    let depth = 0.5 * REACH_SHARE * span;
+    if same_coordinate {
+        (c0 - extreme).abs().max(depth)
+    } else {
+        depth
+    }
 }
 
 /// The one-factor stop term (`below(q, c)` or `above(q, c)`) that `after` has and `before`
@@ -340,13 +356,7 @@ pub fn rescan_stop(
     }
     let extreme = if below { lo } else { hi };
     let span = hi - lo;
-    // From the extreme (a stop beyond it never engages) to as far past the loop's choice, or,
-    // for a stop moved to another coordinate, as deep in as the loop's stop effect looks.
-    let reach = if place.var == *v0 {
-        (c0 - extreme).abs()
-    } else {
-        0.5 * REACH_SHARE * span
-    };
+    let reach = scan_reach(*c0, extreme, span, place.var == *v0);
     if !(span > 0.0 && reach > 0.0 && reach.is_finite()) {
         return Ok(None);
     }
@@ -384,11 +394,7 @@ pub fn rescan_stop(
             .collect()
     };
     let mut scored = scan(&coarse);
-    let best_coarse = scored
-        .iter()
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|p| p.0);
-    let Some(bc) = best_coarse else {
+    if scored.is_empty() {
         return Ok(Some((
             after.clone(),
             StopRescan {
@@ -405,17 +411,33 @@ pub fn rescan_stop(
                 ),
             },
         )));
-    };
-    let mut fine: Vec<f64> = (0..GRID)
-        .map(|i| round(bc - step + 2.0 * step * i as f64 / (GRID - 1) as f64))
-        .filter(|c| dir * (c - extreme) >= 0.0 && !coarse.contains(c))
-        .collect();
-    fine.dedup();
-    scored.extend(scan(&fine));
-    let tried = coarse.len() + fine.len();
+    }
+    // Two finer passes, each over one step either side of the best so far: the second brings
+    // the step to about 1/300 of the coarse one, near the positions' rounding, so a stiff
+    // contact is placed as closely as a scan from the loop's own choice placed it.
+    let mut seen = coarse.clone();
+    let mut step = step;
+    for _ in 0..2 {
+        let Some(best) = scored
+            .iter()
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|p| p.0)
+        else {
+            break;
+        };
+        let mut fine: Vec<f64> = (0..GRID)
+            .map(|i| round(best - step + 2.0 * step * i as f64 / (GRID - 1) as f64))
+            .filter(|c| dir * (c - extreme) >= 0.0 && !seen.contains(c))
+            .collect();
+        fine.dedup();
+        seen.extend(&fine);
+        scored.extend(scan(&fine));
+        step *= 2.0 / (GRID - 1) as f64;
+    }
     // σ on one held-out record barely separates neighbouring positions, while T-F-S's term
     // selection can jump between them; so the few positions with the lowest σ are each
     // simulated on the records and the one that simulates them best is taken.
+    let tried = seen.len();
     let positions = scored.len();
     scored.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.total_cmp(&b.0)));
     scored.truncate(SHORTLIST);
@@ -491,4 +513,26 @@ pub fn rescan_stop(
         details: json!({"equations": model.equation_string(), "from": stop.to_string(), "why": report.why, "failed": failed}),
     });
     Ok(Some((model, report)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The scan reaches the depth the stop effect offers however near the extreme the loop's
+    /// choice lies, and past a deeper choice by as much again.
+    #[test]
+    fn the_scan_reaches_the_stop_effects_depth() {
+        let (lo, hi) = (-0.0157, 1.8487);
+        let span = hi - lo;
+        // The loop's choice 5 % of the span in from the top: the scan still runs 20 % in.
+        let r = scan_reach(hi - 0.05 * span, hi, span, true);
+        assert!((2.0 * r / span - REACH_SHARE).abs() < 1e-12, "{r}");
+        // A choice 15 % in: the scan runs 30 % in, past it by as much again.
+        let r = scan_reach(lo + 0.15 * span, lo, span, true);
+        assert!((2.0 * r / span - 0.3).abs() < 1e-12, "{r}");
+        // Moved to another coordinate: the effect's depth.
+        let r = scan_reach(lo + 0.15 * span, lo, span, false);
+        assert!((2.0 * r / span - REACH_SHARE).abs() < 1e-12, "{r}");
+    }
 }
