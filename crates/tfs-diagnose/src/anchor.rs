@@ -224,7 +224,32 @@ pub(crate) fn choose_anchor(
             fits.push((label, m, with_rest));
         }
     }
+    // A fit whose added stop pulls its coordinate into the contact is no stop
+    // ([`crate::effects::stop_pushes_out`]); when every fit does that, nothing is added.
+    fits.retain(|(_, m, _)| !pulls_a_stop(model, m, plans));
     let rulers = rulers(model, records, opts);
+    if fits.is_empty() {
+        let start = r_mse_each(model, None, records, &rulers, opts);
+        let each = start
+            .iter()
+            .zip(&rulers)
+            .map(|(&v, r)| {
+                if r.horizon.is_none() {
+                    v
+                } else {
+                    f64::INFINITY
+                }
+            })
+            .collect();
+        return Ok(Anchored {
+            model: model.clone(),
+            anchor: "none: every fit's stop pulls into its contact".into(),
+            whole: false,
+            step: 0.0,
+            scores: vec![("start".into(), start)],
+            each,
+        });
+    }
     // The start model is scored under the same rulers (the kept fit is compared with it), and
     // first: its fitted starts warm the fits' runs ([`r_mse_each`]). Then the fits side by
     // side; the choice is made in anchor order, as a serial loop would.
@@ -241,6 +266,7 @@ pub(crate) fn choose_anchor(
     }
     if opts.refine_added
         && let Some((m, e)) = refined(&fits[pick].1, model, records, &rulers, opts)
+        && !pulls_a_stop(model, &m, plans)
     {
         let w = fits[pick].2;
         let label = if w {
@@ -305,6 +331,26 @@ pub(crate) fn choose_anchor(
         step,
         scores,
         each,
+    })
+}
+
+/// Whether `m`, a refit of `model` by `plans`, holds a stop that `model`'s equation did not have
+/// (in a planned equation or a partner's) whose coefficient pulls its coordinate into the
+/// contact ([`crate::effects::stop_pushes_out`]).
+fn pulls_a_stop(model: &Model, m: &Model, plans: &[Planned]) -> bool {
+    let eqs = plans
+        .iter()
+        .flat_map(|p| std::iter::once(p.idx).chain(p.partners.iter().map(|(pi, _, _)| *pi)));
+    eqs.into_iter().any(|i| {
+        let (Some(before), Some(after), Some(dof)) =
+            (model.equations.get(i), m.equations.get(i), m.dofs.get(i))
+        else {
+            return false;
+        };
+        after.terms.iter().any(|t| {
+            !before.terms.iter().any(|o| o.term == t.term)
+                && crate::effects::stop_pushes_out(&t.term, dof, t.coef) == Some(false)
+        })
     })
 }
 

@@ -585,6 +585,30 @@ impl Effect for Offset {
     }
 }
 
+/// Whether a one-factor stop `term` (`below(q, c)` or `above(q, c)`) with coefficient `coef` in
+/// the equation of DOF `dof` pushes its coordinate `q` back out of the contact: up below `c`,
+/// down above it. `q` moves with `dof` (`dof`, `(dof-b)`) or against it (`(a-dof)`), so the
+/// force on `dof` that does so has the sign of that motion. `None` when `term` is not a stop or
+/// `q` does not move with `dof` (the rule does not apply); `Some(false)` for a zero or
+/// non-finite coefficient. A stop that pulls into its contact is a kink the equation error
+/// fitted, not a stop: every fit of a stop (the scan's, the refit's, the T-F-S re-scan's) keeps
+/// only a stop for which this is not `Some(false)`.
+pub fn stop_pushes_out(term: &Term, dof: &str, coef: f64) -> Option<bool> {
+    let (v, below) = match term.factors() {
+        [Factor::Below(v, _)] => (v, true),
+        [Factor::Above(v, _)] => (v, false),
+        _ => return None,
+    };
+    let moves = match v {
+        Var::Disp(d) if d == dof => 1.0,
+        Var::RelDisp(a, _) if a == dof => 1.0,
+        Var::RelDisp(_, tfs_library::Coord::Dof(b)) if b == dof => -1.0,
+        _ => return None,
+    };
+    let side = if below { 1.0 } else { -1.0 };
+    Some(side * moves * coef > 0.0)
+}
+
 /// A one-sided stop (end stop, contact, a cell's folded state): `below(q, c)` for a stop the
 /// coordinate `q` runs into from above, `above(q, c)` for one from below, the contact stiffness
 /// the refitted coefficient. The position `c` is scanned inside either end of the range the data
@@ -787,6 +811,43 @@ mod tests {
             .filter(|t| matches!(t.factors(), [Factor::Below(..)]))
             .count();
         (below, terms.len() - below)
+    }
+
+    /// A stop pushes its coordinate out of the contact: a positive coefficient below, a negative
+    /// one above, on the equation's own coordinate; the other way round on a coupling's far end
+    /// (`(x2-x1)` in `x1`'s equation); no rule for a coordinate the DOF does not move or a term
+    /// that is not a stop.
+    #[test]
+    fn a_stop_pushes_out_of_its_contact() {
+        let dofs = ["x1", "x2"];
+        let t = |s: &str| Term::parse(s, &dofs).unwrap();
+        assert_eq!(stop_pushes_out(&t("below(x1, 0.1)"), "x1", 3.0), Some(true));
+        assert_eq!(
+            stop_pushes_out(&t("below(x1, 0.1)"), "x1", -3.0),
+            Some(false)
+        );
+        assert_eq!(
+            stop_pushes_out(&t("above(x1, 0.1)"), "x1", -3.0),
+            Some(true)
+        );
+        assert_eq!(
+            stop_pushes_out(&t("above(x1, 0.1)"), "x1", 3.0),
+            Some(false)
+        );
+        assert_eq!(
+            stop_pushes_out(&t("above(x1, 0.1)"), "x1", 0.0),
+            Some(false)
+        );
+        assert_eq!(
+            stop_pushes_out(&t("above(x1, 0.1)"), "x1", f64::NAN),
+            Some(false)
+        );
+        let cell = t("below((x2-x1), 0.1)");
+        assert_eq!(stop_pushes_out(&cell, "x2", 3.0), Some(true));
+        assert_eq!(stop_pushes_out(&cell, "x1", 3.0), Some(false));
+        assert_eq!(stop_pushes_out(&cell, "x1", -3.0), Some(true));
+        assert_eq!(stop_pushes_out(&t("below(x1, 0.1)"), "x2", 3.0), None);
+        assert_eq!(stop_pushes_out(&t("x1^3"), "x1", 3.0), None);
     }
 
     /// Both ends are offered to an equation without a stop; an end that already has one is not

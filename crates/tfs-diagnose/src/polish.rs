@@ -37,6 +37,11 @@ pub(crate) fn best_variant(
     let Some(best) = crate::stats::first_lowest(variants, &score, |s: &Scored| s.cv_rss)? else {
         return Ok(None);
     };
+    // Every variant scored as fitting nothing (each a stop pulling into its contact,
+    // `crate::score::score_variant`): the effect has no best variant.
+    if best.cv_rss == f64::INFINITY {
+        return Ok(None);
+    }
     let dt = states.first().map_or(0.0, |s| s.record.dt());
     Ok(Some(polish(best, variants, &score, dt)?))
 }

@@ -180,6 +180,8 @@ pub struct RecordStates {
     pub margin: usize,
     /// Smoothed accelerations, one vector per DOF (model order).
     pub acc: Vec<Vec<f64>>,
+    /// The model's DOFs, in the order of `acc`.
+    pub(crate) dofs: Vec<String>,
     cols: Vec<(String, Vec<f64>)>,
     /// Design columns made once and shared by every variant's design ([`BandCache`]).
     pub(crate) band_cache: BandCache,
@@ -331,6 +333,7 @@ impl RecordStates {
             cutoff_hz: fc,
             margin,
             acc,
+            dofs: model.dofs.clone(),
             cols,
             band_cache: BandCache::default(),
         };

@@ -65,7 +65,11 @@ pub(crate) fn score_variant(
     let design = design(states, idx, &cols)?;
     let blocks = compress_blocks(&design, layout)?;
     let cv = cross_validate(&blocks, layout)?;
-    let cv_rss = cv.heldout.iter().sum();
+    let cv_rss = if pulls_into_contact(states, idx, &cols, main, &blocks)? {
+        f64::INFINITY
+    } else {
+        cv.heldout.iter().sum()
+    };
     Ok(Scored {
         variant: v.clone(),
         cols,
@@ -75,6 +79,30 @@ pub(crate) fn score_variant(
         cv,
         cv_rss,
     })
+}
+
+/// True when the variant's main column is a stop whose full-data fit on the equation of DOF `idx`
+/// pulls its coordinate into the contact ([`crate::effects::stop_pushes_out`]): such a variant is
+/// a kink the equation error fitted, not a stop, and is scored as fitting nothing (an infinite
+/// held-out residual), so no stage of the scan or the refit chooses it.
+fn pulls_into_contact(
+    states: &[RecordStates],
+    idx: usize,
+    cols: &[EffectColumn],
+    main: Option<usize>,
+    blocks: &[Compressed],
+) -> Result<bool> {
+    let (Some(m), Some(dof)) = (main, states.first().and_then(|s| s.dofs.get(idx))) else {
+        return Ok(false);
+    };
+    let Some(col) = cols.get(m).filter(|c| c.computed.is_none()) else {
+        return Ok(false);
+    };
+    if crate::effects::stop_pushes_out(&col.term, dof, 1.0).is_none() {
+        return Ok(false);
+    }
+    let coef = full_fit(blocks)?[m];
+    Ok(crate::effects::stop_pushes_out(&col.term, dof, coef) == Some(false))
 }
 
 /// The coefficient of the main effect column of `s` in its full-data fit `coef` and its block
@@ -141,4 +169,82 @@ pub(crate) fn alternatives(
             })
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tfs_library::{Equation, Model, ModelTerm};
+
+    /// Smoothed states of a forced oscillator `x'' = -x - 0.2 x' + k·above(x, 0.3) + xb_acc`
+    /// (semi-implicit Euler at a fine step, sampled every 10 ms), and the model without the stop.
+    fn oscillator(k: f64) -> (Vec<RecordStates>, Layout) {
+        let dofs = ["x"];
+        let (h, sub, n) = (0.001, 10, 6000);
+        let (mut x, mut v) = (0.0_f64, 0.0_f64);
+        let (mut t, mut xs, mut us) = (Vec::new(), Vec::new(), Vec::new());
+        let force = |s: f64| 0.8 * (1.1 * s).sin() + 0.5 * (0.37 * s + 0.02 * s * s).sin();
+        for i in 0..n * sub {
+            let s = i as f64 * h;
+            if i % sub == 0 {
+                t.push(s);
+                xs.push(x);
+                us.push(force(s));
+            }
+            let a = -x - 0.2 * v + k * (x - 0.3).max(0.0) + force(s);
+            v += h * a;
+            x += h * v;
+        }
+        let rec = tfs_data::Record::new(
+            "osc",
+            t,
+            vec![("x".to_string(), xs), ("xb_acc".to_string(), us)],
+        )
+        .unwrap();
+        let eq = Equation {
+            dof: "x".into(),
+            terms: [("x", -1.0), ("x'", -0.2), ("xb_acc", 1.0)]
+                .iter()
+                .map(|(t, c)| ModelTerm::new(Term::parse(t, &dofs).unwrap(), *c))
+                .collect(),
+        };
+        let model = Model::new(vec!["x".into()], vec![eq], "test").unwrap();
+        let opts = DiagnoseOptions::default();
+        let states = vec![RecordStates::new(&model, &rec, &opts).unwrap()];
+        let layout = Layout::new(&states, &opts).unwrap();
+        (states, layout)
+    }
+
+    /// The stop `above(x, 0.3)` scored on data whose force past 0.3 pushes back (k < 0) is a
+    /// stop with a finite held-out residual; on data whose force there pulls further out (k > 0,
+    /// a softening kink) its fit pulls into the contact and it is refused: scored as fitting
+    /// nothing, and no best variant of the stop effect.
+    #[test]
+    fn a_stop_fitted_pulling_into_its_contact_is_refused() {
+        let base: Vec<Term> = ["x", "x'", "xb_acc"]
+            .iter()
+            .map(|t| Term::parse(t, &["x"]).unwrap())
+            .collect();
+        let stop = Variant::adding(
+            Some(("c".into(), 0.3)),
+            vec![EffectColumn::term(
+                Term::parse("above(x, 0.3)", &["x"]).unwrap(),
+            )],
+        );
+        let (states, layout) = oscillator(-5.0);
+        let s = score_variant(&states, &layout, 0, &base, &stop).unwrap();
+        assert!(s.cv_rss.is_finite(), "a pushing stop is scored");
+        let coef = full_fit(&s.blocks).unwrap()[s.main.unwrap()];
+        assert!(coef < -1.0, "its stiffness pushes down: {coef}");
+
+        let (states, layout) = oscillator(0.6);
+        let s = score_variant(&states, &layout, 0, &base, &stop).unwrap();
+        assert_eq!(s.cv_rss, f64::INFINITY, "a pulling stop is refused");
+        let coef = full_fit(&s.blocks).unwrap()[s.main.unwrap()];
+        assert!(coef > 0.0, "the data pull the wrong way: {coef}");
+        let best =
+            crate::polish::best_variant(&states, &layout, 0, &base, std::slice::from_ref(&stop))
+                .unwrap();
+        assert!(best.is_none(), "the stop effect has no best variant");
+    }
 }

@@ -30,6 +30,7 @@ use tfs_library::{Coord, Factor, HistoryEntry, Model, RecordScore, Term, Var};
 
 use crate::error::Result;
 use crate::gate::SimScore;
+use tfs_diagnose::effects::stop_pushes_out;
 
 /// Positions of the first, coarse pass; a second pass of the same size refines around the best.
 const GRID: usize = 25;
@@ -277,12 +278,13 @@ impl Refit<'_> {
             (None, Some(prepared)) => prepared.identify_tfs(&spec).ok()?,
             (None, None) => identify_tfs(records, &spec).ok()?,
         };
-        // A stop pushes its coordinate back out of the contact: up below it, down above it.
-        let push = if place.below { 1.0 } else { -1.0 };
+        // A stop pushes its coordinate back out of the contact (the one rule every fit of a
+        // stop keeps).
+        let owner = &self.dofs[place.owner];
         let keeps = id.model.equations[place.owner]
             .terms
             .iter()
-            .any(|t| t.term == term && push * t.coef > 0.0);
+            .any(|t| t.term == term && stop_pushes_out(&term, owner, t.coef).unwrap_or(true));
         let sigma = id.trace.dofs.get(place.owner)?.assembly.last()?.sigma;
         (keeps && sigma.is_finite()).then(|| (sigma, id.model_with_trace()))
     }
