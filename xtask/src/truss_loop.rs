@@ -132,22 +132,20 @@ impl ForceTruth {
         let grid = self.grid()?;
         let a: Mat<f64> = lib.evaluate(&grid)?;
         let (lo, hi) = (self.h[0], self.h[self.h.len() - 1]);
-        let at = |c: f64| -> Result<f64> {
-            let stop = side.term(c);
-            let col = tfs::library::evaluate_term(&stop, &grid)?;
-            let p = a.ncols();
-            let with =
-                Mat::<f64>::from_fn(
-                    a.nrows(),
-                    p + 1,
-                    |r, j| {
-                        if j < p { a[(r, j)] } else { col[r] }
-                    },
-                );
+        // The library's columns once; each position rewrites only the stop's, the last.
+        let p = a.ncols();
+        let mut with =
+            Mat::<f64>::from_fn(a.nrows(), p + 1, |r, j| if j < p { a[(r, j)] } else { 0.0 });
+        drop(a);
+        let mut at = |c: f64| -> Result<f64> {
+            let col = tfs::library::evaluate_term(&side.term(c), &grid)?;
+            for (r, v) in col.into_iter().enumerate() {
+                with[(r, p)] = v;
+            }
             let e = crate::dbench::size::residual(&with, &self.f)?;
             Ok(rms(&e) / self.rms)
         };
-        let scan = |cs: Vec<f64>| -> Result<(f64, f64)> {
+        let mut scan = |cs: Vec<f64>| -> Result<(f64, f64)> {
             let mut best = (f64::INFINITY, f64::NAN);
             for c in cs {
                 let e = at(c)?;
@@ -168,8 +166,8 @@ impl ForceTruth {
                 .collect(),
         )?;
         let (error, position) = if fine.0 < coarse.0 { fine } else { coarse };
-        // To the fine pass's step, so the term's name is the position's digits.
-        let position = (position / fine_step).round() * fine_step;
+        // To four decimals, the fine pass's step (1e-4), so the term's name is the position's
+        // digits.
         let position = format!("{position:.4}").parse::<f64>().unwrap_or(position);
         let stop = side.term(position);
         Ok(StopFloor {
