@@ -311,22 +311,12 @@ fn polish_input(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::effects::EffectColumn;
 
     /// A stop whose fit pulls into its contact is refused by the scoring, so the stop effect has
     /// no best variant on data whose force past the stop pulls further out (a softening kink).
     #[test]
     fn a_pulling_stop_leaves_the_stop_effect_without_a_best_variant() {
-        let base: Vec<Term> = ["x", "x'", "xb_acc"]
-            .iter()
-            .map(|t| Term::parse(t, &["x"]).unwrap())
-            .collect();
-        let stop = Variant::adding(
-            Some(("c".into(), 0.3)),
-            vec![EffectColumn::term(
-                Term::parse("above(x, 0.3)", &["x"]).unwrap(),
-            )],
-        );
+        let (base, stop) = crate::score::tests::stop_above();
         let (states, layout) = crate::score::tests::oscillator(0.6);
         let best = best_variant(&states, &layout, 0, &base, std::slice::from_ref(&stop)).unwrap();
         assert!(best.is_none(), "the stop effect has no best variant");

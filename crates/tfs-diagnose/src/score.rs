@@ -215,12 +215,9 @@ pub(crate) mod tests {
         (states, layout)
     }
 
-    /// The stop `above(x, 0.3)` scored on data whose force past 0.3 pushes back (k < 0) is a
-    /// stop with a finite held-out residual; on data whose force there pulls further out (k > 0,
-    /// a softening kink) its fit pulls into the contact and it is refused: scored as fitting
-    /// nothing (the stop effect then has no best variant: `polish`'s tests).
-    #[test]
-    fn a_stop_fitted_pulling_into_its_contact_is_refused() {
+    /// The start equation's terms of [`oscillator`] (`x, x', xb_acc`) and the stop
+    /// `above(x, 0.3)` as a variant.
+    pub(crate) fn stop_above() -> (Vec<Term>, Variant) {
         let base: Vec<Term> = ["x", "x'", "xb_acc"]
             .iter()
             .map(|t| Term::parse(t, &["x"]).unwrap())
@@ -231,6 +228,16 @@ pub(crate) mod tests {
                 Term::parse("above(x, 0.3)", &["x"]).unwrap(),
             )],
         );
+        (base, stop)
+    }
+
+    /// The stop `above(x, 0.3)` scored on data whose force past 0.3 pushes back (k < 0) is a
+    /// stop with a finite held-out residual; on data whose force there pulls further out (k > 0,
+    /// a softening kink) its fit pulls into the contact and it is refused: scored as fitting
+    /// nothing (the stop effect then has no best variant: `polish`'s tests).
+    #[test]
+    fn a_stop_fitted_pulling_into_its_contact_is_refused() {
+        let (base, stop) = stop_above();
         let (states, layout) = oscillator(-5.0);
         let s = score_variant(&states, &layout, 0, &base, &stop).unwrap();
         assert!(s.cv_rss.is_finite(), "a pushing stop is scored");

@@ -77,6 +77,7 @@ mod lm;
 mod refine;
 mod sens;
 mod sensitivity;
+mod shooting;
 mod validation;
 
 pub use error::{RefineError, Result};
