@@ -126,7 +126,8 @@ pub(crate) fn base_runs(model: &Model, records: &[Record], opts: &DiagnoseOption
 ///   runs end farther apart (RMS over the record) than the start was moved: a damped or
 ///   neutral run keeps its spread at or below that move and is not touched by this.
 ///
-/// The start's spread is computed only when the input's does not already decide. Also how far
+/// The probe is [`tfs_refine::probe_free_run`], which `compare` and refinement ask too; the
+/// start's spread is computed only when the input's does not already decide. Also how far
 /// the input's noise moves the R-MSE (the mean over DOFs of the squared spread over the
 /// measured displacement's variance). `None` when a DOF's measured column is missing, or
 /// neither spread can be had (no input can be perturbed and no displacement has a noise floor).
@@ -136,53 +137,21 @@ pub(crate) fn noise_probe(
     run: &Trajectory,
     sim: &SimulateOptions,
 ) -> Option<NoiseProbe> {
-    let measured: Vec<&[f64]> = model
-        .dofs
-        .iter()
-        .map(|d| rec.column(d))
-        .collect::<Option<_>>()?;
-    let error: Vec<f64> = measured
-        .iter()
-        .zip(&run.x)
-        .map(|(m, x)| tfs_dynamics::rms_error(m, x).unwrap_or(f64::INFINITY))
-        .collect();
-    let spread = tfs_refine::input_noise_spread_from(model, rec, sim, run)
-        .ok()
-        .flatten();
-    let noise = tfs_refine::displacement_noise_var(model, rec);
-    let shift = spread.as_ref().map(|spread| {
+    let p = tfs_refine::probe_free_run(model, rec, sim, run)?;
+    let shift = p.input_spread.as_ref().map(|spread| {
         spread
             .iter()
-            .zip(&measured)
-            .map(|(sp, m)| sp * sp / crate::prepare::variance(m).max(f64::MIN_POSITIVE))
+            .zip(&model.dofs)
+            .map(|(sp, d)| {
+                let m = rec.column(d).unwrap_or(&[]);
+                sp * sp / crate::prepare::variance(m).max(f64::MIN_POSITIVE)
+            })
             .sum::<f64>()
             / spread.len().max(1) as f64
     });
-    let by_input = spread
-        .as_ref()
-        .is_some_and(|s| tfs_refine::noise_dominated(s, &error, &noise));
-    let by_start = if by_input {
-        None
-    } else {
-        tfs_refine::start_spread_from(model, rec, sim, run, &noise)
-            .ok()
-            .flatten()
-    };
-    if spread.is_none() && by_start.is_none() {
-        return None;
-    }
-    // Only a DOF whose runs ended farther apart than they started (RMS over the record above
-    // the start's own move) diverges: a damped or neutral run keeps its spread at or below
-    // that move, and a model at the noise floor (its error beyond the measurement noise about
-    // nil) would otherwise count as dominated by any spread at all.
-    let diverges = by_start.as_ref().is_some_and(|s| {
-        let grown: Vec<usize> = (0..s.len()).filter(|&i| s[i] * s[i] > noise[i]).collect();
-        let pick = |v: &[f64]| grown.iter().map(|&i| v[i]).collect::<Vec<f64>>();
-        tfs_refine::noise_dominated(&pick(s), &pick(&error), &pick(&noise))
-    });
     Some(NoiseProbe {
-        dominated: by_input || diverges,
-        diverges,
+        dominated: p.dominated(),
+        diverges: p.diverges,
         shift,
     })
 }

@@ -83,8 +83,8 @@ mod validation;
 pub use error::{RefineError, Result};
 pub use refine::{RefineOptions, Refined, refine};
 pub use sensitivity::{
-    NOISE_SHARE, displacement_noise_var, input_noise_spread, input_noise_spread_from,
-    noise_dominated, start_spread_from,
+    FreeRunProbe, NOISE_SHARE, displacement_noise_var, input_noise_spread, input_noise_spread_from,
+    noise_dominated, probe_free_run, start_spread_from,
 };
 pub use validation::{ValidationScores, choose_by_validation};
 

@@ -288,6 +288,112 @@ pub fn displacement_noise_var(model: &Model, record: &Record) -> Vec<f64> {
         .collect()
 }
 
+/// What one free run of a model on a record can say about the model: whether the record's own
+/// uncertainty moves that run about as far as its error, so that its free-run error cannot rank
+/// models or coefficients there ([`FreeRunProbe::dominated`]). One probe for every command that
+/// asks (the diagnosis's judge, `compare`, refinement's screen and its validation), so they give
+/// one verdict on one record.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FreeRunProbe {
+    /// Per DOF, the free run's RMS error against the measured displacement (infinite where it
+    /// cannot be measured).
+    pub error: Vec<f64>,
+    /// Per DOF, [`input_noise_spread_from`]: how far a fresh draw of the measured inputs' noise
+    /// moves the run; `None` when no input could be perturbed.
+    pub input_spread: Option<Vec<f64>>,
+    /// Per DOF, [`start_spread_from`]: how far a start moved by each displacement's noise
+    /// standard deviation moves the run; `None` when not needed (the input's spread already
+    /// decides) or no displacement has a noise-only floor.
+    pub start_spread: Option<Vec<f64>>,
+    /// Per DOF, [`displacement_noise_var`].
+    pub noise_var: Vec<f64>,
+    /// The input's noise accounts for the error ([`noise_dominated`]).
+    pub by_input: bool,
+    /// The run's own divergence accounts for it: in the DOFs whose runs ended farther apart
+    /// than the start was moved, the start's spread satisfies [`noise_dominated`].
+    pub diverges: bool,
+}
+
+impl FreeRunProbe {
+    /// The free run cannot rank models on this record: the input's noise or the run's own
+    /// divergence moves it about as far as its error.
+    pub fn dominated(&self) -> bool {
+        self.by_input || self.diverges
+    }
+
+    /// The spread that decided, per DOF: the input's when it dominates, else the start's when
+    /// the run diverges, else the input's (or the start's when the input has none).
+    pub fn spread(&self) -> Option<&[f64]> {
+        if !self.by_input && self.diverges {
+            return self.start_spread.as_deref();
+        }
+        self.input_spread
+            .as_deref()
+            .or(self.start_spread.as_deref())
+    }
+}
+
+/// Probes the free run `run` of `model` on `record` (from `simulate_model_on_record` with the
+/// same `opts`): the input's noise first ([`input_noise_spread_from`]), then, unless that
+/// already accounts for the error, a start moved by each displacement's noise standard
+/// deviation ([`start_spread_from`]). Only a DOF whose runs end farther apart than the start was
+/// moved (RMS over the record above the noise standard deviation) diverges: a damped or neutral
+/// run keeps its spread at or below that move, and a model at the noise floor (its error beyond
+/// the measurement noise about nil) would otherwise count as dominated by any spread at all.
+///
+/// `None` when `record` lacks one of the model's DOF columns, or neither spread can be measured
+/// (no perturbable input and no displacement with a noise-only floor); a spread that cannot be
+/// computed counts as not measured.
+pub fn probe_free_run(
+    model: &Model,
+    record: &Record,
+    opts: &SimulateOptions,
+    run: &Trajectory,
+) -> Option<FreeRunProbe> {
+    let measured: Vec<&[f64]> = model
+        .dofs
+        .iter()
+        .map(|d| record.column(d))
+        .collect::<Option<_>>()?;
+    let error: Vec<f64> = measured
+        .iter()
+        .zip(&run.x)
+        .map(|(m, x)| tfs_dynamics::rms_error(m, x).unwrap_or(f64::INFINITY))
+        .collect();
+    let input_spread = input_noise_spread_from(model, record, opts, run)
+        .ok()
+        .flatten();
+    let noise_var = displacement_noise_var(model, record);
+    let by_input = input_spread
+        .as_ref()
+        .is_some_and(|s| noise_dominated(s, &error, &noise_var));
+    let start_spread = if by_input {
+        None
+    } else {
+        start_spread_from(model, record, opts, run, &noise_var)
+            .ok()
+            .flatten()
+    };
+    if input_spread.is_none() && start_spread.is_none() {
+        return None;
+    }
+    let diverges = start_spread.as_ref().is_some_and(|s| {
+        let grown: Vec<usize> = (0..s.len())
+            .filter(|&i| s[i] * s[i] > noise_var[i])
+            .collect();
+        let pick = |v: &[f64]| grown.iter().map(|&i| v[i]).collect::<Vec<f64>>();
+        noise_dominated(&pick(s), &pick(&error), &pick(&noise_var))
+    });
+    Some(FreeRunProbe {
+        error,
+        input_spread,
+        start_spread,
+        noise_var,
+        by_input,
+        diverges,
+    })
+}
+
 /// True when in some DOF the input-noise spread `spread` ([`input_noise_spread`]) and the
 /// displacement's measurement-noise variance `noise_var` ([`displacement_noise_var`]) account
 /// for the simulation error `error` (same units) as [`NOISE_SHARE`] describes:
