@@ -295,6 +295,27 @@ fn left_out(list: &[(String, f64, f64)]) -> String {
         .join(", ")
 }
 
+/// `Some((spread, error))` (RMS over DOFs) when `record`'s free run under `model` cannot rank
+/// models ([`crate::probe_free_run`]: the input's noise or the run's own divergence accounts
+/// for its error), with the spread that decided; `None` otherwise, and when it cannot be judged
+/// (the simulation fails, or neither spread can be measured). Held-out records are screened
+/// this way: a free run there is a ruler between fits. Training records are screened by the
+/// input's noise alone ([`noise_screen`]): the refinement fits short shooting segments, which a
+/// run's divergence over the whole record does not reach, while the input's noise biases every
+/// segment's fit.
+pub(crate) fn ranking_screen(
+    model: &Model,
+    record: &Record,
+    opts: &SimulateOptions,
+) -> Option<(f64, f64)> {
+    let run = simulate_model_on_record(model, record, opts).ok()?;
+    let probe = crate::probe_free_run(model, record, opts, &run)?;
+    if probe.error.iter().any(|e| !e.is_finite()) || !probe.dominated() {
+        return None;
+    }
+    Some((combine(probe.spread()?), combine(&probe.error)))
+}
+
 /// `Some((spread, error))` (RMS over DOFs) when `record`'s free-run error under `model` is
 /// dominated by the noise on its measured inputs ([`noise_dominated`]); `None` otherwise, and
 /// when it cannot be judged (the simulation blows up, or no input has a noise-only floor).

@@ -337,9 +337,11 @@ impl FreeRunProbe {
 /// same `opts`): the input's noise first ([`input_noise_spread_from`]), then, unless that
 /// already accounts for the error, a start moved by each displacement's noise standard
 /// deviation ([`start_spread_from`]). Only a DOF whose runs end farther apart than the start was
-/// moved (RMS over the record above the noise standard deviation) diverges: a damped or neutral
-/// run keeps its spread at or below that move, and a model at the noise floor (its error beyond
-/// the measurement noise about nil) would otherwise count as dominated by any spread at all.
+/// moved (RMS over the record above the noise standard deviation), and whose error exceeds that
+/// noise, diverges: a damped or neutral run keeps its spread at or below that move, and a run
+/// within the measurement noise of the record has no error for a divergence to account for (a
+/// lightly damped oscillator on a clean record drifts in phase from a start 1e-8 away by ten
+/// times that, and its exact model would otherwise be said not to rank).
 ///
 /// `None` when `record` lacks one of the model's DOF columns, or neither spread can be measured
 /// (no perturbable input and no displacement with a noise-only floor); a spread that cannot be
@@ -379,7 +381,7 @@ pub fn probe_free_run(
     }
     let diverges = start_spread.as_ref().is_some_and(|s| {
         let grown: Vec<usize> = (0..s.len())
-            .filter(|&i| s[i] * s[i] > noise_var[i])
+            .filter(|&i| s[i] * s[i] > noise_var[i] && error[i] * error[i] > noise_var[i])
             .collect();
         let pick = |v: &[f64]| grown.iter().map(|&i| v[i]).collect::<Vec<f64>>();
         noise_dominated(&pick(s), &pick(&error), &pick(&noise_var))

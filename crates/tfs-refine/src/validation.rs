@@ -7,7 +7,7 @@ use tfs_dynamics::SimulateOptions;
 use tfs_library::Model;
 
 use crate::Result;
-use crate::refine::{check_records, combine, noise_screen, rms, sim_errors};
+use crate::refine::{check_records, combine, ranking_screen, rms, sim_errors};
 
 /// Scores of [`choose_by_validation`].
 #[derive(Debug, Clone, PartialEq)]
@@ -22,9 +22,10 @@ pub struct ValidationScores {
     pub refined_score: f64,
     /// True if the refined model was chosen.
     pub chose_refined: bool,
-    /// Validation records left out of the choice because the first model's error on them is
-    /// dominated by their input's noise ([`crate::noise_dominated`]: they cannot rank the two);
-    /// (source name, spread, error), RMS over DOFs. With every record left out, the first model
+    /// Validation records left out of the choice because the first model's free run there
+    /// cannot rank models ([`crate::probe_free_run`]: their input's noise or the run's own
+    /// divergence accounts for its error); (source name, spread that decided, error), RMS over
+    /// DOFs. With every record left out, the first model
     /// is kept.
     pub noise_dominated: Vec<(String, f64, f64)>,
 }
@@ -32,9 +33,9 @@ pub struct ValidationScores {
 /// Simulates `eq_model` and `refined` on held-out `validation` records (tfs-dynamics
 /// `simulate_model_on_record` with default options) and returns a clone of the one that
 /// predicts better (lower sum over records of squared RMS error normalised by the record's
-/// displacement RMS; ties keep `eq_model`), with the scores. Records whose free-run error under
-/// `eq_model` is dominated by the noise on their measured input ([`crate::input_noise_spread`])
-/// cannot rank the two and are left out of the sums (listed in
+/// displacement RMS; ties keep `eq_model`), with the scores. Records where `eq_model`'s free run
+/// cannot rank models ([`crate::probe_free_run`]: the noise on their measured input, or the
+/// run's own divergence, accounts for its error) are left out of the sums (listed in
 /// [`ValidationScores::noise_dominated`]); with none left, `eq_model` is kept.
 pub fn choose_by_validation(
     eq_model: &Model,
@@ -49,7 +50,7 @@ pub fn choose_by_validation(
     let (mut s_eq, mut s_ref) = (0.0, 0.0);
     let screened: Vec<Option<(f64, f64)>> = validation
         .par_iter()
-        .map(|r| noise_screen(eq_model, r, &opts))
+        .map(|r| ranking_screen(eq_model, r, &opts))
         .collect();
     for (r, screen) in validation.iter().zip(screened) {
         if let Some((spread, error)) = screen {

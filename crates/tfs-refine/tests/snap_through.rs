@@ -194,3 +194,45 @@ fn a_start_moved_by_the_noise_is_forgotten_when_damped_and_grows_when_chaotic() 
         "chaotic: start spread {s:.3e}, noise std {sigma:.3e}, motion RMS {motion:.3e}"
     );
 }
+
+#[test]
+fn the_free_run_probe_tells_a_diverging_run_from_a_wrong_model() {
+    // One probe for every command that asks whether a free run can rank models. A chaotic
+    // double well driven by a clean cosine (the input has no noise to draw): the true
+    // equation's own run parts from itself, so its error says nothing about the model and the
+    // probe says so by divergence, not by the input. A damped linear oscillator under a noisy
+    // sweep, simulated with a stiffness 20 % off: the error is the model's, far beyond what
+    // either spread moves the run, and the free run ranks.
+    let dt = 0.05;
+    let n = 4000;
+    let opts = tfs_dynamics::SimulateOptions::default();
+    let chaotic = model(&[("x", 1.0), ("x^3", -1.0), ("x'", -0.3), ("u", 1.0)]);
+    let u: Vec<f64> = (0..n).map(|k| 0.5 * (1.2 * k as f64 * dt).cos()).collect();
+    let noisy = measure("c", &chaotic, u.clone(), dt, 40.0, (0.0, 0.0), 7);
+    let rec = tfs_data::Record::new(
+        "c",
+        noisy.t().to_vec(),
+        vec![
+            ("x".into(), noisy.column("x").unwrap().to_vec()),
+            ("u".into(), u),
+        ],
+    )
+    .unwrap();
+    let run = tfs_dynamics::simulate_model_on_record(&chaotic, &rec, &opts).unwrap();
+    let p = tfs_refine::probe_free_run(&chaotic, &rec, &opts, &run)
+        .expect("the displacement has a noise floor to move the start by");
+    assert!(
+        p.diverges && !p.by_input && p.dominated(),
+        "chaotic: {p:?}"
+    );
+    assert_eq!(p.spread(), p.start_spread.as_deref());
+
+    let lin = model(&[("x", -4.0), ("x'", -0.4), ("u", 1.0)]);
+    let sw = Sweep::new(SweepKind::Linear, 0.05, 0.4, n as f64 * dt, 1.0, 10.0).unwrap();
+    let rec = measure("l", &lin, sample(&sw, n, dt), dt, 40.0, (0.0, 0.0), 8);
+    let off = model(&[("x", -4.8), ("x'", -0.4), ("u", 1.0)]);
+    let run = tfs_dynamics::simulate_model_on_record(&off, &rec, &opts).unwrap();
+    let p = tfs_refine::probe_free_run(&off, &rec, &opts, &run).expect("a noisy record");
+    assert!(!p.dominated(), "a wrong stiffness: {p:?}");
+    assert!(p.error[0] > 10.0 * p.noise_var[0].sqrt(), "{p:?}");
+}

@@ -185,7 +185,7 @@ impl RefineReport {
             && v.per_record.is_empty()
         {
             out.push(format!(
-                "  held-out records: all {} left out (their error is about their input's own noise, so they cannot rank the fits); kept the equation-error fit",
+                "  held-out records: all {} left out (their free runs cannot rank the fits: the input's own noise or the run's own divergence moves them about as far as their error); kept the equation-error fit",
                 v.noise_dominated.len()
             ));
         } else if let Some(v) = &self.validation {
@@ -201,7 +201,7 @@ impl RefineReport {
             ));
             if !v.noise_dominated.is_empty() {
                 out.push(format!(
-                    "  ({} held-out record(s) left out of that choice: their error is about their input's own noise)",
+                    "  ({} held-out record(s) left out of that choice: the input's own noise or the run's own divergence moves their free run about as far as its error)",
                     v.noise_dominated.len()
                 ));
             }

@@ -27,7 +27,8 @@ class Comparison:
     R-MSE), ``r_mse_mean_square`` (the paper's Appendix B ratio, over the mean square) and
     ``records`` (one dict per record as ``tfs compare --json`` gives its ``files``: ``path``,
     ``r_mse``, ``r_mse_mean_square``, per-DOF ``dofs`` with ``rms_error`` in the record's units
-    and ``input_noise_spread``, and ``error_is_input_noise``). Iterating over a Comparison, or
+    and ``input_noise_spread`` and ``start_spread``, ``error_is_input_noise`` and
+    ``run_diverges``). Iterating over a Comparison, or
     indexing it, gives those per-record dicts.
     """
 
@@ -92,6 +93,12 @@ class Comparison:
             lines.append(
                 f"{len(noise)} record(s) whose error is mostly the measured input's own noise"
                 " (it cannot rank models)"
+            )
+        apart = [r["path"] for r in self.records if r.get("run_diverges")]
+        if apart:
+            lines.append(
+                f"{len(apart)} record(s) whose run parts from itself from a start the record"
+                " cannot tell apart (it cannot rank models)"
             )
         return "\n".join(lines)
 

@@ -128,15 +128,21 @@ pub fn run(args: Args) -> Result<()> {
                 _ => None,
             };
             let noise = f["error_is_input_noise"].as_bool() == Some(true);
-            match (noise, pieces) {
-                (true, Some(p)) => println!(
-                    "  {path}: most of this error is the measured input's own noise (a fresh draw of it moves the simulation about as far), so the free run cannot rank models; {p}"
-                ),
-                (true, None) => println!(
-                    "  {path}: most of this error is the measured input's own noise (a fresh draw of it moves the simulation about as far): it cannot rank models"
-                ),
-                (false, Some(p)) => println!("  {path}: {p}"),
-                (false, None) => {}
+            let diverges = f["run_diverges"].as_bool() == Some(true);
+            let why = if noise {
+                Some("most of this error is the measured input's own noise (a fresh draw of it moves the simulation about as far)")
+            } else if diverges {
+                Some("the run parts from itself (run again from a start one displacement-noise standard deviation away, a start the record cannot tell apart, it ends about as far from this run as the record is)")
+            } else {
+                None
+            };
+            match (why, pieces) {
+                (Some(w), Some(p)) => {
+                    println!("  {path}: {w}, so the free run cannot rank models; {p}")
+                }
+                (Some(w), None) => println!("  {path}: {w}: it cannot rank models"),
+                (None, Some(p)) => println!("  {path}: {p}"),
+                (None, None) => {}
             }
         }
         if args.verbose {
