@@ -221,10 +221,7 @@ fn the_free_run_probe_tells_a_diverging_run_from_a_wrong_model() {
     let run = tfs_dynamics::simulate_model_on_record(&chaotic, &rec, &opts).unwrap();
     let p = tfs_refine::probe_free_run(&chaotic, &rec, &opts, &run)
         .expect("the displacement has a noise floor to move the start by");
-    assert!(
-        p.diverges && !p.by_input && p.dominated(),
-        "chaotic: {p:?}"
-    );
+    assert!(p.diverges && !p.by_input && p.dominated(), "chaotic: {p:?}");
     assert_eq!(p.spread(), p.start_spread.as_deref());
 
     let lin = model(&[("x", -4.0), ("x'", -0.4), ("u", 1.0)]);

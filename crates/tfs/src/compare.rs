@@ -106,7 +106,10 @@ pub fn score_with(model: &Model, record: &Record, horizon: Option<usize>) -> Res
         sum += r;
         sum_b += r_b;
         let s = spread.as_ref().map(|s| s[i]).filter(|v| v.is_finite());
-        let s0 = start_spread.as_ref().map(|s| s[i]).filter(|v| v.is_finite());
+        let s0 = start_spread
+            .as_ref()
+            .map(|s| s[i])
+            .filter(|v| v.is_finite());
         dofs.push(json!({"dof": dof, "r_mse": r, "r_mse_mean_square": r_b,
             "rms_error": rms, "input_noise_spread": s, "start_spread": s0}));
     }
@@ -118,7 +121,10 @@ pub fn score_with(model: &Model, record: &Record, horizon: Option<usize>) -> Res
             why: "pieces of the length asked for".into(),
         }),
         // The same verdict as the probe's: pieces where the free run cannot rank models.
-        None if probe.as_ref().is_some_and(tfs_refine::FreeRunProbe::dominated) => {
+        None if probe
+            .as_ref()
+            .is_some_and(tfs_refine::FreeRunProbe::dominated) =>
+        {
             tfs_diagnose::PredictionScore::pieces(model, record, &opts)
         }
         None => Ok(tfs_diagnose::PredictionScore::free_run()),

@@ -343,25 +343,9 @@ pub fn rescan_stop(
     };
     let below = matches!(stop.factors()[0], Factor::Below(..));
     let place = placement(&before.dofs, &libraries, v0, eq, below);
-    // The data's range of the stop's coordinate over every record; the stop's side of it is
-    // where a contact holds.
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for r in records {
-        let height = Term::new(vec![Factor::Pow(place.var.clone(), 1)]);
-        let Ok(col) = tfs_library::evaluate_term(&height, r) else {
-            return Ok(None);
-        };
-        for &x in &col {
-            lo = lo.min(x);
-            hi = hi.max(x);
-        }
-    }
-    let extreme = if below { lo } else { hi };
-    let span = hi - lo;
-    let reach = scan_reach(*c0, extreme, span, place.var == *v0);
-    if !(span > 0.0 && reach > 0.0 && reach.is_finite()) {
+    let Some(grid) = Grid::over(&place, records, below, *c0, v0) else {
         return Ok(None);
-    }
+    };
     let dofs: Vec<&str> = before.dofs.iter().map(String::as_str).collect();
     // Prepared once for the whole scan (untied); where that fails, each position's fit is left
     // to fail on its own, as it would.
@@ -377,73 +361,176 @@ pub fn rescan_stop(
         tie: tied.then(|| TieOptions::new(MassChoice::Given(crate::chain::fit_masses(before)))),
         prepared,
     };
-    // Positions to a decimal place about 1e-4 of the span, so the term's name is exact.
-    let places = (-(span * 1e-4).log10().floor()).clamp(0.0, 12.0) as usize;
-    let round = |c: f64| {
+    let (scored, tried) = grid.scan(&refit, &place, records);
+    if scored.is_empty() {
+        let why = format!(
+            "T-F-S kept no stop {}({}, c) pushing out of the contact at any position c from the data's extreme ({:.4}) to {:.4} in from it; the equation-error fit stays",
+            if below { "below" } else { "above" },
+            place.var,
+            grid.extreme,
+            2.0 * grid.reach
+        );
+        let report = StopRescan {
+            from: stop.to_string(),
+            to: stop.to_string(),
+            coef: f64::NAN,
+            kept: false,
+            positions: grid.coarse().len(),
+            why,
+        };
+        return Ok(Some((after.clone(), report)));
+    }
+    let Some(chosen) = simulate_shortlist(scored, after, records) else {
+        return Ok(None);
+    };
+    let report = chosen.report(&place, &stop, &grid, (tried, tied), records.len());
+    if !report.kept {
+        return Ok(Some((after.clone(), report)));
+    }
+    // The re-identified model keeps the loop's history, with one more rung.
+    let Chosen {
+        mut model, ours, ..
+    } = chosen;
+    let term = place.term(chosen.c);
+    model.history = after.history.clone();
+    let failed = ours.failed.clone();
+    model.history.push(HistoryEntry {
+        step: RESCAN_STEP.into(),
+        added: vec![term.to_string()],
+        r_mse: ours.each,
+        details: json!({"equations": model.equation_string(), "from": stop.to_string(), "why": report.why, "failed": failed}),
+    });
+    Ok(Some((model, report)))
+}
+
+/// The positions a stop is scanned at: from the data's extreme of its coordinate (`extreme`)
+/// inwards to twice `reach`, rounded to a decimal place about 1e-4 of the data's span so the
+/// term's name is exact.
+struct Grid {
+    extreme: f64,
+    reach: f64,
+    /// Toward the data: +1 for a stop below, −1 above.
+    dir: f64,
+    /// Decimal places of a position.
+    places: usize,
+}
+
+impl Grid {
+    /// The grid over the data's range of the stop's coordinate (`place.var`) over every record
+    /// (the stop's side of it is where a contact holds); `None` when a record lacks the
+    /// coordinate or the range gives no reach.
+    fn over(place: &Placement, records: &[Record], below: bool, c0: f64, v0: &Var) -> Option<Self> {
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for r in records {
+            let height = Term::new(vec![Factor::Pow(place.var.clone(), 1)]);
+            let col = tfs_library::evaluate_term(&height, r).ok()?;
+            for &x in &col {
+                lo = lo.min(x);
+                hi = hi.max(x);
+            }
+        }
+        let extreme = if below { lo } else { hi };
+        let span = hi - lo;
+        let reach = scan_reach(c0, extreme, span, place.var == *v0);
+        if !(span > 0.0 && reach > 0.0 && reach.is_finite()) {
+            return None;
+        }
+        Some(Self {
+            extreme,
+            reach,
+            dir: if below { 1.0 } else { -1.0 },
+            places: (-(span * 1e-4).log10().floor()).clamp(0.0, 12.0) as usize,
+        })
+    }
+
+    /// `c` rounded to the grid's decimal places.
+    fn round(&self, c: f64) -> f64 {
+        let places = self.places;
         let r: f64 = format!("{c:.places$}").parse().unwrap_or(c);
         r + 0.0
-    };
-    let dir = if below { 1.0 } else { -1.0 };
-    let step = 2.0 * reach / (GRID - 1) as f64;
-    let coarse: Vec<f64> = (0..GRID)
-        .map(|i| round(extreme + dir * step * i as f64))
-        .collect();
-    // Each kept position with its σ and the model T-F-S fitted there.
-    let scan = |cs: &[f64]| -> Vec<(f64, f64, Model)> {
-        use rayon::prelude::*;
-        cs.par_iter()
-            .filter_map(|&c| refit.at(&place, c, records).map(|(s, m)| (c, s, m)))
+    }
+
+    /// The coarse pass's step.
+    fn step(&self) -> f64 {
+        2.0 * self.reach / (GRID - 1) as f64
+    }
+
+    /// The coarse pass: `GRID` positions from the extreme inwards.
+    fn coarse(&self) -> Vec<f64> {
+        let step = self.step();
+        (0..GRID)
+            .map(|i| self.round(self.extreme + self.dir * step * i as f64))
             .collect()
-    };
-    let mut scored = scan(&coarse);
-    if scored.is_empty() {
-        return Ok(Some((
-            after.clone(),
-            StopRescan {
-                from: stop.to_string(),
-                to: stop.to_string(),
-                coef: f64::NAN,
-                kept: false,
-                positions: coarse.len(),
-                why: format!(
-                    "T-F-S kept no stop {}({}, c) pushing out of the contact at any position c from the data's extreme ({extreme:.4}) to {:.4} in from it; the equation-error fit stays",
-                    if below { "below" } else { "above" },
-                    place.var,
-                    2.0 * reach
-                ),
-            },
-        )));
     }
-    // Two finer passes, each over one step either side of the best so far: the second brings
-    // the step to about 1/300 of the coarse one, near the positions' rounding, so a stiff
-    // contact is placed as closely as a scan from the loop's own choice placed it.
-    let mut seen = coarse.clone();
-    let mut step = step;
-    for _ in 0..2 {
-        let Some(best) = scored
-            .iter()
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .map(|p| p.0)
-        else {
-            break;
+
+    /// T-F-S fitted with the stop at every position of the coarse pass, then of two finer
+    /// passes, each over one step either side of the best so far: the second brings the step to
+    /// about 1/300 of the coarse one, near the positions' rounding, so a stiff contact is placed
+    /// as closely as a scan from the loop's own choice placed it. Returns each kept position
+    /// with its σ and model, and how many positions were fitted.
+    fn scan(
+        &self,
+        refit: &Refit<'_>,
+        place: &Placement,
+        records: &[Record],
+    ) -> (Vec<(f64, f64, Model)>, usize) {
+        let fit = |cs: &[f64]| -> Vec<(f64, f64, Model)> {
+            use rayon::prelude::*;
+            cs.par_iter()
+                .filter_map(|&c| refit.at(place, c, records).map(|(s, m)| (c, s, m)))
+                .collect()
         };
-        let mut fine: Vec<f64> = (0..GRID)
-            .map(|i| round(best - step + 2.0 * step * i as f64 / (GRID - 1) as f64))
-            .filter(|c| dir * (c - extreme) >= 0.0 && !seen.contains(c))
-            .collect();
-        fine.dedup();
-        seen.extend(&fine);
-        scored.extend(scan(&fine));
-        step *= 2.0 / (GRID - 1) as f64;
+        let coarse = self.coarse();
+        let mut scored = fit(&coarse);
+        if scored.is_empty() {
+            return (scored, coarse.len());
+        }
+        let mut seen = coarse;
+        let mut step = self.step();
+        for _ in 0..2 {
+            let Some(best) = scored
+                .iter()
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .map(|p| p.0)
+            else {
+                break;
+            };
+            let mut fine: Vec<f64> = (0..GRID)
+                .map(|i| self.round(best - step + 2.0 * step * i as f64 / (GRID - 1) as f64))
+                .filter(|c| self.dir * (c - self.extreme) >= 0.0 && !seen.contains(c))
+                .collect();
+            fine.dedup();
+            seen.extend(&fine);
+            scored.extend(fit(&fine));
+            step *= 2.0 / (GRID - 1) as f64;
+        }
+        (scored, seen.len())
     }
-    // σ on one held-out record barely separates neighbouring positions, while T-F-S's term
-    // selection can jump between them; so the few positions with the lowest σ are each
-    // simulated on the records and the one that simulates them best is taken.
-    let tried = seen.len();
+}
+
+/// The shortlisted position that simulates the records best, beside the equation-error fit.
+struct Chosen {
+    c: f64,
+    sigma: f64,
+    model: Model,
+    ours: Scores,
+    theirs: Scores,
+    /// Positions with a kept fit.
+    positions: usize,
+}
+
+/// σ on one held-out record barely separates neighbouring positions, while T-F-S's term
+/// selection can jump between them; so the `SHORTLIST` positions of `scored` with the lowest σ
+/// are each simulated on the records (beside the equation-error fit `after`) and the one that
+/// simulates them best is taken (then the lower σ). `None` when `scored` is empty.
+fn simulate_shortlist(
+    mut scored: Vec<(f64, f64, Model)>,
+    after: &Model,
+    records: &[Record],
+) -> Option<Chosen> {
     let positions = scored.len();
     scored.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.total_cmp(&b.0)));
     scored.truncate(SHORTLIST);
-    // The shortlist's models and the equation-error fit simulated side by side.
     let (shortlist, theirs): (Vec<(f64, f64, Model, Scores)>, Scores) = rayon::join(
         || {
             use rayon::prelude::*;
@@ -457,64 +544,80 @@ pub fn rescan_stop(
         },
         || score(after, records),
     );
-    let Some((c, sigma, mut model, ours)) = shortlist.into_iter().min_by(|a, b| {
+    let (c, sigma, model, ours) = shortlist.into_iter().min_by(|a, b| {
         a.3.summary()
             .key()
             .partial_cmp(&b.3.summary().key())
             .unwrap_or(std::cmp::Ordering::Equal)
             .then(a.1.total_cmp(&b.1))
-    }) else {
-        return Ok(None);
-    };
-    let term = place.term(c);
-    let coef = model.equations[place.owner]
-        .terms
-        .iter()
-        .find(|t| t.term == term)
-        .map_or(f64::NAN, |t| t.coef);
-    // When neither model simulates any record (a chain whose other cell still falls through
-    // its fold), the simulations cannot choose; the re-identified model, with the stop where the
-    // model's own criterion puts it on the cell's height, is then used.
-    let none_simulate = ours.each.is_empty() && theirs.each.is_empty();
-    let kept = none_simulate || (!ours.each.is_empty() && ours.better_than(&theirs));
-    let n = records.len();
-    let why = format!(
-        "T-F-S{} with the stop {} at {} positions from the data's extreme ({extreme:.4}) to {:.4} in from it: of the {SHORTLIST} with the lowest held-out residual, c = {c} simulates the records best (σ = {sigma:.4}), stiffness {coef:.4e}; geometric-mean R-MSE {} against {} for the equation-error fit ({stop}), so {}",
-        if tied { " (tied)" } else { "" },
-        place.term(c),
+    })?;
+    Some(Chosen {
+        c,
+        sigma,
+        model,
+        ours,
+        theirs,
         positions,
-        2.0 * reach,
-        ours.describe(n),
-        theirs.describe(n),
-        if none_simulate {
-            "the simulations cannot choose and the re-identified model is used"
-        } else if kept {
-            "the re-identified model is used"
-        } else {
-            "the equation-error fit stays"
+    })
+}
+
+impl Chosen {
+    /// What the re-scan did, with whether the re-identified model replaces the equation-error
+    /// fit: when it simulates the records better, or when neither simulates any record (a chain
+    /// whose other cell still falls through its fold: the simulations cannot choose, and the
+    /// model with the stop where the model's own criterion puts it on the cell's height is used).
+    /// `tried` is how many positions were fitted, `tied` whether the chain is tied, `n` the
+    /// records.
+    fn report(
+        &self,
+        place: &Placement,
+        stop: &Term,
+        grid: &Grid,
+        (tried, tied): (usize, bool),
+        n: usize,
+    ) -> StopRescan {
+        let Self {
+            c,
+            sigma,
+            ours,
+            theirs,
+            positions,
+            ..
+        } = self;
+        let term = place.term(*c);
+        let coef = self.model.equations[place.owner]
+            .terms
+            .iter()
+            .find(|t| t.term == term)
+            .map_or(f64::NAN, |t| t.coef);
+        let none_simulate = ours.each.is_empty() && theirs.each.is_empty();
+        let kept = none_simulate || (!ours.each.is_empty() && ours.better_than(theirs));
+        let why = format!(
+            "T-F-S{} with the stop {} at {} positions from the data's extreme ({:.4}) to {:.4} in from it: of the {SHORTLIST} with the lowest held-out residual, c = {c} simulates the records best (σ = {sigma:.4}), stiffness {coef:.4e}; geometric-mean R-MSE {} against {} for the equation-error fit ({stop}), so {}",
+            if tied { " (tied)" } else { "" },
+            place.term(*c),
+            positions,
+            grid.extreme,
+            2.0 * grid.reach,
+            ours.describe(n),
+            theirs.describe(n),
+            if none_simulate {
+                "the simulations cannot choose and the re-identified model is used"
+            } else if kept {
+                "the re-identified model is used"
+            } else {
+                "the equation-error fit stays"
+            }
+        );
+        StopRescan {
+            from: stop.to_string(),
+            to: term.to_string(),
+            coef,
+            kept,
+            positions: tried,
+            why,
         }
-    );
-    let report = StopRescan {
-        from: stop.to_string(),
-        to: term.to_string(),
-        coef,
-        kept,
-        positions: tried,
-        why,
-    };
-    if !kept {
-        return Ok(Some((after.clone(), report)));
     }
-    // The re-identified model keeps the loop's history, with one more rung.
-    model.history = after.history.clone();
-    let failed = ours.failed.clone();
-    model.history.push(HistoryEntry {
-        step: RESCAN_STEP.into(),
-        added: vec![term.to_string()],
-        r_mse: ours.each,
-        details: json!({"equations": model.equation_string(), "from": stop.to_string(), "why": report.why, "failed": failed}),
-    });
-    Ok(Some((model, report)))
 }
 
 #[cfg(test)]

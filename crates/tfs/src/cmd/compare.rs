@@ -130,9 +130,13 @@ pub fn run(args: Args) -> Result<()> {
             let noise = f["error_is_input_noise"].as_bool() == Some(true);
             let diverges = f["run_diverges"].as_bool() == Some(true);
             let why = if noise {
-                Some("most of this error is the measured input's own noise (a fresh draw of it moves the simulation about as far)")
+                Some(
+                    "most of this error is the measured input's own noise (a fresh draw of it moves the simulation about as far)",
+                )
             } else if diverges {
-                Some("the run parts from itself (run again from a start one displacement-noise standard deviation away, a start the record cannot tell apart, it ends about as far from this run as the record is)")
+                Some(
+                    "the run parts from itself (run again from a start one displacement-noise standard deviation away, a start the record cannot tell apart, it ends about as far from this run as the record is)",
+                )
             } else {
                 None
             };
