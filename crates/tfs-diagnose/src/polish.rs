@@ -33,17 +33,66 @@ pub(crate) fn best_variant(
     base: &[Term],
     variants: &[Variant],
 ) -> Result<Option<Scored>> {
+    Ok(best_variant_with(states, layout, idx, base, variants, false)?.0)
+}
+
+/// [`best_variant`], and with `keep` every variant's score too ([`Scored::lean`], in the order
+/// of `variants`; empty without `keep`): what the shortlist of an effect whose parameter is
+/// chosen by simulation is taken from ([`crate::score::alternatives`]), so no variant is scored
+/// twice.
+pub(crate) fn best_variant_with(
+    states: &[RecordStates],
+    layout: &Layout,
+    idx: usize,
+    base: &[Term],
+    variants: &[Variant],
+    keep: bool,
+) -> Result<(Option<Scored>, Vec<Scored>)> {
     let score = |v: &Variant| score_variant(states, layout, idx, base, v);
-    let Some(best) = crate::stats::first_lowest(variants, &score, |s: &Scored| s.cv_rss)? else {
-        return Ok(None);
+    let (best, scanned) = if keep {
+        use rayon::prelude::*;
+        let all: Vec<Result<Scored>> = variants.par_iter().map(score).collect();
+        // The first error in order, as `first_lowest` returns it.
+        let mut all = all.into_iter().collect::<Result<Vec<Scored>>>()?;
+        let keys: Vec<f64> = all.iter().map(|s| s.cv_rss).collect();
+        let best = first_lowest_index(&keys).map(|k| {
+            let lean = all[k].lean_copy();
+            std::mem::replace(&mut all[k], lean)
+        });
+        let scanned = all.into_iter().map(Scored::lean).collect();
+        (best, scanned)
+    } else {
+        let best = crate::stats::first_lowest(variants, &score, |s: &Scored| s.cv_rss)?;
+        (best, Vec::new())
+    };
+    let Some(best) = best else {
+        return Ok((None, scanned));
     };
     // Every variant scored as fitting nothing (each a stop pulling into its contact,
     // `crate::score::score_variant`): the effect has no best variant.
     if best.cv_rss == f64::INFINITY {
-        return Ok(None);
+        return Ok((None, scanned));
     }
     let dt = states.first().map_or(0.0, |s| s.record.dt());
-    Ok(Some(polish(best, variants, &score, dt)?))
+    Ok((Some(polish(best, variants, &score, dt)?), scanned))
+}
+
+/// The index [`crate::stats::first_lowest`] chooses among items with these keys: the first,
+/// unless a later one's key is strictly lower; among the later ones the first of the lowest, a
+/// number lower than NaN there (but not against the first). `None` for no keys.
+fn first_lowest_index(keys: &[f64]) -> Option<usize> {
+    let (&first, rest) = keys.split_first()?;
+    let mut tail: Option<usize> = None;
+    for (k, &b) in rest.iter().enumerate() {
+        let replaces = |a: f64| b < a || (a.is_nan() && !b.is_nan());
+        if tail.is_none_or(|t| replaces(rest[t])) {
+            tail = Some(k);
+        }
+    }
+    Some(match tail {
+        Some(t) if rest[t] < first => t + 1,
+        _ => 0,
+    })
 }
 
 /// Most variants a refinement scores.
@@ -173,13 +222,18 @@ pub(crate) fn polish(
         bounds[0].0 = bounds[0].0.max(dt.ln());
     }
     let make = |v: &Variant, u: &[f64]| from_coords(&law, u).and_then(|l| with_law(v, l));
-    pattern_search(best, u, step, &bounds, &make, score)
+    pattern_search(best, variants, u, step, &bounds, &make, score)
 }
 
 /// The pattern search of the module docs from `best` at coordinates `u`: each coordinate moved
-/// by ± its step within `bounds`, `make` building the variant at new coordinates.
+/// by ± its step within `bounds`, `make` building the variant at new coordinates. A variant
+/// scored before — one of the `scanned` variants `best` was chosen from, or a point the search
+/// already tried (a step back to where it came from) — is counted as an evaluation but not
+/// scored again: its held-out RSS is not below the best's (the best is the lowest of everything
+/// scored so far, and a point is taken only when strictly lower), so it would not be taken.
 fn pattern_search(
     best: Scored,
+    scanned: &[Variant],
     mut u: Vec<f64>,
     mut step: Vec<f64>,
     bounds: &[(f64, f64)],
@@ -188,6 +242,7 @@ fn pattern_search(
 ) -> Result<Scored> {
     let mut best = best;
     let mut evals = 0;
+    let mut seen: Vec<Variant> = scanned.to_vec();
     for _level in 0..3 {
         loop {
             let mut improved = false;
@@ -205,7 +260,11 @@ fn pattern_search(
                         continue;
                     };
                     evals += 1;
+                    if seen.contains(&v) {
+                        continue;
+                    }
                     let s = score(&v)?;
+                    seen.push(v);
                     if s.cv_rss < best.cv_rss {
                         best = s;
                         u = trial;
@@ -305,12 +364,89 @@ fn polish_input(
         let value = round3(u[0].exp());
         (value > 0.0).then(|| input_variant(&inputs, parameter, value, added))
     };
-    pattern_search(best, vec![u0], vec![step], &[(lo, hi)], &make, score)
+    pattern_search(
+        best,
+        variants,
+        vec![u0],
+        vec![step],
+        &[(lo, hi)],
+        &make,
+        score,
+    )
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::design::{Cv, Design};
+
+    /// The index chosen from the keys is the item `first_lowest` returns, over ties, NaN first,
+    /// NaN later, infinities and one item.
+    #[test]
+    fn the_first_lowest_index_is_first_lowest_s_choice() {
+        let nan = f64::NAN;
+        let cases: Vec<Vec<f64>> = vec![
+            vec![3.0, 1.0, 2.0, 1.0],
+            vec![1.0, 1.0, 0.5, 0.5],
+            vec![nan, 2.0, 1.0],
+            vec![2.0, nan, 3.0, nan, 1.5],
+            vec![nan, nan, 4.0, 4.0],
+            vec![f64::INFINITY, f64::INFINITY, 7.0],
+            vec![5.0],
+            vec![0.5, 0.7, nan],
+        ];
+        for keys in cases {
+            let items: Vec<usize> = (0..keys.len()).collect();
+            let score = |&i: &usize| -> std::result::Result<usize, ()> { Ok(i) };
+            let want = crate::stats::first_lowest(&items, &score, |&i| keys[i]).unwrap();
+            assert_eq!(first_lowest_index(&keys), want, "{keys:?}");
+        }
+        assert_eq!(first_lowest_index(&[]), None);
+    }
+
+    /// The pattern search never scores a variant twice, nor one of the scanned variants it
+    /// started from, and still ends at the lowest point of a bowl in `ln τ` (a step back to
+    /// where it came from is counted but not scored).
+    #[test]
+    fn the_pattern_search_scores_each_variant_once() {
+        let maxwell = |tau: f64| {
+            let term = Term::new(vec![Factor::State(
+                tfs_library::Var::Vel("x".into()),
+                StateLaw::Maxwell { tau },
+            )]);
+            Variant::adding(Some(("tau".into(), tau)), vec![EffectColumn::term(term)])
+        };
+        let target = 2.5f64.ln();
+        let scored = std::sync::Mutex::new(Vec::<Variant>::new());
+        let score = |v: &Variant| -> Result<Scored> {
+            scored.lock().unwrap().push(v.clone());
+            let tau = v.parameter.as_ref().unwrap().1;
+            Ok(Scored {
+                variant: v.clone(),
+                cols: v.add.clone(),
+                main: Some(0),
+                blocks: Vec::new(),
+                design: Design::empty(),
+                cv: Cv {
+                    coefs: Vec::new(),
+                    heldout: Vec::new(),
+                },
+                cv_rss: (tau.ln() - target).powi(2),
+            })
+        };
+        let grid: Vec<Variant> = [0.3, 1.0, 3.0, 10.0].into_iter().map(maxwell).collect();
+        let best = score(&grid[2]).unwrap();
+        scored.lock().unwrap().clear();
+        let out = polish(best, &grid, &score, 0.01).unwrap();
+        let scored = scored.into_inner().unwrap();
+        for (i, v) in scored.iter().enumerate() {
+            assert!(!grid.contains(v), "a scanned variant scored again: {v:?}");
+            assert!(!scored[..i].contains(v), "scored twice: {v:?}");
+        }
+        assert!(!scored.is_empty());
+        let tau = out.variant.parameter.unwrap().1;
+        assert!((tau.ln() - target).abs() < 0.07, "ends at {tau}");
+    }
 
     /// A stop whose fit pulls into its contact is refused by the scoring, so the stop effect has
     /// no best variant on data whose force past the stop pulls further out (a softening kink).

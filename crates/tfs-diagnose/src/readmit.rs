@@ -25,7 +25,7 @@ use tfs_library::{Factor, Model, Term, Var};
 
 use crate::Result;
 use crate::effects::Variant;
-use crate::polish::best_variant;
+use crate::polish::best_variant_with;
 use crate::prepare::{Layout, RecordStates};
 use crate::score::{Scored, score_variant};
 use crate::stats::paired_drop_p_value;
@@ -65,6 +65,9 @@ pub(crate) struct Readmitted {
     /// The start equation with the kept terms and no effect: what the effect is tested against
     /// (`None` when nothing was kept).
     pub reference: Option<Scored>,
+    /// Asked for with `keep`: every one of the effect's variants scored on the equation with
+    /// the kept terms ([`Scored::lean`], in the variants' order; empty otherwise).
+    pub scanned: Vec<Scored>,
 }
 
 /// True when `term` may be offered beside variant `v`: not already one of its columns, and not
@@ -87,16 +90,18 @@ pub(crate) fn offerable(term: &Term, s: &Scored) -> bool {
 
 /// The best variant of an effect with `variants` on the equation of DOF `idx` (terms `base`),
 /// with the module's re-admission of the `left_out` library terms at level `alpha`; `None` when
-/// no variant could be scored.
+/// no variant could be scored. With `keep`, every variant's score on the final equation is
+/// returned too ([`Readmitted::scanned`]).
 pub(crate) fn best_with_library(
     states: &[RecordStates],
     layout: &Layout,
     (idx, base): (usize, &[Term]),
     variants: &[Variant],
     left_out: &[Term],
-    alpha: f64,
+    (alpha, keep): (f64, bool),
 ) -> Result<Option<Readmitted>> {
-    let Some(best) = best_variant(states, layout, idx, base, variants)? else {
+    let (best, scanned) = best_variant_with(states, layout, idx, base, variants, keep)?;
+    let Some(best) = best else {
         return Ok(None);
     };
     let mut kept: Vec<Term> = Vec::new();
@@ -145,11 +150,12 @@ pub(crate) fn best_with_library(
             scored: current,
             terms: kept,
             reference: None,
+            scanned,
         }));
     }
     let mut terms = base.to_vec();
     terms.extend(kept.iter().cloned());
-    let rescanned = best_variant(states, layout, idx, &terms, variants)?;
+    let (rescanned, scanned) = best_variant_with(states, layout, idx, &terms, variants, keep)?;
     let scored = match rescanned {
         Some(s) if s.cv_rss <= current.cv_rss => s,
         _ => current,
@@ -165,5 +171,6 @@ pub(crate) fn best_with_library(
         scored,
         terms: kept,
         reference: Some(reference),
+        scanned,
     }))
 }

@@ -344,7 +344,15 @@ fn add(
         let left_out = crate::readmit::left_out(model, idx);
         let eq = (idx, base.as_slice());
         let readmit = crate::readmit::best_with_library;
-        let Some(re) = readmit(&states, &layout, eq, &variants, &left_out, opts.alpha)? else {
+        let Some(re) = readmit(
+            &states,
+            &layout,
+            eq,
+            &variants,
+            &left_out,
+            (opts.alpha, false),
+        )?
+        else {
             continue;
         };
         let best = re.scored;

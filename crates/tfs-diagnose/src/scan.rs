@@ -158,7 +158,8 @@ pub(crate) fn analyse(
 ) -> Result<Option<Raw>> {
     let eq = (d.idx, d.base_terms.as_slice());
     let readmit = crate::readmit::best_with_library;
-    let Some(re) = readmit(states, layout, eq, vars, &d.left_out, opts.alpha)? else {
+    let keep = by_simulation;
+    let Some(re) = readmit(states, layout, eq, vars, &d.left_out, (opts.alpha, keep))? else {
         return Ok(None);
     };
     let s = re.scored;
@@ -209,9 +210,7 @@ pub(crate) fn analyse(
     let share = (diff2 / rows.max(1) as f64).sqrt() / d.acc_rms.max(f64::MIN_POSITIVE);
     let (coef, interval) = main_coefficient(&s, &coef_c, opts)?;
     let alternatives = if by_simulation {
-        let mut terms = d.base_terms.clone();
-        terms.extend(re.terms.iter().cloned());
-        crate::score::alternatives(states, layout, d.idx, &terms, (vars, &s.variant), opts)?
+        crate::score::alternatives(re.scanned, &s.variant, opts)?
     } else {
         Vec::new()
     };

@@ -51,6 +51,22 @@ impl Scored {
             ..self
         }
     }
+
+    /// A copy of [`Scored::lean`]'s, leaving this one whole.
+    pub(crate) fn lean_copy(&self) -> Self {
+        Self {
+            variant: self.variant.clone(),
+            cols: self.cols.clone(),
+            main: self.main,
+            blocks: self.blocks.clone(),
+            design: Design::empty(),
+            cv: Cv {
+                coefs: self.cv.coefs.clone(),
+                heldout: self.cv.heldout.clone(),
+            },
+            cv_rss: self.cv_rss,
+        }
+    }
 }
 
 /// Scores variant `v` on the equation of DOF `idx` with the terms `base`.
@@ -137,23 +153,19 @@ pub(crate) struct Alternative {
     pub interval: [f64; 2],
 }
 
-/// The variants of `variants` other than `chosen`, scored on the equation of DOF `idx` with the
-/// terms `terms`, the [`SHORTLIST`]` − 1` with the lowest held-out residual first (ties in the
-/// catalogue's order), each with its main coefficient and interval.
+/// The variants other than `chosen` among `scanned` (every variant of an effect scored on one
+/// equation, [`crate::polish::best_variant_with`]), the [`SHORTLIST`]` − 1` with the lowest
+/// held-out residual first (ties in the catalogue's order), each with its main coefficient and
+/// interval.
 pub(crate) fn alternatives(
-    states: &[RecordStates],
-    layout: &Layout,
-    idx: usize,
-    terms: &[Term],
-    (variants, chosen): (&[Variant], &Variant),
+    scanned: Vec<Scored>,
+    chosen: &Variant,
     opts: &DiagnoseOptions,
 ) -> Result<Vec<Alternative>> {
-    use rayon::prelude::*;
-    let mut scored: Vec<Scored> = variants
-        .par_iter()
-        .filter(|v| *v != chosen)
-        .map(|v| score_variant(states, layout, idx, terms, v).map(Scored::lean))
-        .collect::<Result<_>>()?;
+    let mut scored: Vec<Scored> = scanned
+        .into_iter()
+        .filter(|s| s.variant != *chosen)
+        .collect();
     scored.retain(|s| s.cv_rss.is_finite());
     scored.sort_by(|a, b| a.cv_rss.total_cmp(&b.cv_rss));
     scored.truncate(SHORTLIST.saturating_sub(1));
