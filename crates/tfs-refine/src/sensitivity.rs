@@ -291,8 +291,9 @@ pub fn displacement_noise_var(model: &Model, record: &Record) -> Vec<f64> {
 /// What one free run of a model on a record can say about the model: whether the record's own
 /// uncertainty moves that run about as far as its error, so that its free-run error cannot rank
 /// models or coefficients there ([`FreeRunProbe::dominated`]). One probe for every command that
-/// asks (the diagnosis's judge, `compare`, refinement's screen and its validation), so they give
-/// one verdict on one record.
+/// asks (the diagnosis's judge, `compare`, refinement's held-out choice), so they give one
+/// verdict on one record; refinement's training records are screened by the input's spread
+/// alone (`refine.rs`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct FreeRunProbe {
     /// Per DOF, the free run's RMS error against the measured displacement (infinite where it

@@ -25,8 +25,7 @@ pub struct ValidationScores {
     /// Validation records left out of the choice because the first model's free run there
     /// cannot rank models ([`crate::probe_free_run`]: their input's noise or the run's own
     /// divergence accounts for its error); (source name, spread that decided, error), RMS over
-    /// DOFs. With every record left out, the first model
-    /// is kept.
+    /// DOFs. With every record left out, the first model is kept.
     pub noise_dominated: Vec<(String, f64, f64)>,
 }
 
